@@ -1,0 +1,333 @@
+"""The scene as data: one object on a ground plane, one rectangular area light, one camera.
+
+A `Scene` mirrors the JSON scene file (version 1) key for key. It is immutable: an edit
+makes a new scene with `dataclasses.replace`, which lets undo keep old scenes and lets the
+live engine see exactly which part changed.
+
+Fixed set-up (paper section 3.1): white area light, ambient light, focal length 40 mm on a
+36 mm sensor, camera at a fixed distance looking at the scene centre, diffuse object,
+slightly specular floor. World axes: y up, the floor is the plane y = 0, the camera sits
+on the +z side of the scene at azimuth 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from renderer.errors import InputError
+from renderer.io import load_json, save_json
+
+SCENE_VERSION = 1
+
+# Fixed set-up, in world units (the object is normalised to a unit box).
+OBJECT_SIZE = 1.0  # longest side of a normalised object's bounding box
+CAMERA_DISTANCE = 2.8  # from the look-at point
+LOOK_AT = (0.0, 0.5, 0.0)  # scene centre the camera looks at
+FOCAL_MM = 40.0
+SENSOR_MM = 36.0  # sensor width (and height: images are square)
+LIGHT_SIZE = 1.0  # side of the square area light, facing down
+GRID_SIZE = 128  # voxels per side of the camera-aligned scene grid
+GRID_EXTENT = 2.56  # world units per side of that grid (one voxel = 0.02)
+
+# Training ranges (paper section 4.1); values outside are accepted with a warning.
+ELEVATION_RANGE = (5.0, 50.0)
+TRANSLATION_RANGE = (-0.5, 0.5)
+LIGHT_XZ_RANGE = (-1.5, 1.5)
+LIGHT_Y_RANGE = (2.5, 3.0)
+SCALE_RANGE = (0.75, 1.25)
+
+# Hard limits; values outside them are impossible and rejected.
+MIN_IMAGE_SIZE = 16
+MAX_IMAGE_SIZE = 4096
+MIN_RESOLUTION = 4
+MAX_RESOLUTION = 256
+MAX_ABS_POSITION = 100.0
+
+
+@dataclass(frozen=True)
+class PaintOp:
+    """One bucket-fill stroke, replayed in order on the object's voxels.
+
+    target "region": fill the 6-connected region of similar color around `seed` (an index
+    into the object's own N^3 grid, so the stroke survives moves); "object": the whole
+    object; "floor": the floor color.
+    """
+
+    target: str
+    color: tuple[float, float, float]
+    seed: tuple[int, int, int] | None = None
+    tolerance: float = 0.1
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    mesh: str | None = None  # path relative to the scene file
+    up: str = "y"
+    resolution: int = 100
+    color: tuple[float, float, float] | None = None  # None: the mesh's own colors
+    translation: tuple[float, float] = (0.0, 0.0)  # world x and z
+    rotation_deg: float = 0.0  # about the vertical axis
+    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    voxels: str | None = None  # optional .npz of RGBA object voxels (e.g. captured colors)
+
+
+@dataclass(frozen=True)
+class FloorSpec:
+    color: tuple[float, float, float] = (0.53, 0.64, 0.78)
+
+
+@dataclass(frozen=True)
+class LightSpec:
+    position: tuple[float, float, float] = (1.0, 2.75, 0.5)
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    elevation_deg: float = 30.0
+
+
+@dataclass(frozen=True)
+class Scene:
+    object: ObjectSpec = field(default_factory=ObjectSpec)
+    floor: FloorSpec = field(default_factory=FloorSpec)
+    light: LightSpec = field(default_factory=LightSpec)
+    camera: CameraSpec = field(default_factory=CameraSpec)
+    image_size: int = 256
+    paint: tuple[PaintOp, ...] = ()
+    base_dir: Path = field(default=Path("."), compare=False)  # where relative paths start
+
+    def mesh_path(self) -> Path | None:
+        """Absolute path of the object's mesh, or None."""
+        return None if self.object.mesh is None else (self.base_dir / self.object.mesh)
+
+    def voxels_path(self) -> Path | None:
+        return None if self.object.voxels is None else (self.base_dir / self.object.voxels)
+
+    def with_changes(self, **parts: Any) -> Scene:
+        """A copy with whole parts replaced, validated (e.g. `light=LightSpec((0, 3, 0))`)."""
+        scene = replace(self, **parts)
+        validate(scene)
+        return scene
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form (version 1); keys that are None are left out."""
+        obj = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.object).items() if v is not None}
+        data: dict[str, Any] = {
+            "version": SCENE_VERSION,
+            "object": obj,
+            "floor": {"color": list(self.floor.color)},
+            "light": {"position": list(self.light.position)},
+            "camera": {"elevation_deg": self.camera.elevation_deg},
+            "image_size": self.image_size,
+        }
+        if self.paint:
+            data["paint"] = [_paint_to_dict(op) for op in self.paint]
+        return data
+
+
+def _paint_to_dict(op: PaintOp) -> dict[str, Any]:
+    d: dict[str, Any] = {"target": op.target, "color": list(op.color)}
+    if op.seed is not None:
+        d["seed"] = list(op.seed)
+    if op.target == "region":
+        d["tolerance"] = op.tolerance
+    return d
+
+
+# --- parsing -------------------------------------------------------------------------------
+
+
+class _Reader:
+    """Typed access to a JSON dict that reports problems as 'file: key: problem'."""
+
+    def __init__(self, path: Path | None):
+        self.path = path
+
+    def fail(self, key: str, problem: str) -> InputError:
+        return InputError(f"{key}: {problem}", self.path)
+
+    def section(self, data: dict, key: str, required: bool = False) -> dict:
+        if key not in data:
+            if required:
+                raise self.fail(key, "missing")
+            return {}
+        value = data[key]
+        if not isinstance(value, dict):
+            raise self.fail(key, f"must be an object, got {type(value).__name__}")
+        return value
+
+    def number(self, data: dict, key: str, name: str, default: float) -> float:
+        value = data.get(key, default)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(name, f"must be a number, got {json_type(value)}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(name, "must be finite")
+        return value
+
+    def vector(self, data: dict, key: str, name: str, length: int, default: tuple) -> tuple:
+        value = data.get(key, default)
+        if not isinstance(value, (list, tuple)) or len(value) != length:
+            raise self.fail(name, f"must be a list of {length} numbers")
+        out = []
+        for i, v in enumerate(value):
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise self.fail(f"{name}[{i}]", f"must be a number, got {json_type(v)}")
+            if not math.isfinite(float(v)):
+                raise self.fail(f"{name}[{i}]", "must be finite")
+            out.append(float(v))
+        return tuple(out)
+
+    def string(self, data: dict, key: str, name: str, default: str | None) -> str | None:
+        value = data.get(key, default)
+        if value is not None and not isinstance(value, str):
+            raise self.fail(name, f"must be a string, got {json_type(value)}")
+        return value
+
+
+def json_type(value: Any) -> str:
+    return {dict: "object", list: "list", str: "string", bool: "boolean", type(None): "null"}.get(
+        type(value), type(value).__name__
+    )
+
+
+def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
+    """Build and validate a Scene from its JSON form; problems raise InputError naming `path`."""
+    path = None if path is None else Path(path)
+    r = _Reader(path)
+    if not isinstance(data, dict):
+        raise InputError("a scene file must hold a JSON object", path)
+    version = data.get("version")
+    if version != SCENE_VERSION:
+        raise r.fail("version", f"unsupported scene version {version!r} (expected {SCENE_VERSION})")
+    o = r.section(data, "object", required=True)
+    resolution = o.get("resolution", 100)
+    if isinstance(resolution, bool) or not isinstance(resolution, int):
+        raise r.fail("object.resolution", f"must be an integer, got {json_type(resolution)}")
+    up = r.string(o, "up", "object.up", "y")
+    color = None if o.get("color") is None else r.vector(o, "color", "object.color", 3, (0, 0, 0))
+    obj = ObjectSpec(
+        mesh=r.string(o, "mesh", "object.mesh", None),
+        up=up,
+        resolution=resolution,
+        color=color,
+        translation=r.vector(o, "translation", "object.translation", 2, (0.0, 0.0)),
+        rotation_deg=r.number(o, "rotation_deg", "object.rotation_deg", 0.0),
+        scale=r.vector(o, "scale", "object.scale", 3, (1.0, 1.0, 1.0)),
+        voxels=r.string(o, "voxels", "object.voxels", None),
+    )
+    floor = FloorSpec(r.vector(r.section(data, "floor"), "color", "floor.color", 3, FloorSpec().color))
+    light = LightSpec(r.vector(r.section(data, "light"), "position", "light.position", 3, LightSpec().position))
+    camera = CameraSpec(r.number(r.section(data, "camera"), "elevation_deg", "camera.elevation_deg", 30.0))
+    image_size = data.get("image_size", 256)
+    if isinstance(image_size, bool) or not isinstance(image_size, int):
+        raise r.fail("image_size", f"must be an integer, got {json_type(image_size)}")
+    paint_data = data.get("paint", [])
+    if not isinstance(paint_data, list):
+        raise r.fail("paint", "must be a list of fill operations")
+    paint = []
+    for i, p in enumerate(paint_data):
+        name = f"paint[{i}]"
+        if not isinstance(p, dict):
+            raise r.fail(name, "must be an object")
+        seed = p.get("seed")
+        if seed is not None:
+            if not isinstance(seed, list) or len(seed) != 3 or not all(isinstance(s, int) and not isinstance(s, bool) for s in seed):
+                raise r.fail(f"{name}.seed", "must be a list of 3 integers")
+            seed = tuple(seed)
+        paint.append(
+            PaintOp(
+                target=r.string(p, "target", f"{name}.target", "region"),
+                color=r.vector(p, "color", f"{name}.color", 3, (0, 0, 0)),
+                seed=seed,
+                tolerance=r.number(p, "tolerance", f"{name}.tolerance", 0.1),
+            )
+        )
+    base_dir = path.parent if path is not None else Path(".")
+    scene = Scene(obj, floor, light, camera, image_size, tuple(paint), base_dir)
+    validate(scene, path)
+    return scene
+
+
+def validate(scene: Scene, path: str | Path | None = None) -> None:
+    """Raise InputError for impossible values (NaN, scale <= 0, light at or below the floor, ...)."""
+
+    def fail(key: str, problem: str) -> InputError:
+        return InputError(f"{key}: {problem}", path)
+
+    o = scene.object
+    values = [*o.translation, o.rotation_deg, *o.scale, *scene.light.position, scene.camera.elevation_deg]
+    if not all(math.isfinite(v) for v in values):
+        raise InputError("scene holds a NaN or infinite value", path)
+    if o.up not in ("y", "z"):
+        raise fail("object.up", f'must be "y" or "z", got {o.up!r}')
+    if not MIN_RESOLUTION <= o.resolution <= MAX_RESOLUTION:
+        raise fail("object.resolution", f"must be in [{MIN_RESOLUTION}, {MAX_RESOLUTION}], got {o.resolution}")
+    if o.mesh is None and o.voxels is None:
+        raise fail("object", "needs a mesh or a voxels file")
+    if any(s <= 0 for s in o.scale):
+        raise fail("object.scale", f"must be positive, got {list(o.scale)}")
+    if any(abs(t) > MAX_ABS_POSITION for t in o.translation):
+        raise fail("object.translation", f"must be within +-{MAX_ABS_POSITION}")
+    for key, color in (("object.color", o.color), ("floor.color", scene.floor.color)):
+        if color is not None and not all(0.0 <= c <= 1.0 for c in color):
+            raise fail(key, f"sRGB values must be in [0, 1], got {list(color)}")
+    lx, ly, lz = scene.light.position
+    if ly <= 0.0:
+        raise fail("light.position", f"the light must be above the floor (y > 0), got y = {ly}")
+    if max(abs(lx), abs(ly), abs(lz)) > MAX_ABS_POSITION:
+        raise fail("light.position", f"must be within +-{MAX_ABS_POSITION}")
+    if not 0.0 <= scene.camera.elevation_deg < 90.0:
+        raise fail("camera.elevation_deg", f"must be in [0, 90), got {scene.camera.elevation_deg}")
+    if not MIN_IMAGE_SIZE <= scene.image_size <= MAX_IMAGE_SIZE:
+        raise fail("image_size", f"must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {scene.image_size}")
+    for i, op in enumerate(scene.paint):
+        if op.target not in ("region", "object", "floor"):
+            raise fail(f"paint[{i}].target", f'must be "region", "object" or "floor", got {op.target!r}')
+        if op.target == "region" and op.seed is None:
+            raise fail(f"paint[{i}].seed", "a region fill needs a seed voxel")
+        if not all(0.0 <= c <= 1.0 for c in op.color):
+            raise fail(f"paint[{i}].color", "sRGB values must be in [0, 1]")
+        if not 0.0 <= op.tolerance <= 1.0:
+            raise fail(f"paint[{i}].tolerance", "must be in [0, 1]")
+
+
+def range_warnings(scene: Scene) -> list[str]:
+    """One message per value outside the paper's training range (accepted, but the network extrapolates)."""
+    out = []
+
+    def check(name: str, value: float, lo: float, hi: float) -> None:
+        if not lo <= value <= hi:
+            out.append(f"{name} = {value:g} is outside the training range [{lo:g}, {hi:g}]")
+
+    check("camera.elevation_deg", scene.camera.elevation_deg, *ELEVATION_RANGE)
+    for name, v in zip(("x", "z"), scene.object.translation):
+        check(f"object.translation.{name}", v, *TRANSLATION_RANGE)
+    for name, v in zip("xyz", scene.object.scale):
+        check(f"object.scale.{name}", v, *SCALE_RANGE)
+    lx, ly, lz = scene.light.position
+    check("light.position.x", lx, *LIGHT_XZ_RANGE)
+    check("light.position.y", ly, *LIGHT_Y_RANGE)
+    check("light.position.z", lz, *LIGHT_XZ_RANGE)
+    return out
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate a scene file (format version 1)."""
+    return scene_from_dict(load_json(path), path)
+
+
+def save_scene(scene: Scene, path: str | Path) -> None:
+    """Write a scene file atomically; mesh and voxel paths are rewritten relative to its folder."""
+    import os
+
+    folder = Path(path).resolve().parent
+    obj = scene.object
+    rebased = {
+        key: None if value is None else os.path.relpath((scene.base_dir / value).resolve(), folder)
+        for key, value in (("mesh", obj.mesh), ("voxels", obj.voxels))
+    }
+    save_json(path, replace(scene, object=replace(obj, **rebased)).to_dict())
