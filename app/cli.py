@@ -1,0 +1,213 @@
+"""`nvr`: the command line of NVR Studio. Thin: parse arguments, call renderer/ and models/, print.
+
+Every user error (bad file, impossible value) prints one line and exits with code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from renderer.errors import InputError
+
+EXIT_USER_ERROR = 2
+
+
+def _output_path(path: str, force: bool) -> Path:
+    from renderer.io import check_writable
+
+    return check_writable(path, overwrite=force)
+
+
+def _warn(messages: list[str]) -> None:
+    for message in messages:
+        print(f"warning: {message}", file=sys.stderr)
+
+
+# --- nvr render ---------------------------------------------------------------------------
+
+
+def cmd_render(args: argparse.Namespace) -> None:
+    from renderer.io import save_png
+    from renderer.scene import load_scene, range_warnings
+
+    scene = load_scene(args.scene)
+    out = _output_path(args.output, args.force)
+    _warn(range_warnings(scene))
+    size = args.size or scene.image_size
+    if args.size is not None and args.size < 16:
+        raise InputError(f"--size must be at least 16, got {args.size}")
+    start = time.perf_counter()
+    if args.renderer == "splat":
+        image, detail = _render_splat(scene, size)
+    elif args.renderer == "pathtrace":
+        image, detail = _render_pathtrace(scene, size, args)
+    else:
+        image, detail = _render_network(scene, size, args)
+    elapsed = time.perf_counter() - start
+    save_png(out, image)
+    print(f"wrote {out} ({size}x{size}, {args.renderer}{detail}, {elapsed:.2f} s)")
+
+
+def _render_splat(scene, size: int):
+    from renderer.pipeline import object_voxels, painted_voxels
+    from renderer.splat import splat_scene
+
+    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+    return splat_scene(scene, rgba, floor_color, size=size), ""
+
+
+def _render_pathtrace(scene, size: int, args: argparse.Namespace):
+    from renderer.pathtrace import render_pathtraced
+    from renderer.pipeline import object_mesh
+
+    result = render_pathtraced(scene, object_mesh(scene), size=size, spp=args.spp, seed=args.seed, denoise=args.denoise)
+    denoised = ", OIDN" if args.denoise else ""
+    return result.image, f", mitsuba {result.variant}, {args.spp} spp{denoised}"
+
+
+def _render_network(scene, size: int, args: argparse.Namespace):
+    from models.engine import RenderEngine
+
+    engine = RenderEngine.load(args.model, kind=args.renderer)
+    if size != engine.output_size:
+        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {size} is not supported")
+    image = engine.render(scene)
+    return image, f", model {engine.model_name}"
+
+
+# --- nvr voxelize / info ------------------------------------------------------------------
+
+
+def cmd_voxelize(args: argparse.Namespace) -> None:
+    from renderer.mesh import load_mesh
+    from renderer.voxels import save_voxels, voxelize
+
+    out = _output_path(args.output, args.force)
+    if not 4 <= args.res <= 256:
+        raise InputError(f"--res must be in [4, 256], got {args.res}")
+    mesh = load_mesh(args.mesh, up=args.up)
+    rgba = voxelize(mesh, resolution=args.res)
+    save_voxels(out, rgba)
+    occupied = int((rgba[..., 3] > 0.5).sum())
+    print(f"wrote {out} ({args.res}^3 voxels, {occupied} occupied, from {len(mesh.faces)} faces)")
+
+
+def cmd_info(args: argparse.Namespace) -> None:
+    from renderer.pipeline import object_voxels, painted_voxels, scene_grid_for
+
+    from renderer.scene import load_scene, range_warnings
+
+    scene = load_scene(args.scene)
+    o = scene.object
+    print(f"scene      {args.scene}")
+    print(f"object     {o.voxels or o.mesh} (up {o.up}, {o.resolution}^3 voxels)")
+    print(f"  color    {'mesh colors' if o.color is None else list(o.color)}; {len(scene.paint)} paint operations")
+    print(f"  placed   translation {list(o.translation)}, rotation {o.rotation_deg:g} deg, scale {list(o.scale)}")
+    print(f"floor      color {list(scene.floor.color)}")
+    print(f"light      position {list(scene.light.position)}")
+    print(f"camera     elevation {scene.camera.elevation_deg:g} deg; image {scene.image_size}x{scene.image_size}")
+    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+    grid = scene_grid_for(scene, rgba, floor_color)
+    object_count = int((rgba[..., 3] > 0.5).sum())
+    grid_count = int((grid[..., 3] > 0.5).sum())
+    print(f"voxels     object {object_count} of {rgba.shape[0]}^3; scene grid {grid_count} of {grid.shape[0]}^3 occupied")
+    warnings = range_warnings(scene)
+    print("training   all values inside the training ranges" if not warnings else "training   outside the training ranges:")
+    for message in warnings:
+        print(f"  - {message}")
+
+
+# --- nvr data ----------------------------------------------------------------------------
+
+
+def cmd_data_generate(args: argparse.Namespace) -> None:
+    from renderer.dataset import DataConfig, generate_dataset, parse_shard
+
+    config = DataConfig(
+        setting=args.setting, split=args.split, objects=args.objects, views=args.views, size=args.size,
+        spp=args.spp, denoise=not args.no_denoise, seed=args.seed,
+        categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), resolution=args.res,
+    )
+    manifest = generate_dataset(args.out, config, shard=parse_shard(args.shard), workers=args.workers)
+    print(f"wrote {manifest}")
+
+
+def cmd_data_merge(args: argparse.Namespace) -> None:
+    from renderer.dataset import merge_datasets
+
+    print(f"wrote {merge_datasets(args.out, args.parts)}")
+
+
+# --- parser ---------------------------------------------------------------------------------
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="nvr", description="NVR Studio: neural voxel rendering tools.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("render", help="render a scene file to a PNG")
+    p.add_argument("scene", help="scene file (JSON, version 1)")
+    p.add_argument("-o", "--output", required=True, help="PNG to write")
+    p.add_argument("--renderer", choices=["splat", "pathtrace", "nvr", "nvr+"], default="splat")
+    p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
+    p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
+    p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")
+    p.add_argument("--denoise", action="store_true", help="path tracing: Intel Open Image Denoise")
+    p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("voxelize", help="voxelise a mesh into an RGBA grid (.npz)")
+    p.add_argument("mesh", help="OBJ, PLY, STL, OFF, GLB or GLTF file")
+    p.add_argument("-o", "--output", required=True, help=".npz to write (key 'rgba', N^3 x 4)")
+    p.add_argument("--res", type=int, default=100, help="voxels per side (default 100)")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.set_defaults(func=cmd_voxelize)
+
+    data = sub.add_parser("data", help="make training and test sets").add_subparsers(dest="data_command", required=True)
+    p = data.add_parser("generate", help="render objects and views after the paper's protocol")
+    p.add_argument("--out", required=True, help="data folder (created; rerun to resume)")
+    p.add_argument("--objects", type=int, required=True, help="number of objects")
+    p.add_argument("--views", type=int, default=20, help="views per object (test: frames per sequence)")
+    p.add_argument("--setting", choices=["single", "default", "textured"], default="single")
+    p.add_argument("--split", choices=["train", "test"], default="train")
+    p.add_argument("--size", type=int, default=256, help="image side in pixels")
+    p.add_argument("--spp", type=int, default=16, help="path tracing samples per pixel")
+    p.add_argument("--no-denoise", action="store_true", help="keep the raw path-traced targets")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--categories", default="chair", help="comma-separated object categories")
+    p.add_argument("--res", type=int, default=100, help="object voxels per side")
+    p.add_argument("--shard", default=None, help="I/N: make only part I of N (merge the parts afterwards)")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.set_defaults(func=cmd_data_generate)
+    p = data.add_parser("merge", help="merge shard folders into one data set")
+    p.add_argument("--out", required=True)
+    p.add_argument("parts", nargs="+", help="shard folders")
+    p.set_defaults(func=cmd_data_merge)
+
+    p = sub.add_parser("info", help="what a scene holds, its voxel counts, values outside the training range")
+    p.add_argument("scene")
+    p.set_defaults(func=cmd_info)
+    return parser
+
+
+def run(argv: list[str] | None = None) -> int:
+    """Parse and run; returns the exit code (0, or 2 for a user error)."""
+    args = build_parser().parse_args(argv)
+    try:
+        args.func(args)
+    except InputError as exc:
+        print(f"nvr: error: {exc}", file=sys.stderr)
+        return EXIT_USER_ERROR
+    except KeyboardInterrupt:
+        print("nvr: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+def main() -> None:
+    sys.exit(run())

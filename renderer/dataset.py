@@ -1,0 +1,388 @@
+"""Training and test sets after the paper's protocol (section 4.1), made here from procedural objects.
+
+For every object: generate it from its seed, give it an appearance (single color, per-part
+"default" materials, or a procedural texture), render an appearance source image A from another
+view and light, color its voxels from A (or directly, for single color), then render V target
+images T with the path tracer and the matching splatted images S.
+
+Folder layout (all paths in the manifest are relative to the folder):
+    config.json                 the DataConfig and renderer that made the set (written first)
+    objects/oNNNNN.npz          object voxels (key "rgba", uint8, N^3 x 4) as the network sees them
+    objects/oNNNNN_source.png   appearance source image A, with oNNNNN_source_camera.json beside it
+    images/oNNNNN_vVV.png       target T (path traced, sRGB)
+    splats/oNNNNN_vVV.png       splatted image S of the same scene
+    records/oNNNNN.json         written last, atomically: the object is complete
+    manifest.json               every sample's full scene and file names, from the records
+
+Resuming: an object counts as done only when its record exists; every file is written
+atomically, so a killed run leaves no half-written file under a real name and a rerun redoes
+only unfinished objects. Sharding: `--shard I/N` takes objects with index % N == I; the shards'
+folders merge into one set with `merge_datasets`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from renderer.errors import InputError
+from renderer.io import atomic_path, load_json, save_json, save_png
+from renderer.scene import (
+    ELEVATION_RANGE,
+    LIGHT_XZ_RANGE,
+    LIGHT_Y_RANGE,
+    SCALE_RANGE,
+    TRANSLATION_RANGE,
+    CameraSpec,
+    FloorSpec,
+    LightSpec,
+    ObjectSpec,
+    Scene,
+)
+
+DATA_FORMAT = 1
+SETTINGS = ("single", "default", "textured")
+SPLITS = ("train", "test")
+TEST_ELEVATION_RANGE = (15.0, 45.0)
+TEST_ROTATION_STEP_DEG = 10.0
+FACING_ROTATION_RANGE = (-90.0, 90.0)  # the half of all rotations that faces the camera
+
+
+@dataclass(frozen=True)
+class DataConfig:
+    """Everything that determines a data set; stored in its config.json."""
+
+    setting: str = "single"
+    split: str = "train"
+    objects: int = 10
+    views: int = 20
+    size: int = 256
+    spp: int = 16
+    denoise: bool = True
+    seed: int = 0
+    categories: tuple[str, ...] = ("chair",)
+    resolution: int = 100
+
+    def check(self) -> None:
+        if self.setting not in SETTINGS:
+            raise InputError(f"unknown setting {self.setting!r} (choose from {', '.join(SETTINGS)})")
+        if self.split not in SPLITS:
+            raise InputError(f"unknown split {self.split!r} (choose from {', '.join(SPLITS)})")
+        for name in ("objects", "views", "spp"):
+            if getattr(self, name) < 1:
+                raise InputError(f"--{name} must be at least 1, got {getattr(self, name)}")
+        if self.size < 16:
+            raise InputError(f"--size must be at least 16, got {self.size}")
+        if not self.categories:
+            raise InputError("at least one object category is needed")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["categories"] = list(self.categories)
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> DataConfig:
+        data = dict(data)
+        data["categories"] = tuple(data.get("categories", ("chair",)))
+        return cls(**data)
+
+
+# --- the sampling protocol ----------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class View:
+    """The editable scene parameters of one sample."""
+
+    elevation_deg: float
+    rotation_deg: float
+    translation: tuple[float, float]
+    scale: tuple[float, float, float]
+    light: tuple[float, float, float]
+
+
+def _uniform_light(rng: np.random.Generator) -> tuple[float, float, float]:
+    return (
+        float(rng.uniform(*LIGHT_XZ_RANGE)),
+        float(rng.uniform(*LIGHT_Y_RANGE)),
+        float(rng.uniform(*LIGHT_XZ_RANGE)),
+    )
+
+
+def sample_train_views(rng: np.random.Generator, count: int) -> list[View]:
+    """Training views: every parameter uniform and independent over its training range."""
+    views = []
+    for _ in range(count):
+        views.append(
+            View(
+                elevation_deg=float(rng.uniform(*ELEVATION_RANGE)),
+                rotation_deg=float(rng.uniform(*FACING_ROTATION_RANGE)),
+                translation=(float(rng.uniform(*TRANSLATION_RANGE)), float(rng.uniform(*TRANSLATION_RANGE))),
+                scale=tuple(float(s) for s in rng.uniform(*SCALE_RANGE, size=3)),
+                light=_uniform_light(rng),
+            )
+        )
+    return views
+
+
+def sample_test_sequence(rng: np.random.Generator, count: int) -> list[View]:
+    """A test sequence: one elevation, rotation in 10-degree steps, translation and light interpolated."""
+    elevation = float(rng.uniform(*TEST_ELEVATION_RANGE))
+    span = TEST_ROTATION_STEP_DEG * (count - 1)
+    lo, hi = FACING_ROTATION_RANGE
+    start = float(rng.uniform(lo, max(lo, hi - span))) if span < hi - lo else lo
+    direction = 1.0 if rng.uniform() < 0.5 else -1.0
+    if direction < 0:
+        start = lo + hi - start  # walk the same span downwards from the mirrored start
+    t0, t1 = rng.uniform(*TRANSLATION_RANGE, size=2), rng.uniform(*TRANSLATION_RANGE, size=2)
+    l0, l1 = np.array(_uniform_light(rng)), np.array(_uniform_light(rng))
+    scale = tuple(float(s) for s in rng.uniform(*SCALE_RANGE, size=3))
+    views = []
+    for k in range(count):
+        f = k / (count - 1) if count > 1 else 0.0
+        views.append(
+            View(
+                elevation_deg=elevation,
+                rotation_deg=start + direction * TEST_ROTATION_STEP_DEG * k,
+                translation=tuple(float(v) for v in (1 - f) * t0 + f * t1),
+                scale=scale,
+                light=tuple(float(v) for v in (1 - f) * l0 + f * l1),
+            )
+        )
+    return views
+
+
+def sample_source_view(rng: np.random.Generator) -> View:
+    """The view and light of the appearance source image A: centred object, random everything else."""
+    return View(
+        elevation_deg=float(rng.uniform(*ELEVATION_RANGE)),
+        rotation_deg=float(rng.uniform(*FACING_ROTATION_RANGE)),
+        translation=(0.0, 0.0),
+        scale=(1.0, 1.0, 1.0),
+        light=_uniform_light(rng),
+    )
+
+
+def view_scene(view: View, voxels: str, floor_color: tuple, size: int, color: tuple | None = None) -> Scene:
+    """The scene of one sample, its object given by a voxel file relative to the data folder."""
+    return Scene(
+        object=ObjectSpec(
+            voxels=voxels, color=color, translation=view.translation, rotation_deg=view.rotation_deg, scale=view.scale
+        ),
+        floor=FloorSpec(tuple(float(c) for c in floor_color)),
+        light=LightSpec(view.light),
+        camera=CameraSpec(view.elevation_deg),
+        image_size=size,
+    )
+
+
+def object_rng(config: DataConfig, index: int, purpose: int) -> np.random.Generator:
+    """Independent, reproducible random stream per (data seed, split, setting, object, purpose)."""
+    key = [config.seed, SPLITS.index(config.split), SETTINGS.index(config.setting), index, purpose]
+    return np.random.default_rng(np.random.SeedSequence(key))
+
+
+# --- generation -----------------------------------------------------------------------------
+
+
+def _object_name(index: int) -> str:
+    return f"o{index:05d}"
+
+
+def _renderer_info(config: DataConfig) -> dict[str, Any]:
+    import mitsuba
+
+    from renderer.pathtrace import active_variant
+
+    return {"name": "mitsuba", "version": mitsuba.__version__, "variant": active_variant(),
+            "spp": config.spp, "denoise": config.denoise}
+
+
+def prepare_folder(out: Path, config: DataConfig) -> None:
+    """Create the folder tree and config.json, or check that an existing one was made by the same config."""
+    config.check()
+    if out.exists() and not out.is_dir():
+        raise InputError("not a folder", out)
+    try:
+        for sub in ("objects", "images", "splats", "records"):
+            (out / sub).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
+    config_file = out / "config.json"
+    if config_file.exists():
+        stored = load_json(config_file).get("config")
+        if stored != config.to_dict():
+            raise InputError("holds a data set made with other arguments; use another --out folder", out)
+    else:
+        save_json(config_file, {"format": DATA_FORMAT, "config": config.to_dict()})
+
+
+def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[str, Any]:
+    """Make every file of one object and return its record (written by the caller, last)."""
+    from renderer.camera import Camera
+    from renderer.objects import apply_appearance, generate_object, split_seeds
+    from renderer.pathtrace import render_pathtraced
+    from renderer.photo import color_voxels_from_photo, is_mirror_symmetric
+    from renderer.splat import splat_scene
+    from renderer.transform import object_to_world
+    from renderer.voxels import save_voxels, voxelize
+
+    name = _object_name(index)
+    category = config.categories[index % len(config.categories)]
+    object_seed = int(split_seeds(config.split, config.objects)[index])
+    labeled = generate_object(category, object_seed)
+    appearance_seed = int(object_rng(config, index, 0).integers(2**31))
+    mesh, floor_color, appearance = apply_appearance(labeled, config.setting, appearance_seed, config.split)
+    floor_color = tuple(float(c) for c in floor_color)
+    single_color = appearance.get("color") if config.setting == "single" else None
+    single_color = None if single_color is None else tuple(float(c) for c in single_color)
+
+    rgba = voxelize(mesh, resolution=config.resolution)
+    voxel_file = f"objects/{name}.npz"
+
+    # Appearance source A: another view and light; the voxels take their colors from it.
+    source_view = sample_source_view(object_rng(config, index, 1))
+    source_scene = view_scene(source_view, voxel_file, floor_color, config.size, single_color)
+    source = render_pathtraced(source_scene, mesh, spp=config.spp, seed=index, denoise=config.denoise)
+    source_camera = Camera.from_scene(source_scene)
+    mirror = False
+    if config.setting == "single":
+        rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, np.asarray(single_color, dtype=np.float32), 0.0)
+    else:
+        mirror = bool(is_mirror_symmetric(rgba[..., 3] > 0.5))
+        rgba = color_voxels_from_photo(rgba, object_to_world(source_scene.object), source.image, source_camera, mirror=mirror)
+    save_voxels(out / voxel_file, rgba)
+    save_png(out / f"objects/{name}_source.png", source.image)
+    save_json(out / f"objects/{name}_source_camera.json", {
+        "elevation_deg": source_view.elevation_deg, "rotation_deg": source_view.rotation_deg,
+        "translation": list(source_view.translation), "light": list(source_view.light),
+        "width": config.size, "height": config.size, "distance": source_camera.distance,
+        "focal_mm": source_camera.focal_mm, "sensor_mm": source_camera.sensor_mm,
+    })
+
+    sampler = sample_train_views if config.split == "train" else sample_test_sequence
+    samples = []
+    for v, view in enumerate(sampler(object_rng(config, index, 2), config.views)):
+        sample_id = f"{name}_v{v:02d}"
+        scene = view_scene(view, voxel_file, floor_color, config.size, single_color)
+        target = render_pathtraced(scene, mesh, spp=config.spp, seed=index * 1000 + v, denoise=config.denoise)
+        save_png(out / f"images/{sample_id}.png", target.image)
+        save_png(out / f"splats/{sample_id}.png", splat_scene(scene, rgba, floor_color))
+        samples.append({"id": sample_id, "object": name, "scene": scene.to_dict(),
+                        "target": f"images/{sample_id}.png", "splat": f"splats/{sample_id}.png"})
+    return {
+        "object": {"id": name, "index": index, "category": category, "seed": object_seed,
+                   "setting": config.setting, "appearance": appearance, "floor_color": list(floor_color),
+                   "voxels": voxel_file, "mirror_symmetry_used": mirror,
+                   "source_image": f"objects/{name}_source.png", "source_camera": f"objects/{name}_source_camera.json",
+                   "params": labeled.params},
+        "samples": samples,
+    }
+
+
+def parse_shard(text: str | None) -> tuple[int, int]:
+    """'I/N' -> (I, N) with 0 <= I < N; None -> (0, 1)."""
+    if text is None:
+        return 0, 1
+    try:
+        i, n = (int(p) for p in text.split("/"))
+    except ValueError:
+        raise InputError(f"--shard must look like I/N (e.g. 0/4), got {text!r}") from None
+    if not 0 <= i < n:
+        raise InputError(f"--shard I/N needs 0 <= I < N, got {text!r}")
+    return i, n
+
+
+def pending_objects(out: Path, config: DataConfig, shard: tuple[int, int]) -> list[int]:
+    """Indices of this shard's objects that have no record yet."""
+    i, n = shard
+    return [k for k in range(config.objects) if k % n == i and not (out / f"records/{_object_name(k)}.json").exists()]
+
+
+def _generate_one(args: tuple[str, dict, int]) -> int:
+    out, config_dict, index = args
+    out_path, config = Path(out), DataConfig.from_dict(config_dict)
+    record = generate_object_samples(out_path, config, index)
+    save_json(out_path / f"records/{_object_name(index)}.json", record)
+    return index
+
+
+def generate_dataset(out: str | Path, config: DataConfig, shard: tuple[int, int] = (0, 1), workers: int = 1,
+                     progress: bool = True, on_object_done: Callable[[int], None] | None = None) -> Path:
+    """Generate (or resume) a data set; returns the manifest path. `on_object_done` is called after each object."""
+    from tqdm import tqdm
+
+    out = Path(out)
+    prepare_folder(out, config)
+    todo = pending_objects(out, config, shard)
+    bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"{config.split}/{config.setting}")
+    jobs = [(str(out), config.to_dict(), k) for k in todo]
+    for index in _run_jobs(jobs, workers):
+        bar.update(1)
+        if on_object_done is not None:
+            on_object_done(index)
+    bar.close()
+    return write_manifest(out, config)
+
+
+def _run_jobs(jobs: list, workers: int) -> Iterator[int]:
+    if workers <= 1:
+        for job in jobs:
+            yield _generate_one(job)
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield from pool.map(_generate_one, jobs)
+
+
+def write_manifest(out: Path, config: DataConfig) -> Path:
+    """Assemble manifest.json from the records present, in object order."""
+    records = [load_json(p) for p in sorted((out / "records").glob("o*.json"))]
+    manifest = {
+        "format": DATA_FORMAT,
+        "config": config.to_dict(),
+        "renderer": _renderer_info(config),
+        "complete": len(records) == config.objects,
+        "objects": [r["object"] for r in records],
+        "samples": [s for r in records for s in r["samples"]],
+    }
+    path = out / "manifest.json"
+    save_json(path, manifest)
+    return path
+
+
+def merge_datasets(out: str | Path, parts: list[str | Path]) -> Path:
+    """Merge shard folders made with the same config into one folder, as if made by one run."""
+    out = Path(out)
+    if not parts:
+        raise InputError("nothing to merge: give at least one data folder")
+    configs = []
+    for part in parts:
+        stored = load_json(Path(part) / "config.json")
+        configs.append(stored.get("config"))
+    if any(c != configs[0] for c in configs):
+        raise InputError("the folders were made with different arguments and cannot be merged")
+    config = DataConfig.from_dict(configs[0])
+    prepare_folder(out, config)
+    for part in map(Path, parts):
+        for record_file in sorted((part / "records").glob("o*.json")):
+            record = json.loads(record_file.read_text())
+            obj = record["object"]
+            files = [obj["voxels"], obj["source_image"], obj["source_camera"]]
+            files += [f for s in record["samples"] for f in (s["target"], s["splat"])]
+            for rel in files:
+                if not (out / rel).exists():
+                    with atomic_path(out / rel) as tmp:
+                        shutil.copyfile(part / rel, tmp)
+            save_json(out / "records" / record_file.name, record)
+    return write_manifest(out, config)
