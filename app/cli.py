@@ -97,7 +97,6 @@ def cmd_voxelize(args: argparse.Namespace) -> None:
 
 def cmd_info(args: argparse.Namespace) -> None:
     from renderer.pipeline import object_voxels, painted_voxels, scene_grid_for
-
     from renderer.scene import load_scene, range_warnings
 
     scene = load_scene(args.scene)
