@@ -1,0 +1,123 @@
+"""Colors from a photo (paper section 3.2): voxels take the colors of the pixels they project to.
+
+The photo is aligned with the object through a Camera of the photo's size (its azimuth and
+principal offset place the object in the picture). Visibility comes from ray marching through
+the occupancy (renderer/raymarch.py): a surface voxel is visible when the camera sees the
+centre of one of its exposed faces and its centre projects inside the photo.
+
+Visible voxels take the photo color at their centre's projection (bilinear). A hidden voxel
+takes the color of the first occupied voxel that the ray from the camera through its centre
+meets; with `mirror`, a hidden voxel whose mirror voxel across the object's plane x = 0
+(i -> N-1-i) is visible copies that voxel's color instead.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from renderer.camera import Camera
+from renderer.errors import InputError
+from renderer.raymarch import OccupancyMarcher
+from renderer.surface import check_object_voxels, grid_from_world, occupancy, surface_mask, voxel_centers_at
+from renderer.transform import apply_transform
+
+# A symmetric mesh voxelised on the x-symmetric object grid scores about 1; the threshold
+# tolerates a few percent of voxels that differ through rounding on thin parts, and rejects
+# shapes whose halves differ in a tenth of their volume (one armrest, an off-centre lever).
+MIRROR_IOU_THRESHOLD = 0.9
+
+
+class PhotoColors(NamedTuple):
+    rgba: np.ndarray  # (N, N, N, 4) float32: the input voxels recolored from the photo
+    visible: np.ndarray  # (N, N, N) bool: voxels the photo shows (where color errors can be measured)
+
+
+def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, photo_rgb: np.ndarray,
+                            camera: Camera, mirror: bool = False) -> PhotoColors:
+    """Color every occupied voxel from `photo_rgb` ((H, W, 3) sRGB) seen by `camera`; occupancy is unchanged."""
+    rgba = check_object_voxels(object_rgba).copy()
+    photo = _check_photo(photo_rgb, camera)
+    occupied = occupancy(rgba)
+    n = occupied.shape[0]
+    matrix = np.asarray(object_to_world_matrix, dtype=np.float64)
+    marcher = OccupancyMarcher(occupied)
+    camera_grid = apply_transform(grid_from_world(matrix, n), camera.position)
+
+    visible = marcher.visible_from(camera_grid) & _in_frame(occupied, matrix, camera)
+    source = np.arange(n**3, dtype=np.int32).reshape(n, n, n)  # flat index of the voxel whose photo color each voxel takes
+    hidden = occupied & ~visible
+    if mirror:
+        mirrored = hidden & visible[::-1]
+        source[mirrored] = source[::-1][mirrored]
+        hidden &= ~mirrored
+    hidden_flat = np.flatnonzero(hidden)
+    source.reshape(-1)[hidden_flat] = marcher.first_occupied_towards(camera_grid, hidden_flat)
+
+    rgba[occupied, :3] = _photo_at_voxels(photo, matrix, camera, source[occupied], n)
+    return PhotoColors(rgba, visible)
+
+
+def mirror_symmetry_score(occupied: np.ndarray) -> float:
+    """Intersection over union of the occupancy and its mirror image i -> N-1-i (1 for an empty grid)."""
+    occ = np.asarray(occupied, dtype=bool)
+    union = np.count_nonzero(occ | occ[::-1])
+    return 1.0 if union == 0 else np.count_nonzero(occ & occ[::-1]) / union
+
+
+def is_mirror_symmetric(occupied: np.ndarray, threshold: float = MIRROR_IOU_THRESHOLD) -> bool:
+    """Whether copying colors across the plane x = 0 fits this shape (mirror IoU at least `threshold`)."""
+    return mirror_symmetry_score(occupied) >= threshold
+
+
+def _in_frame(occupied: np.ndarray, matrix: np.ndarray, camera: Camera) -> np.ndarray:
+    """(N, N, N) bool: surface voxels whose centre projects inside the photo, in front of the camera."""
+    n = occupied.shape[0]
+    flat = np.flatnonzero(surface_mask(occupied))
+    u, v, depth = _project_voxels(matrix, camera, flat, n)
+    inside = (depth > 0) & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
+    frame = np.zeros(occupied.size, dtype=bool)
+    frame[flat[inside]] = True
+    return frame.reshape(occupied.shape)
+
+
+def _project_voxels(matrix: np.ndarray, camera: Camera, flat: np.ndarray, n: int):
+    """Pixel coordinates u, v and depth of the centres of the voxels with the given flat indices."""
+    centres = voxel_centers_at(np.stack(np.unravel_index(flat, (n, n, n)), axis=1), n)
+    return camera.project(apply_transform(matrix, centres))
+
+
+def _photo_at_voxels(photo: np.ndarray, matrix: np.ndarray, camera: Camera, flat: np.ndarray, n: int) -> np.ndarray:
+    """Bilinear photo colors at the projections of the given voxels' centres (clamped at the border)."""
+    unique, inverse = np.unique(flat, return_inverse=True)
+    u, v, _ = _project_voxels(matrix, camera, unique, n)
+    return _bilinear(photo, u, v)[inverse]
+
+
+def _bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear samples of `image` at pixel coordinates (u, v); pixel centres sit at half-integers."""
+    h, w = image.shape[:2]
+    x = np.clip(u - 0.5, 0.0, w - 1.0)
+    y = np.clip(v - 0.5, 0.0, h - 1.0)
+    x0 = np.floor(x).astype(np.int64)
+    y0 = np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    top = image[y0, x0] * (1 - fx) + image[y0, x1] * fx
+    bottom = image[y1, x0] * (1 - fx) + image[y1, x1] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+
+
+def _check_photo(photo_rgb: np.ndarray, camera: Camera) -> np.ndarray:
+    """The photo as float (H, W, 3) sRGB clipped to [0, 1]; InputError if it does not fit the camera."""
+    photo = np.asarray(photo_rgb)
+    if photo.ndim != 3 or photo.shape[2] != 3:
+        raise InputError(f"the photo must be an RGB image of shape (H, W, 3), got shape {photo.shape}")
+    if photo.shape[:2] != (camera.height, camera.width):
+        raise InputError(f"the photo is {photo.shape[1]}x{photo.shape[0]} pixels but its camera is "
+                         f"{camera.width}x{camera.height}")
+    values = photo.astype(np.float64)
+    if not np.all(np.isfinite(values)):
+        raise InputError("the photo holds NaN or infinite values")
+    return np.clip(values, 0.0, 1.0)
