@@ -1,0 +1,111 @@
+"""Timing of the voxel pipeline: voxelising a 100k-face mesh at 100^3 (target under 1 s) and
+resampling object voxels into the 128^3 camera grid (target under 50 ms).
+
+Run from the repository root: python -m benchmarks.bench_pipeline [--repeats N]
+Prints the median and minimum wall time of each entry of BENCHMARKS and its median CPU time,
+since other processes share the CPU. To time something else, append (name, setup) to BENCHMARKS, where
+setup() builds the inputs and returns the call to time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+import trimesh
+
+from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, scene_grid, voxel_table
+from renderer.mesh import normalise_mesh
+from renderer.scene import ObjectSpec
+from renderer.voxels import voxelize
+
+FLOOR = (0.53, 0.64, 0.78)
+SPEC = ObjectSpec(mesh="bench", translation=(0.1, -0.1), rotation_deg=30.0)
+ELEVATION = 30.0
+
+
+def colored_sphere_100k() -> trimesh.Trimesh:
+    """A normalised UV sphere of 101,120 faces with smoothly varying vertex colors."""
+    mesh = normalise_mesh(trimesh.creation.uv_sphere(radius=1.0, count=[160, 160]))
+    rgb = (mesh.vertices - mesh.vertices.min(axis=0)) / np.ptp(mesh.vertices, axis=0)
+    mesh.visual.vertex_colors = np.round(rgb * 255).astype(np.uint8)
+    return mesh
+
+
+def object_voxels_100() -> np.ndarray:
+    return voxelize(colored_sphere_100k(), 100)
+
+
+def voxelize_100k() -> Callable[[], object]:
+    mesh = colored_sphere_100k()
+    return lambda: voxelize(mesh, 100)
+
+
+def grid_all_stages() -> Callable[[], object]:
+    rgba = object_voxels_100()
+    return lambda: scene_grid(rgba, SPEC, FLOOR, ELEVATION)
+
+
+def grid_geometry_stage() -> Callable[[], object]:
+    """What an elevation or placement edit recomputes."""
+    factors = pool_factors(100, SPEC.scale)
+    return lambda: sample_indices(100, factors, SPEC, ELEVATION)
+
+
+def grid_appearance_stage() -> Callable[[], object]:
+    """What a paint edit recomputes: merging the voxels, the table and the gather."""
+    rgba = object_voxels_100()
+    factors = pool_factors(100, SPEC.scale)
+    indices = sample_indices(100, factors, SPEC, ELEVATION)
+    return lambda: gather(voxel_table(pool_voxels(rgba, factors), FLOOR), indices)
+
+
+def grid_floor_color_stage() -> Callable[[], object]:
+    """What a floor color edit recomputes: the table and the gather."""
+    rgba = object_voxels_100()
+    factors = pool_factors(100, SPEC.scale)
+    pooled = pool_voxels(rgba, factors)
+    indices = sample_indices(100, factors, SPEC, ELEVATION)
+    return lambda: gather(voxel_table(pooled, FLOOR), indices)
+
+
+BENCHMARKS: list[tuple[str, Callable[[], Callable[[], object]]]] = [
+    ("voxelize 101k faces at 100^3", voxelize_100k),
+    ("scene grid 128^3, all stages", grid_all_stages),
+    ("  geometry (elevation/placement edit)", grid_geometry_stage),
+    ("  appearance (paint edit)", grid_appearance_stage),
+    ("  gather only (floor color edit)", grid_floor_color_stage),
+    # Other stages (e.g. splatting, see benchmarks/bench_splat.py) can be appended here.
+]
+
+
+def times_ms(fn: Callable[[], object], repeats: int) -> tuple[float, float, float]:
+    """(median wall, minimum wall, median CPU) time in ms over `repeats` calls after one warm-up call.
+
+    The code timed here is single-threaded numpy, so its CPU time is what the wall time
+    would be on an idle core.
+    """
+    fn()
+    wall, cpu = [], []
+    for _ in range(repeats):
+        start, start_cpu = time.perf_counter(), time.process_time()
+        fn()
+        wall.append((time.perf_counter() - start) * 1000.0)
+        cpu.append((time.process_time() - start_cpu) * 1000.0)
+    return statistics.median(wall), min(wall), statistics.median(cpu)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    for name, setup in BENCHMARKS:
+        median, best, cpu = times_ms(setup(), args.repeats)
+        print(f"{name:40s} wall median {median:7.1f} ms  min {best:7.1f} ms   CPU median {cpu:7.1f} ms")
+
+
+if __name__ == "__main__":
+    main()

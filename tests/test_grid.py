@@ -1,0 +1,167 @@
+"""Transforms and the camera-aligned scene grid (renderer/camera.py, transform.py, grid.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+from scipy import ndimage
+
+from renderer.camera import Camera, camera_to_grid_index, grid_centers_camera
+from renderer.grid import (
+    gather,
+    grid_index_to_world,
+    pool_factors,
+    pool_voxels,
+    sample_indices,
+    scene_grid,
+    voxel_table,
+)
+from renderer.mesh import normalise_mesh
+from renderer.scene import GRID_SIZE, ObjectSpec
+from renderer.transform import apply_transform, object_to_world, object_voxel_centers, world_to_object
+from renderer.voxels import voxelize
+
+FLOOR = (0.25, 0.5, 0.75)
+
+
+def single_voxel(n: int, index: tuple[int, int, int], color=(0.9, 0.1, 0.2)) -> np.ndarray:
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    rgba[index] = [*color, 1.0]
+    return rgba
+
+
+def object_part(grid: np.ndarray) -> np.ndarray:
+    """Occupied grid voxels that are not floor colored."""
+    return (grid[..., 3] > 0) & ~np.all(grid[..., :3] == np.float32(FLOOR), axis=-1)
+
+
+# --- transforms --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("elevation", [0.0, 30.0, 89.0])
+def test_world_camera_world_round_trip(elevation):
+    cam = Camera(elevation)
+    points = np.random.default_rng(1).uniform(-3, 3, size=(100, 3))
+    back = apply_transform(cam.camera_to_world(), apply_transform(cam.world_to_camera(), points))
+    assert np.abs(back - points).max() < 1e-5
+    # The camera sits on the +z side at the given elevation, looking at the scene centre.
+    assert np.allclose(apply_transform(cam.world_to_camera(), np.array([0.0, 0.5, 0.0])), [0, 0, -cam.distance])
+
+
+def test_object_placement_round_trip_and_full_turn():
+    spec = ObjectSpec(mesh="m", translation=(0.3, -0.4), rotation_deg=37.0, scale=(0.8, 1.2, 1.1))
+    points = np.random.default_rng(2).uniform(-1, 1, size=(50, 3))
+    back = apply_transform(world_to_object(spec), apply_transform(object_to_world(spec), points))
+    assert np.abs(back - points).max() < 1e-5
+    turned = ObjectSpec(mesh="m", translation=(0.3, -0.4), rotation_deg=37.0 + 360.0, scale=(0.8, 1.2, 1.1))
+    assert np.abs(object_to_world(turned) - object_to_world(spec)).max() < 1e-12
+
+
+def test_grid_index_to_world_matches_the_camera_grid_centres():
+    corners = np.array([[0, 0, 0], [127, 0, 0], [0, 127, 0], [0, 0, 127], [5, 77, 100]])
+    centres_world = apply_transform(Camera(30.0).camera_to_world(), grid_centers_camera()[tuple(corners.T)])
+    np.testing.assert_allclose(apply_transform(grid_index_to_world(30.0), corners + 0.5), centres_world, atol=1e-12)
+
+
+# --- object resampling ------------------------------------------------------------------------
+
+
+def test_single_object_voxel_lands_where_the_camera_predicts():
+    # A coarse 10^3 object (voxel 0.1 = 5 grid voxels) needs no merging: plain nearest sampling.
+    n, index = 10, (3, 2, 6)
+    spec = ObjectSpec(mesh="m", translation=(0.1, -0.2), rotation_deg=25.0)
+    assert pool_factors(n, spec.scale) == (1, 1, 1)
+    grid = scene_grid(single_voxel(n, index), spec, FLOOR, 30.0)
+
+    cam = Camera(30.0)
+    centre_world = apply_transform(object_to_world(spec), object_voxel_centers(n)[index])
+    d, r, c = np.floor(camera_to_grid_index(apply_transform(cam.world_to_camera(), centre_world))).astype(int)
+    np.testing.assert_allclose(grid[d, r, c], [0.9, 0.1, 0.2, 1.0], atol=1e-7)
+
+    # Independently: a grid voxel is occupied iff its centre falls in the object voxel's box.
+    centres_object = apply_transform(world_to_object(spec) @ cam.camera_to_world(), grid_centers_camera())
+    lo = np.array([-0.5, 0.0, -0.5]) + np.array(index) / n
+    inside = np.all((centres_object >= lo) & (centres_object < lo + 1.0 / n), axis=-1)
+    assert np.array_equal(object_part(grid), inside)
+    assert 100 < inside.sum() < 150  # about (0.1 / 0.02)^3 = 125 grid voxels
+
+
+def test_pool_voxels_by_hand():
+    rgba = np.zeros((4, 4, 4, 4), dtype=np.float32)
+    rgba[0, 0, 0] = [1.0, 0.0, 0.0, 1.0]
+    rgba[1, 1, 0] = [0.0, 0.0, 1.0, 1.0]
+    rgba[3, 3, 3] = [0.2, 0.4, 0.6, 1.0]
+    pooled = pool_voxels(rgba, (2, 2, 2))
+    assert pooled.shape == (2, 2, 2, 4)
+    np.testing.assert_allclose(pooled[0, 0, 0], [0.5, 0.0, 0.5, 1.0])  # mean of its two occupied voxels
+    np.testing.assert_allclose(pooled[1, 1, 1], [0.2, 0.4, 0.6, 1.0])  # empty members do not darken it
+    assert pooled[..., 3].sum() == 2
+    uneven = pool_voxels(rgba, (3, 1, 4))  # blocks of 3 along x: [0, 3) and the partial [3, 4)
+    assert uneven.shape == (2, 4, 1, 4)
+    np.testing.assert_allclose(uneven[1, 3, 0], [0.2, 0.4, 0.6, 1.0])
+    np.testing.assert_allclose(uneven[0, 0, 0], [1.0, 0.0, 0.0, 1.0])
+
+
+@pytest.mark.parametrize("scale", [0.75, 1.0, 1.25])
+def test_resampled_thin_shell_stays_closed(scale):
+    # At resolution 64 an object voxel is thinner than a grid voxel; plain nearest sampling
+    # of the one-voxel shell would leave holes. Filling the grid shell must fill its centre.
+    sphere = normalise_mesh(trimesh.creation.icosphere(subdivisions=3))
+    spec = ObjectSpec(mesh="m", rotation_deg=17.0, scale=(scale,) * 3)
+    grid = scene_grid(voxelize(sphere, 64), spec, FLOOR, 30.0)
+    centre = apply_transform(Camera(30.0).world_to_camera(), np.array([0.0, 0.5 * scale, 0.0]))
+    d, r, c = np.floor(camera_to_grid_index(centre)).astype(int)
+    shell = object_part(grid)
+    assert not shell[d, r, c] and ndimage.binary_fill_holes(shell)[d, r, c]
+
+
+# --- floor, caching and hard cases ----------------------------------------------------------------
+
+
+def test_floor_is_three_voxels_below_y0_at_elevation_0():
+    # At elevation 0 the grid is level: row r has world y = 0.5 + 1.28 - (r + 0.5) * 0.02,
+    # which lies in [-0.06, 0) for rows 89, 90 and 91 only.
+    grid = scene_grid(single_voxel(10, (5, 9, 5)), ObjectSpec(mesh="m"), FLOOR, 0.0)
+    floor_rows = np.flatnonzero(np.all(grid[..., 3] == 1, axis=(0, 2)) & np.all(grid[:, :, :, 2] == np.float32(0.75), axis=(0, 2)))
+    assert floor_rows.tolist() == [89, 90, 91]
+    np.testing.assert_array_equal(grid[:, 89:92, :, :3], np.broadcast_to(np.float32(FLOOR), (128, 3, 128, 3)))
+
+
+def test_floor_color_change_needs_only_the_gather():
+    rgba = single_voxel(10, (5, 0, 5))
+    spec = ObjectSpec(mesh="m", rotation_deg=10.0)
+    factors = pool_factors(10, spec.scale)
+    pooled = pool_voxels(rgba, factors)
+    indices = sample_indices(10, factors, spec, 20.0)
+    for floor in [(0.0, 0.0, 0.0), (1.0, 0.5, 0.25)]:
+        np.testing.assert_array_equal(gather(voxel_table(pooled, floor), indices), scene_grid(rgba, spec, floor, 20.0))
+
+
+def sphere_voxels() -> np.ndarray:
+    return voxelize(normalise_mesh(trimesh.creation.icosphere(subdivisions=2)), 32)
+
+
+@pytest.mark.parametrize("elevation", [0.0, 89.0])
+def test_extreme_elevations_keep_object_and_floor(elevation):
+    grid = scene_grid(sphere_voxels(), ObjectSpec(mesh="m"), FLOOR, elevation)
+    assert grid.shape == (GRID_SIZE,) * 3 + (4,) and grid.dtype == np.float32
+    assert np.isfinite(grid).all()
+    floor = np.all(grid[..., :3] == np.float32(FLOOR), axis=-1) & (grid[..., 3] == 1)
+    assert floor.sum() > 128 * 128 and object_part(grid).sum() > 500
+
+
+def test_object_partly_outside_the_grid_is_clipped():
+    rgba = sphere_voxels()
+    centred = object_part(scene_grid(rgba, ObjectSpec(mesh="m"), FLOOR, 30.0)).sum()
+    moved = scene_grid(rgba, ObjectSpec(mesh="m", translation=(1.2, 0.0)), FLOOR, 30.0)  # grid half-width 1.28
+    assert np.isfinite(moved).all()
+    assert 0 < object_part(moved).sum() < 0.8 * centred
+    far = scene_grid(rgba, ObjectSpec(mesh="m", translation=(90.0, -90.0)), FLOOR, 30.0)
+    assert object_part(far).sum() == 0 and far[..., 3].sum() > 0
+
+
+def test_tiny_scale_gives_at_most_a_few_voxels():
+    grid = scene_grid(sphere_voxels(), ObjectSpec(mesh="m", scale=(1e-3,) * 3), FLOOR, 30.0)
+    assert np.isfinite(grid).all()
+    assert object_part(grid).sum() <= 8

@@ -1,0 +1,85 @@
+"""Bucket fill on object voxels and paint replay (renderer/paint.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from renderer.errors import InputError
+from renderer.paint import apply_paint, fill_object, fill_region
+from renderer.scene import PaintOp
+
+GRAY, NEAR_GRAY, RED = (0.5, 0.5, 0.5), (0.55, 0.5, 0.5), (1.0, 0.0, 0.0)
+
+
+def hand_grid() -> np.ndarray:
+    """An 8^3 grid with, in gray: blob A (a 2x2x2 cube at the corner), blob B (a bar far
+    from A), a voxel touching A only along an edge; and a near-gray slab face-adjacent to A."""
+    rgba = np.zeros((8, 8, 8, 4), dtype=np.float32)
+    rgba[0:2, 0:2, 0:2] = [*GRAY, 1.0]  # blob A
+    rgba[5:8, 6, 6] = [*GRAY, 1.0]  # blob B: same color, not connected
+    rgba[2, 2, 1] = [*GRAY, 1.0]  # shares only an edge with A's voxel (1, 1, 1)
+    rgba[0:2, 0:2, 2] = [*NEAR_GRAY, 1.0]  # touches A face to face, 0.05 away in color
+    return rgba
+
+
+def painted(before: np.ndarray, after: np.ndarray) -> set[tuple[int, ...]]:
+    return set(map(tuple, np.argwhere(np.any(before != after, axis=-1)).tolist()))
+
+
+def test_fill_touches_exactly_the_connected_similar_region():
+    rgba = hand_grid()
+    original = rgba.copy()
+    out = fill_region(rgba, (0, 0, 0), RED, tolerance=0.01)
+    blob_a = {(i, j, k) for i in range(2) for j in range(2) for k in range(2)}
+    assert painted(rgba, out) == blob_a
+    np.testing.assert_array_equal(out[0, 1, 0], [*RED, 1.0])
+    np.testing.assert_array_equal(rgba, original)  # input untouched
+
+
+def test_tolerance_decides_whether_a_near_color_joins():
+    rgba = hand_grid()
+    slab = {(i, j, 2) for i in range(2) for j in range(2)}
+    blob_a = {(i, j, k) for i in range(2) for j in range(2) for k in range(2)}
+    assert painted(rgba, fill_region(rgba, (1, 1, 1), RED, tolerance=0.05)) == blob_a | slab  # inclusive
+    assert painted(rgba, fill_region(rgba, (1, 1, 1), RED, tolerance=0.049)) == blob_a
+
+
+def test_fill_from_the_other_blob_leaves_the_first_alone():
+    rgba = hand_grid()
+    assert painted(rgba, fill_region(rgba, (6, 6, 6), RED, tolerance=0.5)) == {(5, 6, 6), (6, 6, 6), (7, 6, 6)}
+
+
+def test_bad_seeds_are_input_errors():
+    rgba = hand_grid()
+    with pytest.raises(InputError, match="outside the 8x8x8 object grid"):
+        fill_region(rgba, (8, 0, 0), RED, 0.1)
+    with pytest.raises(InputError, match="outside"):
+        fill_region(rgba, (-1, 0, 0), RED, 0.1)
+    with pytest.raises(InputError, match="empty voxel"):
+        fill_region(rgba, (4, 4, 4), RED, 0.1)
+
+
+def test_fill_object_paints_only_occupied_voxels():
+    rgba = hand_grid()
+    out = fill_object(rgba, RED)
+    occupied = rgba[..., 3] == 1
+    np.testing.assert_array_equal(out[occupied], np.tile([*RED, 1.0], (occupied.sum(), 1)))
+    np.testing.assert_array_equal(out[~occupied], 0.0)
+    assert not np.array_equal(rgba[occupied], out[occupied])  # the input kept its colors
+
+
+def test_apply_paint_replays_in_order():
+    rgba = hand_grid()
+    blue, green = (0.0, 0.0, 1.0), (0.0, 1.0, 0.0)
+    ops = [
+        PaintOp("object", RED),
+        PaintOp("region", blue, seed=(6, 6, 6), tolerance=0.0),  # all gray became red: only blob B is connected
+        PaintOp("floor", green),
+        PaintOp("floor", blue),
+    ]
+    out, floor = apply_paint(rgba, (0.5, 0.5, 0.5), ops)
+    assert floor == blue
+    np.testing.assert_array_equal(out[5:8, 6, 6, :3], np.tile(blue, (3, 1)))
+    np.testing.assert_array_equal(out[0:2, 0:2, 0:3, :3].reshape(-1, 3), np.tile(RED, (12, 1)))
+    assert apply_paint(rgba, (0.1, 0.2, 0.3), [])[1] == (0.1, 0.2, 0.3)
