@@ -82,13 +82,11 @@ def _render_network(scene, size: int, args: argparse.Namespace):
 
 
 def cmd_voxelize(args: argparse.Namespace) -> None:
-    from renderer.mesh import load_mesh
+    from renderer.mesh import load_mesh, normalise_mesh
     from renderer.voxels import save_voxels, voxelize
 
     out = _output_path(args.output, args.force)
-    if not 4 <= args.res <= 256:
-        raise InputError(f"--res must be in [4, 256], got {args.res}")
-    mesh = load_mesh(args.mesh, up=args.up)
+    mesh = normalise_mesh(load_mesh(args.mesh, up=args.up))
     rgba = voxelize(mesh, resolution=args.res)
     save_voxels(out, rgba)
     occupied = int((rgba[..., 3] > 0.5).sum())
