@@ -1,0 +1,297 @@
+"""The physically based reference renderer (paper sections 3.1 and 4.2), built on Mitsuba 3.
+
+One diffuse object on a slightly specular floor, lit by a white square area light facing
+down and a uniform white ambient light, seen by the project's one camera model. Path
+tracing with MIS gives the soft shadows, floor reflections and color bleeding the network
+must learn. Every accuracy figure of the project is measured against these images.
+
+Exposure: LIGHT_RADIANCE = 14. A white Lambertian floor straight below the light at height
+2.75 receives 14 * 0.127 = 1.77 from the 1 x 1 light (0.127 = the integral of
+cos * cos / r^2 over the square) and 0.2 * (pi - 0.127) = 0.60 from the ambient light around
+it, so it reflects (1.77 + 0.60) / pi = 0.76 linear (0.89 sRGB). The floor's glossy coat keeps
+a little for itself: measured 0.68 linear (0.84 sRGB) seen from elevation 30, 0.59 from 5.
+Bright, with about 1.45x headroom before clipping for highlights and light bounced off the object.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import trimesh
+
+from renderer.camera import Camera
+from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.errors import InputError
+from renderer.mitsuba_variant import active_variant
+from renderer.scene import AMBIENT_RADIANCE, FLOOR_HALF_SIZE, LIGHT_SIZE, MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, Scene
+from renderer.transform import apply_transform, object_to_world
+
+LIGHT_RADIANCE = 14.0  # white, linear; see the module docstring for the exposure reasoning
+FLOOR_ROUGHNESS = 0.1  # GGX alpha of the floor's clear coat: blurred but visible reflections
+FLOOR_IOR = 1.5  # coat index of refraction: 4 % reflectance head on, more at grazing angles
+MAX_DEPTH = 6  # path segments: direct light plus up to 5 indirect bounces (Russian roulette from 5)
+DEFAULT_OBJECT_SRGB = (0.5, 0.5, 0.5)  # an object with neither a set color nor its own colors
+GUIDE_SPP = 16  # samples per pixel of the denoiser's albedo and normal guides (first hit only: cheap)
+MAX_SAMPLES_PER_PASS = 1 << 26  # pixels x spp per Mitsuba call: sample indices stay far below 2^32
+
+
+@dataclass(frozen=True)
+class PathtraceResult:
+    """A rendered image (float32 sRGB, H x W x 3, in [0, 1]) and how it was made."""
+
+    image: np.ndarray
+    variant: str
+    spp: int  # samples per pixel actually taken
+    denoised: bool
+    setup_seconds: float  # building the Mitsuba scene (paid once per PathTracer)
+    render_seconds: float  # sampling plus denoising of this image
+
+
+@dataclass(frozen=True)
+class RenderLayers:
+    """Linear HDR color and the denoiser's guides (None when not rendered), each float32 H x W x 3."""
+
+    color: np.ndarray
+    albedo: np.ndarray | None
+    normal: np.ndarray | None
+    spp: int  # samples per pixel actually taken
+
+
+class PathTracer:
+    """One scene set up in Mitsuba once, rendered at any spp and seed.
+
+    Building the scene (mesh upload, BVH) is paid in the constructor; `render` only samples.
+    The denoiser's guides come from a separate first-hit render: wrapping the path tracer in
+    Mitsuba's AOV integrator doubled its cost.
+    """
+
+    def __init__(self, scene: Scene, mesh: trimesh.Trimesh, size: int | None = None):
+        if size is not None and not MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE:
+            raise InputError(f"image size must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {size}")
+        start = time.perf_counter()
+        self.variant = active_variant()
+        import mitsuba as mi
+
+        self.camera = Camera.from_scene(scene, size)
+        self._scene = mi.load_dict(_scene_dict(scene, mesh, self.camera))
+        self._guide_integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,normal:sh_normal"})
+        self.setup_seconds = time.perf_counter() - start
+
+    def render(self, spp: int = 64, seed: int = 0, denoise: bool = False) -> PathtraceResult:
+        """Path trace about `spp` samples per pixel (the sampler may round up); the same seed gives the same image."""
+        start = time.perf_counter()
+        layers = self.render_layers(spp, seed, with_guides=denoise)
+        linear = denoise_layers(layers) if denoise else layers.color
+        image = linear_to_srgb(linear).astype(np.float32)
+        elapsed = time.perf_counter() - start
+        return PathtraceResult(image, self.variant, layers.spp, denoise, self.setup_seconds, elapsed)
+
+    def render_layers(self, spp: int, seed: int, with_guides: bool = True) -> RenderLayers:
+        """Noisy linear color and, if asked, the albedo and normal of the first hit (at GUIDE_SPP)."""
+        if spp < 1:
+            raise InputError(f"samples per pixel must be at least 1, got {spp}")
+        if seed < 0:
+            raise InputError(f"the seed must be a non-negative integer, got {seed}")
+        color, taken = self._accumulate(None, spp, seed, stream=0)
+        if not with_guides:
+            return RenderLayers(color, None, None, taken)
+        guides, _ = self._accumulate(self._guide_integrator, GUIDE_SPP, seed, stream=1)
+        return RenderLayers(color, guides[..., 0:3], guides[..., 3:6], taken)
+
+    def _accumulate(self, integrator, spp: int, seed: int, stream: int) -> tuple[np.ndarray, int]:
+        """Mean of Mitsuba renders in passes small enough for the sample indices, and the samples taken.
+
+        Each pass has its own seed derived from (seed, stream); the multi-jittered sampler may
+        round a pass up to a near-square sample count, which is counted.
+        """
+        import mitsuba as mi
+
+        sampler = self._scene.sensors()[0].sampler()
+        passes = sample_passes(spp, self.camera.width * self.camera.height)
+        seeds = np.random.SeedSequence([seed, stream]).generate_state(len(passes))
+        total, taken = 0.0, 0
+        for pass_spp, pass_seed in zip(passes, seeds):
+            data = np.array(mi.render(self._scene, integrator=integrator, spp=pass_spp, seed=int(pass_seed)))
+            total = total + data * sampler.sample_count()
+            taken += sampler.sample_count()
+        return np.nan_to_num(total / taken, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32), taken
+
+
+def render_pathtraced(scene: Scene, mesh: trimesh.Trimesh, size: int | None = None, spp: int = 64,
+                      seed: int = 0, denoise: bool = False) -> PathtraceResult:
+    """Path trace one image of `scene` with `mesh` (object coordinates) as its object."""
+    return PathTracer(scene, mesh, size).render(spp, seed, denoise)
+
+
+def sample_passes(spp: int, pixels: int, max_samples: int = MAX_SAMPLES_PER_PASS) -> list[int]:
+    """Split spp into near-equal passes of at most `max_samples` samples over the image."""
+    per_pass = max(1, max_samples // pixels)
+    count = math.ceil(spp / per_pass)
+    base, extra = divmod(spp, count)
+    return [base + 1] * extra + [base] * (count - extra)
+
+
+def denoise_layers(layers: RenderLayers) -> np.ndarray:
+    """Intel Open Image Denoise on linear HDR color, guided by albedo and normals; linear result."""
+    import pyoidn
+
+    color = np.ascontiguousarray(np.maximum(layers.color, 0.0), dtype=np.float32)
+    albedo = np.ascontiguousarray(np.clip(layers.albedo, 0.0, 1.0), dtype=np.float32)
+    normal = np.ascontiguousarray(np.clip(layers.normal, -1.0, 1.0), dtype=np.float32)
+    out = pyoidn.denoise(color, albedo, normal, hdr=True, quality="high")
+    return np.maximum(np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0), 0.0)
+
+
+# --- the Mitsuba scene ----------------------------------------------------------------------
+
+
+def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera) -> dict:
+    return {
+        "type": "scene",
+        "integrator": _path_integrator(),
+        "sensor": _sensor(camera),
+        "ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [AMBIENT_RADIANCE] * 3}},
+        "light": _light(scene.light.position),
+        "floor": _floor(scene.floor.color),
+        "object": object_mesh(scene, mesh),
+    }
+
+
+def _path_integrator() -> dict:
+    return {"type": "path", "max_depth": MAX_DEPTH}
+
+
+def _sensor(camera: Camera) -> dict:
+    """A Mitsuba pinhole matching the render camera (centred principal point).
+
+    Mitsuba's camera frame (x left, y up, looking along +z) is ours turned 180 degrees about y.
+    """
+    import mitsuba as mi
+
+    to_world = camera.camera_to_world() @ np.diag([-1.0, 1.0, -1.0, 1.0])
+    return {
+        "type": "perspective",
+        "to_world": mi.ScalarTransform4f(to_world.tolist()),
+        "fov": camera.fov_x_deg,
+        "fov_axis": "x",
+        "near_clip": 0.01,
+        "far_clip": 1000.0,
+        "sampler": {"type": "multijitter"},
+        "film": {
+            "type": "hdrfilm",
+            "width": camera.width,
+            "height": camera.height,
+            "pixel_format": "rgb",
+            "rfilter": {"type": "box"},
+        },
+    }
+
+
+def _light(position: tuple[float, float, float]) -> dict:
+    """The square area light of side LIGHT_SIZE centred at `position`, emitting downwards only."""
+    import mitsuba as mi
+
+    half = 0.5 * LIGHT_SIZE
+    # Mitsuba's rectangle spans [-1, 1]^2 in the xy plane facing +z; turning +90 degrees about x faces it down.
+    to_world = mi.ScalarTransform4f().translate(list(position)).rotate([1, 0, 0], 90).scale([half, half, 1.0])
+    return {
+        "type": "rectangle",
+        "to_world": to_world,
+        "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}},  # a pure emitter
+        "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [LIGHT_RADIANCE] * 3}},
+    }
+
+
+def _floor(color_srgb: tuple[float, float, float]) -> dict:
+    """The plane y = 0, a square of half side FLOOR_HALF_SIZE: diffuse floor color under a thin glossy coat."""
+    import mitsuba as mi
+
+    to_world = mi.ScalarTransform4f().rotate([1, 0, 0], -90).scale([FLOOR_HALF_SIZE, FLOOR_HALF_SIZE, 1.0])
+    return {
+        "type": "rectangle",
+        "to_world": to_world,
+        "bsdf": {
+            "type": "roughplastic",
+            "distribution": "ggx",
+            "alpha": FLOOR_ROUGHNESS,
+            "int_ior": FLOOR_IOR,
+            "diffuse_reflectance": {"type": "rgb", "value": srgb_to_linear(color_srgb).tolist()},
+        },
+    }
+
+
+# --- the object -----------------------------------------------------------------------------
+
+
+def object_mesh(scene: Scene, mesh: trimesh.Trimesh):
+    """The object as an in-memory Mitsuba mesh placed in the world, with its two-sided diffuse material.
+
+    Color, first match wins: the scene's object color; the mesh's vertex (or face) colors; its
+    UV texture; DEFAULT_OBJECT_SRGB. Faces get flat normals: the geometry is shaded as it is.
+    """
+    import mitsuba as mi
+
+    _check_mesh(mesh, scene)
+    vertex_colors = None
+    uv = None
+    texture_image = None
+    if scene.object.color is not None:
+        reflectance = {"type": "rgb", "value": srgb_to_linear(scene.object.color).tolist()}
+    elif mesh.visual.kind in ("vertex", "face"):
+        if mesh.visual.kind == "face":  # one vertex per face corner keeps each face's own color
+            mesh = mesh.copy()
+            mesh.unmerge_vertices()
+        vertex_colors = srgb_to_linear(np.asarray(mesh.visual.vertex_colors)[:, :3] / 255.0)
+        reflectance = {"type": "mesh_attribute", "name": "vertex_color"}
+    elif (texture_image := _texture_image(mesh)) is not None:
+        uv = np.asarray(mesh.visual.uv, dtype=np.float64)
+        uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)  # trimesh: v up from the bottom; Mitsuba: from the top
+        reflectance = {"type": "bitmap", "bitmap": mi.Bitmap(texture_image), "raw": True, "wrap_mode": "repeat"}
+    else:
+        reflectance = {"type": "rgb", "value": srgb_to_linear(DEFAULT_OBJECT_SRGB).tolist()}
+
+    props = mi.Properties()
+    props["bsdf"] = mi.load_dict({"type": "twosided", "material": {"type": "diffuse", "reflectance": reflectance}})
+    vertices = apply_transform(object_to_world(scene.object), np.asarray(mesh.vertices))
+    faces = np.asarray(mesh.faces)
+    out = mi.Mesh("object", len(vertices), len(faces), props=props, has_vertex_texcoords=uv is not None)
+    params = mi.traverse(out)
+    floats = type(params["vertex_positions"])  # a drjit array type: scalar and LLVM variants differ
+
+    def buffer(values: np.ndarray, kind: type = floats):
+        return kind(np.ascontiguousarray(values, dtype=np.float32 if kind is floats else np.uint32).ravel())
+
+    params["vertex_positions"] = buffer(vertices)
+    params["faces"] = buffer(faces, type(params["faces"]))
+    if uv is not None:
+        params["vertex_texcoords"] = buffer(uv)
+    params.update()
+    if vertex_colors is not None:
+        out.add_attribute("vertex_color", 3, buffer(vertex_colors))
+    return out
+
+
+def _check_mesh(mesh: trimesh.Trimesh, scene: Scene) -> None:
+    where = scene.mesh_path()
+    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
+        raise InputError("the mesh has no faces to render", where)
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise InputError("the mesh has NaN or infinite vertex coordinates", where)
+
+
+def _texture_image(mesh: trimesh.Trimesh) -> np.ndarray | None:
+    """The mesh's UV texture as linear float32 RGB, or None when it has no UVs or no image."""
+    visual = mesh.visual
+    if visual.kind != "texture" or getattr(visual, "uv", None) is None or len(visual.uv) != len(mesh.vertices):
+        return None
+    material = visual.material
+    image = getattr(material, "image", None)
+    if image is None:
+        image = getattr(material, "baseColorTexture", None)
+    if image is None:
+        return None
+    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
+    return np.ascontiguousarray(srgb_to_linear(rgb), dtype=np.float32)
