@@ -1,0 +1,92 @@
+"""Forward time of the networks on this CPU: full frame and light edit (everything after the light merge).
+
+Usage: python benchmarks/bench_networks.py [--config compact|paper] [--arch nvr|nvr_plus]
+       [--set FIELD=JSON ...] [--repeats N] [--no-prepare]
+Times are wall-clock over N runs with torch.set_num_threads(2), fp32, eval mode, batch 1, on the
+inference copy (models/inference.py: BatchNorm folded, channels-last) unless --no-prepare; the
+median is the headline and the minimum is printed beside it, since other processes share the CPU.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import torch
+from torch.utils.flop_counter import FlopCounterMode
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from models.config import CompactConfig, NVRConfig, PaperConfig  # noqa: E402
+from models.inference import prepare_for_inference  # noqa: E402
+from models.nvr import build_model  # noqa: E402
+
+CONFIGS = {"paper": PaperConfig, "compact": CompactConfig}
+
+
+def gflop(fn: Callable[[], object]) -> float:
+    """Floating-point operations of one call (2 per multiply-add), in billions."""
+    with FlopCounterMode(display=False) as counter:
+        fn()
+    return counter.get_total_flops() / 1e9
+
+
+def times_ms(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
+    """(median, minimum) wall time in ms over `repeats` calls after one warm-up call."""
+    fn()
+    samples = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        samples.append((time.perf_counter() - start) * 1000.0)
+    return statistics.median(samples), min(samples)
+
+
+def measure(config: NVRConfig, architecture: str, repeats: int, prepare: bool) -> dict[str, float]:
+    torch.manual_seed(0)
+    model = build_model(architecture, config).eval()
+    params = sum(p.numel() for p in model.parameters())
+    if prepare:
+        model = prepare_for_inference(model)
+    g, s = config.grid_size, config.output_size
+    voxels = (torch.rand(g, g, g, 4) < 0.1).float().permute(3, 0, 1, 2)[None]  # channels-last for free
+    light = torch.tensor([[0.3, 0.9, -0.8]])
+    splat = torch.rand(1, 3, s, s) if architecture == "nvr_plus" else None
+    with torch.inference_mode():
+        latent = model.encode_voxels(voxels)
+        splat_features = model.encode_splat(splat) if splat is not None else None
+        result = {
+            "params_M": params / 1e6,
+            "gflop_full": gflop(lambda: model(voxels, light, splat)),
+            "gflop_light_edit": gflop(lambda: model.render_from_latent(latent, light, splat_features)),
+        }
+        result["ms_full_median"], result["ms_full_min"] = times_ms(lambda: model(voxels, light, splat), repeats)
+        result["ms_light_median"], result["ms_light_min"] = times_ms(
+            lambda: model.render_from_latent(latent, light, splat_features), repeats * 3)
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--config", choices=CONFIGS, default="compact")
+    parser.add_argument("--arch", choices=("nvr", "nvr_plus"), action="append")
+    parser.add_argument("--set", action="append", default=[], metavar="FIELD=JSON", help="override a config field")
+    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--no-prepare", action="store_true", help="time the plain eval model")
+    args = parser.parse_args()
+    torch.set_num_threads(2)
+    overrides = {k: json.loads(v) for k, v in (item.split("=", 1) for item in args.set)}
+    config = CONFIGS[args.config](**overrides)
+    for architecture in args.arch or ("nvr", "nvr_plus"):
+        result = measure(config, architecture, args.repeats, not args.no_prepare)
+        print(json.dumps({"config": args.config, "arch": architecture, **overrides,
+                          **{k: round(v, 2) for k, v in result.items()}}))
+
+
+if __name__ == "__main__":
+    main()

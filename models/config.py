@@ -1,0 +1,184 @@
+"""Network configurations: every width and size of NVR / NVR+ as data, saved with the weights.
+
+`NVRConfig` holds the fields; each named configuration is a subclass that only sets defaults:
+`PaperConfig` (the widths of the authors' reference implementation) and `CompactConfig`
+(sized to render live on a 2-core CPU; see docs in the class). Any field can be overridden,
+e.g. `PaperConfig(grid_size=32, output_size=64)` keeps the paper's structure at a tiny size.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+VOXEL_CHANNELS_IN = 4  # R, G, B, occupancy
+LIGHT_DIMS = 3
+IMAGE_CHANNELS = 3
+
+
+@dataclass(frozen=True)
+class NVRConfig:
+    """All widths and sizes of the networks (fields without defaults: use a named subclass).
+
+    Voxel branch: 3D conv blocks `voxel_channels` with `voxel_strides` and `voxel_kernels`,
+    then `voxel_res_blocks` 3D residual blocks; projection folds depth into channels and a 1x1
+    conv maps them to `latent_channels`; `pre_light_blocks` 2D residual blocks finish the latent.
+    Light: 2 FC layers to `light_channels`, tiled and concatenated; a merge conv (`merge_kernel`)
+    back to `latent_channels`, `post_light_blocks` residual blocks, a decoder doubling the size
+    per entry of `decoder_channels` (conv kernel `decoder_kernel`). NVR+: a splat branch of
+    `splat_layers` full-resolution convs of `splat_channels`, and a U-Net with one level per
+    entry of `unet_channels` and `unet_mid_blocks` residual blocks in its middle.
+    """
+
+    name: ClassVar[str] = ""
+
+    grid_size: int
+    output_size: int
+    voxel_channels: tuple[int, ...]
+    voxel_strides: tuple[int, ...]
+    voxel_kernels: tuple[int, ...]
+    voxel_res_blocks: int
+    latent_channels: int
+    pre_light_blocks: int
+    light_channels: int
+    merge_kernel: int
+    post_light_blocks: int
+    decoder_channels: tuple[int, ...]
+    decoder_kernel: int
+    splat_channels: int
+    splat_layers: int
+    splat_kernel: int
+    unet_channels: tuple[int, ...]
+    unet_mid_blocks: int
+    unet_kernel: int
+    perceptual_weight: float  # beta of the loss L1 + beta * perceptual
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, list):
+                object.__setattr__(self, f.name, tuple(value))
+        self._check()
+
+    # --- derived sizes ------------------------------------------------------------------
+
+    @property
+    def voxel_downsampling(self) -> int:
+        """Factor by which the voxel branch shrinks the grid (product of its strides)."""
+        factor = 1
+        for s in self.voxel_strides:
+            factor *= s
+        return factor
+
+    @property
+    def latent_size(self) -> int:
+        """Side of the 2D latent (the voxel grid's side after the strided 3D stages)."""
+        return self.grid_size // self.voxel_downsampling
+
+    # --- checks and (de)serialisation ---------------------------------------------------
+
+    def _check(self) -> None:
+        ints = [f.name for f in dataclasses.fields(self) if f.type == "int"]
+        for key in ints:
+            if not isinstance(getattr(self, key), int) or getattr(self, key) < 0:
+                raise ValueError(f"config field {key} must be a non-negative integer, got {getattr(self, key)!r}")
+        for key in ("voxel_channels", "voxel_strides", "voxel_kernels", "decoder_channels", "unet_channels"):
+            values = getattr(self, key)
+            if not values or not all(isinstance(v, int) and v > 0 for v in values):
+                raise ValueError(f"config field {key} must be a non-empty list of positive integers, got {values!r}")
+        if not len(self.voxel_strides) == len(self.voxel_kernels) == len(self.voxel_channels):
+            raise ValueError("voxel_channels, voxel_strides and voxel_kernels must have the same length")
+        if any(s not in (1, 2) for s in self.voxel_strides):
+            raise ValueError("voxel_strides must be 1 or 2")
+        if self.grid_size % self.voxel_downsampling:
+            raise ValueError(f"grid_size {self.grid_size} is not divisible by the voxel downsampling {self.voxel_downsampling}")
+        expected = self.latent_size * 2 ** len(self.decoder_channels)
+        if self.output_size != expected:
+            raise ValueError(f"output_size must be latent size x 2^(decoder stages) = {expected}, got {self.output_size}")
+        if self.output_size % 2 ** len(self.unet_channels):
+            raise ValueError("output_size must be divisible by 2^(U-Net levels)")
+        for key in ("grid_size", "latent_channels", "light_channels", "merge_kernel",
+                    "decoder_kernel", "splat_channels", "splat_kernel", "unet_kernel"):
+            if getattr(self, key) < 1:
+                raise ValueError(f"config field {key} must be at least 1")
+        if not self.perceptual_weight >= 0.0:
+            raise ValueError(f"perceptual_weight must be >= 0, got {self.perceptual_weight!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form: the configuration's name and every field (tuples as lists)."""
+        data: dict[str, Any] = {"name": self.name}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            data[f.name] = list(value) if isinstance(value, tuple) else value
+        return data
+
+    @staticmethod
+    def from_dict(data: dict[str, Any]) -> NVRConfig:
+        """Rebuild a configuration from `to_dict` output; unknown names or fields raise ValueError."""
+        classes = {cls.name: cls for cls in (PaperConfig, CompactConfig)}
+        if not isinstance(data, dict) or data.get("name") not in classes:
+            raise ValueError(f"unknown configuration name {data.get('name') if isinstance(data, dict) else data!r}")
+        cls = classes[data["name"]]
+        fields = {f.name for f in dataclasses.fields(cls)}
+        given = set(data) - {"name"}
+        if given != fields:
+            missing, extra = sorted(fields - given), sorted(given - fields)
+            raise ValueError(f"configuration fields differ (missing {missing}, unexpected {extra})")
+        return cls(**{k: data[k] for k in fields})
+
+
+@dataclass(frozen=True)
+class PaperConfig(NVRConfig):
+    """The published widths (the authors' reference implementation): 128^3 voxels -> 256^2 image."""
+
+    name: ClassVar[str] = "paper"
+
+    grid_size: int = 128
+    output_size: int = 256
+    voxel_channels: tuple[int, ...] = (16, 16, 16, 32, 32)
+    voxel_strides: tuple[int, ...] = (2, 1, 2, 1, 1)
+    voxel_kernels: tuple[int, ...] = (4, 4, 4, 4, 4)
+    voxel_res_blocks: int = 5
+    latent_channels: int = 512
+    pre_light_blocks: int = 5
+    light_channels: int = 64
+    merge_kernel: int = 4
+    post_light_blocks: int = 5
+    decoder_channels: tuple[int, ...] = (128, 64, 32)
+    decoder_kernel: int = 4
+    splat_channels: int = 32
+    splat_layers: int = 2
+    splat_kernel: int = 4
+    unet_channels: tuple[int, ...] = (128, 256, 512)
+    unet_mid_blocks: int = 3
+    unet_kernel: int = 4
+    perceptual_weight: float = 0.002
+
+
+@dataclass(frozen=True)
+class CompactConfig(NVRConfig):
+    """Sized for live editing on a 2-core CPU at 256^2 (widths chosen by measured forward time)."""
+
+    name: ClassVar[str] = "compact"
+
+    grid_size: int = 128
+    output_size: int = 256
+    voxel_channels: tuple[int, ...] = (8, 24, 24)
+    voxel_strides: tuple[int, ...] = (2, 2, 1)
+    voxel_kernels: tuple[int, ...] = (2, 2, 3)
+    voxel_res_blocks: int = 0
+    latent_channels: int = 96
+    pre_light_blocks: int = 2
+    light_channels: int = 32
+    merge_kernel: int = 1
+    post_light_blocks: int = 2
+    decoder_channels: tuple[int, ...] = (32, 16, 8)
+    decoder_kernel: int = 3
+    splat_channels: int = 8
+    splat_layers: int = 2
+    splat_kernel: int = 3
+    unet_channels: tuple[int, ...] = (16, 32)
+    unet_mid_blocks: int = 1
+    unet_kernel: int = 3
+    perceptual_weight: float = 0.002

@@ -1,0 +1,230 @@
+"""NVR and NVR+ (paper sections 3.3 and 3.4), built from an `NVRConfig`, with cacheable stages.
+
+Input/output convention (the one place it is written down):
+- voxels: (B, 4, D, H, W) float32, D = H = W = config.grid_size; channels R, G, B (sRGB in
+  [0, 1]) and occupancy (0 or 1); indexed [depth, row, column] as renderer/camera.py defines
+  the camera-aligned grid (depth 0 nearest the camera, row 0 at the top, column 0 at the left).
+- light: (B, 3) float32, the light's position in camera coordinates
+  (renderer.camera.Camera.world_to_camera) divided by LIGHT_SCALE = CAMERA_DISTANCE, so the
+  look-at point is (0, 0, -1); `light_to_network` makes it from a world position.
+- splat (NVR+ only): (B, 3, S, S) float32 sRGB in [0, 1], S = config.output_size, the splatted
+  image of the same scene and camera.
+- output: (B, 3, S, S) float32 sRGB, squashed into (0, 1) by a sigmoid (never clamped, so every
+  pixel keeps a gradient).
+
+Stages, so a live engine can cache what an edit does not change:
+`encode_voxels(voxels) -> latent` and `encode_splat(splat) -> features` do not depend on the
+light; `render_from_latent(latent, light, splat_features)` is everything from the light merge
+on; `forward(voxels, light, splat)` composes them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from models.config import IMAGE_CHANNELS, LIGHT_DIMS, VOXEL_CHANNELS_IN, NVRConfig
+from models.layers import (
+    ResidualBlock2d,
+    ResidualBlock3d,
+    ResidualStack,
+    conv_2d,
+    conv_block_2d,
+    conv_block_3d,
+    up_block_2d,
+)
+from renderer.camera import Camera
+from renderer.scene import CAMERA_DISTANCE
+
+LIGHT_SCALE = CAMERA_DISTANCE
+
+
+def light_to_network(light_world: np.ndarray, elevation_deg: float) -> np.ndarray:
+    """World light position(s) (..., 3) to the network's light input (camera coordinates / LIGHT_SCALE)."""
+    w2c = Camera(elevation_deg=elevation_deg).world_to_camera()
+    p = np.asarray(light_world, dtype=np.float64)
+    return ((p @ w2c[:3, :3].T + w2c[:3, 3]) / LIGHT_SCALE).astype(np.float32)
+
+
+# --- branches -------------------------------------------------------------------------------
+
+
+class VoxelEncoder(nn.Module):
+    """Voxels -> 2D latent: strided 3D convs, 3D residual blocks, projection unit, 2D residual blocks."""
+
+    def __init__(self, config: NVRConfig):
+        super().__init__()
+        stages, c_in = [], VOXEL_CHANNELS_IN
+        for c_out, stride, kernel in zip(config.voxel_channels, config.voxel_strides, config.voxel_kernels):
+            stages.append(conv_block_3d(c_in, c_out, kernel, stride))
+            c_in = c_out
+        self.stages = nn.Sequential(*stages)
+        self.residual = ResidualStack(lambda: ResidualBlock3d(c_in), config.voxel_res_blocks)
+        # Projection unit: depth folded into channels, then a 1x1 convolution.
+        self.projection = conv_block_2d(c_in * config.latent_size, config.latent_channels, 1)
+        self.blocks = ResidualStack(lambda: ResidualBlock2d(config.latent_channels), config.pre_light_blocks)
+
+    def forward(self, voxels: torch.Tensor) -> torch.Tensor:
+        x = self.residual(self.stages(voxels))
+        b, c, d, h, w = x.shape
+        return self.blocks(self.projection(x.reshape(b, c * d, h, w)))
+
+
+class LightDecoder(nn.Module):
+    """Latent + light -> full-resolution features: light FCs tiled, merge, residual blocks, upsampling."""
+
+    def __init__(self, config: NVRConfig):
+        super().__init__()
+        n = config.light_channels
+        self.light_mlp = nn.Sequential(nn.Linear(LIGHT_DIMS, n), nn.ReLU(), nn.Linear(n, n))
+        self.merge = conv_block_2d(config.latent_channels + n, config.latent_channels, config.merge_kernel)
+        self.blocks = ResidualStack(lambda: ResidualBlock2d(config.latent_channels), config.post_light_blocks)
+        layers, c_in = [], config.latent_channels
+        for c_out in config.decoder_channels:
+            layers += [up_block_2d(c_in, c_out), conv_block_2d(c_out, c_out, config.decoder_kernel)]
+            c_in = c_out
+        self.decoder = nn.Sequential(*layers)
+
+    def forward(self, latent: torch.Tensor, light: torch.Tensor) -> torch.Tensor:
+        code = self.light_mlp(light)[:, :, None, None].expand(-1, -1, latent.shape[2], latent.shape[3])
+        x = self.merge(torch.cat([latent, code], dim=1))
+        return self.decoder(self.blocks(x))
+
+
+class SplatEncoder(nn.Module):
+    """Splatting processing network: full-resolution conv blocks (no downsampling)."""
+
+    def __init__(self, config: NVRConfig):
+        super().__init__()
+        layers, c_in = [], IMAGE_CHANNELS
+        for _ in range(config.splat_layers):
+            layers.append(conv_block_2d(c_in, config.splat_channels, config.splat_kernel))
+            c_in = config.splat_channels
+        self.layers = nn.Sequential(*layers)
+
+    def forward(self, splat: torch.Tensor) -> torch.Tensor:
+        return self.layers(splat)
+
+
+class RerenderUNet(nn.Module):
+    """Neural rerendering network: a U-Net of strided residual blocks with residual blocks in its middle.
+
+    Level i halves the size and has `unet_channels[i]` channels; going up, each level upsamples
+    to half its width, concatenates the skip of the level above and convolves to the skip's width.
+    """
+
+    def __init__(self, config: NVRConfig):
+        super().__init__()
+        widths = config.unet_channels
+        skips = (config.splat_channels, *widths[:-1])
+        self.down = nn.ModuleList(ResidualBlock2d(s, w, stride=2) for s, w in zip(skips, widths))
+        self.middle = ResidualStack(lambda: ResidualBlock2d(widths[-1]), config.unet_mid_blocks)
+        self.up = nn.ModuleList(up_block_2d(w, w // 2) for w in widths)
+        self.fuse = nn.ModuleList(conv_block_2d(w // 2 + s, s, config.unet_kernel) for s, w in zip(skips, widths))
+        self.out = conv_block_2d(config.splat_channels, config.splat_channels, config.unet_kernel)
+        self.to_rgb = conv_2d(config.splat_channels, IMAGE_CHANNELS, config.unet_kernel)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        skips = []
+        for down in self.down:
+            skips.append(x)
+            x = down(x)
+        x = self.middle(x)
+        for level in reversed(range(len(self.down))):
+            x = self.fuse[level](torch.cat([self.up[level](x), skips[level]], dim=1))
+        return self.to_rgb(self.out(x))
+
+
+# --- the two networks -----------------------------------------------------------------------
+
+
+class _VoxelRenderer(nn.Module):
+    """What NVR and NVR+ share: the voxel branch, the light decoder, and input checks."""
+
+    def __init__(self, config: NVRConfig):
+        super().__init__()
+        self.config = config
+        self.voxel_encoder = VoxelEncoder(config)
+        self.light_decoder = LightDecoder(config)
+
+    def encode_voxels(self, voxels: torch.Tensor) -> torch.Tensor:
+        """Light-independent latent (B, latent_channels, s, s) of the voxel grid."""
+        g = self.config.grid_size
+        _check_shape("voxels", voxels, (VOXEL_CHANNELS_IN, g, g, g))
+        return self.voxel_encoder(voxels)
+
+    def _features(self, latent: torch.Tensor, light: torch.Tensor) -> torch.Tensor:
+        _check_shape("light", light, (LIGHT_DIMS,))
+        if light.shape[0] != latent.shape[0]:
+            raise ValueError(f"light has batch {light.shape[0]}, latent has batch {latent.shape[0]}")
+        return self.light_decoder(latent, light)
+
+
+class NVR(_VoxelRenderer):
+    """Neural Voxel Renderer: voxels and light -> image."""
+
+    architecture = "nvr"
+
+    def __init__(self, config: NVRConfig):
+        super().__init__(config)
+        c = config.decoder_channels[-1]
+        self.to_rgb = conv_2d(c, IMAGE_CHANNELS, config.decoder_kernel)
+
+    def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
+                           splat_features: torch.Tensor | None = None) -> torch.Tensor:
+        """Image (B, 3, S, S) from a cached latent and the light; NVR takes no splat."""
+        if splat_features is not None:
+            raise ValueError("NVR takes no splat; use NVRPlus")
+        return torch.sigmoid(self.to_rgb(self._features(latent, light)))
+
+    def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None) -> torch.Tensor:
+        if splat is not None:
+            raise ValueError("NVR takes no splat; use NVRPlus")
+        return self.render_from_latent(self.encode_voxels(voxels), light)
+
+
+class NVRPlus(_VoxelRenderer):
+    """NVR+: NVR's full-resolution features plus the processed splat, rerendered by a U-Net."""
+
+    architecture = "nvr_plus"
+
+    def __init__(self, config: NVRConfig):
+        super().__init__(config)
+        self.to_features = conv_2d(config.decoder_channels[-1], config.splat_channels, config.decoder_kernel)
+        self.splat_encoder = SplatEncoder(config)
+        self.rerender = RerenderUNet(config)
+
+    def encode_splat(self, splat: torch.Tensor) -> torch.Tensor:
+        """Light-independent features (B, splat_channels, S, S) of the splatted image."""
+        s = self.config.output_size
+        _check_shape("splat", splat, (IMAGE_CHANNELS, s, s))
+        return self.splat_encoder(splat)
+
+    def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
+                           splat_features: torch.Tensor | None = None) -> torch.Tensor:
+        """Image (B, 3, S, S) from a cached latent, the light and cached splat features."""
+        if splat_features is None:
+            raise ValueError("NVRPlus needs splat features (encode_splat)")
+        features = self.to_features(self._features(latent, light)) + splat_features
+        return torch.sigmoid(self.rerender(features))
+
+    def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None) -> torch.Tensor:
+        if splat is None:
+            raise ValueError("NVRPlus needs a splat image")
+        return self.render_from_latent(self.encode_voxels(voxels), light, self.encode_splat(splat))
+
+
+ARCHITECTURES: dict[str, type[_VoxelRenderer]] = {NVR.architecture: NVR, NVRPlus.architecture: NVRPlus}
+
+
+def build_model(architecture: str, config: NVRConfig) -> NVR | NVRPlus:
+    """A fresh network of the named architecture ('nvr' or 'nvr_plus')."""
+    if architecture not in ARCHITECTURES:
+        raise ValueError(f"unknown architecture {architecture!r} (choose from {', '.join(ARCHITECTURES)})")
+    return ARCHITECTURES[architecture](config)
+
+
+def _check_shape(name: str, tensor: torch.Tensor, per_item: tuple[int, ...]) -> None:
+    if tensor.ndim != len(per_item) + 1 or tuple(tensor.shape[1:]) != per_item:
+        raise ValueError(f"{name} must have shape (B, {', '.join(map(str, per_item))}), got {tuple(tensor.shape)}")
