@@ -25,15 +25,14 @@ import trimesh
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
+from renderer.mitsuba_object import object_shapes
 from renderer.mitsuba_variant import active_variant
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_HALF_SIZE, LIGHT_SIZE, MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, Scene
-from renderer.transform import apply_transform, object_to_world
 
 LIGHT_RADIANCE = 14.0  # white, linear; see the module docstring for the exposure reasoning
 FLOOR_ROUGHNESS = 0.1  # GGX alpha of the floor's clear coat: blurred but visible reflections
 FLOOR_IOR = 1.5  # coat index of refraction: 4 % reflectance head on, more at grazing angles
 MAX_DEPTH = 6  # path segments: direct light plus up to 5 indirect bounces (Russian roulette from 5)
-DEFAULT_OBJECT_SRGB = (0.5, 0.5, 0.5)  # an object with neither a set color nor its own colors
 GUIDE_SPP = 16  # samples per pixel of the denoiser's albedo and normal guides (first hit only: cheap)
 MAX_SAMPLES_PER_PASS = 1 << 26  # pixels x spp per Mitsuba call: sample indices stay far below 2^32
 
@@ -156,7 +155,7 @@ def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera) -> dict:
         "ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [AMBIENT_RADIANCE] * 3}},
         "light": _light(scene.light.position),
         "floor": _floor(scene.floor.color),
-        "object": object_mesh(scene, mesh),
+        **object_shapes(scene, mesh),
     }
 
 
@@ -221,77 +220,3 @@ def _floor(color_srgb: tuple[float, float, float]) -> dict:
             "diffuse_reflectance": {"type": "rgb", "value": srgb_to_linear(color_srgb).tolist()},
         },
     }
-
-
-# --- the object -----------------------------------------------------------------------------
-
-
-def object_mesh(scene: Scene, mesh: trimesh.Trimesh):
-    """The object as an in-memory Mitsuba mesh placed in the world, with its two-sided diffuse material.
-
-    Color, first match wins: the scene's object color; the mesh's vertex (or face) colors; its
-    UV texture; DEFAULT_OBJECT_SRGB. Faces get flat normals: the geometry is shaded as it is.
-    """
-    import mitsuba as mi
-
-    _check_mesh(mesh, scene)
-    vertex_colors = None
-    uv = None
-    texture_image = None
-    if scene.object.color is not None:
-        reflectance = {"type": "rgb", "value": srgb_to_linear(scene.object.color).tolist()}
-    elif mesh.visual.kind in ("vertex", "face"):
-        if mesh.visual.kind == "face":  # one vertex per face corner keeps each face's own color
-            mesh = mesh.copy()
-            mesh.unmerge_vertices()
-        vertex_colors = srgb_to_linear(np.asarray(mesh.visual.vertex_colors)[:, :3] / 255.0)
-        reflectance = {"type": "mesh_attribute", "name": "vertex_color"}
-    elif (texture_image := _texture_image(mesh)) is not None:
-        uv = np.asarray(mesh.visual.uv, dtype=np.float64)
-        uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)  # trimesh: v up from the bottom; Mitsuba: from the top
-        reflectance = {"type": "bitmap", "bitmap": mi.Bitmap(texture_image), "raw": True, "wrap_mode": "repeat"}
-    else:
-        reflectance = {"type": "rgb", "value": srgb_to_linear(DEFAULT_OBJECT_SRGB).tolist()}
-
-    props = mi.Properties()
-    props["bsdf"] = mi.load_dict({"type": "twosided", "material": {"type": "diffuse", "reflectance": reflectance}})
-    vertices = apply_transform(object_to_world(scene.object), np.asarray(mesh.vertices))
-    faces = np.asarray(mesh.faces)
-    out = mi.Mesh("object", len(vertices), len(faces), props=props, has_vertex_texcoords=uv is not None)
-    params = mi.traverse(out)
-    floats = type(params["vertex_positions"])  # a drjit array type: scalar and LLVM variants differ
-
-    def buffer(values: np.ndarray, kind: type = floats):
-        return kind(np.ascontiguousarray(values, dtype=np.float32 if kind is floats else np.uint32).ravel())
-
-    params["vertex_positions"] = buffer(vertices)
-    params["faces"] = buffer(faces, type(params["faces"]))
-    if uv is not None:
-        params["vertex_texcoords"] = buffer(uv)
-    params.update()
-    if vertex_colors is not None:
-        out.add_attribute("vertex_color", 3, buffer(vertex_colors))
-    return out
-
-
-def _check_mesh(mesh: trimesh.Trimesh, scene: Scene) -> None:
-    where = scene.mesh_path()
-    if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
-        raise InputError("the mesh has no faces to render", where)
-    if not np.all(np.isfinite(mesh.vertices)):
-        raise InputError("the mesh has NaN or infinite vertex coordinates", where)
-
-
-def _texture_image(mesh: trimesh.Trimesh) -> np.ndarray | None:
-    """The mesh's UV texture as linear float32 RGB, or None when it has no UVs or no image."""
-    visual = mesh.visual
-    if visual.kind != "texture" or getattr(visual, "uv", None) is None or len(visual.uv) != len(mesh.vertices):
-        return None
-    material = visual.material
-    image = getattr(material, "image", None)
-    if image is None:
-        image = getattr(material, "baseColorTexture", None)
-    if image is None:
-        return None
-    rgb = np.asarray(image.convert("RGB"), dtype=np.float64) / 255.0
-    return np.ascontiguousarray(srgb_to_linear(rgb), dtype=np.float32)

@@ -19,6 +19,7 @@ from scipy.spatial import ConvexHull
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
+from renderer.mitsuba_object import condition_faces
 from renderer.mitsuba_variant import LLVM_VARIANT, SCALAR_VARIANT, choose_variant, libllvm_version
 from renderer.pathtrace import LIGHT_RADIANCE, PathTracer, render_pathtraced, sample_passes
 from renderer.scene import AMBIENT_RADIANCE, CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
@@ -168,6 +169,37 @@ def test_uv_texture_keeps_its_orientation():
     assert np.argmax(pixel_at(image, camera, (-0.2, 0.7, 0.0))) == 0
     assert np.argmax(pixel_at(image, camera, (0.2, 0.7, 0.0))) == 1
     assert np.argmax(pixel_at(image, camera, (0.0, 0.3, 0.0))) == 2
+
+
+def sliver_comb(count=100, height=1e-4) -> trimesh.Trimesh:
+    """Flat slivers facing the camera, 0.9 wide and `height` tall at their apex, corners red, green and blue."""
+    vertices, faces, colors = [], [], []
+    for k in range(count):
+        y = 0.1 + 0.8 * k / count
+        vertices += [[-0.45, y, 0.0], [0.45, y, 0.0], [0.0, y + height, 0.0]]
+        faces.append([3 * k, 3 * k + 1, 3 * k + 2])
+        colors += [[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255]]
+    return trimesh.Trimesh(vertices, faces, vertex_colors=colors, process=False)
+
+
+def test_vertex_colors_on_slivers_stay_within_their_corner_colors():
+    # Mitsuba's float32 barycentrics on these slivers gave albedos below 0 before they got flat colors.
+    tracer = PathTracer(make_scene(light=(0.0, 2.75, 1.5), elevation=0.0), sliver_comb(), size=64)
+    albedo = tracer.render_layers(4, seed=0).albedo
+    assert np.all(np.isfinite(albedo)) and albedo.min() >= 0.0 and albedo.max() <= 1.0
+
+
+def test_faces_start_at_their_best_corner_and_slivers_are_set_apart():
+    vertices = np.array([
+        [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0],  # right angle at corner 0
+        [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1e-3, 0.0],  # needle: the angle at corner 1 is 90 degrees
+        [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1e-6, 0.0],  # sliver: angles 0, 0 and 180 degrees
+        [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0],  # no area at all
+    ])
+    faces = np.arange(12).reshape(4, 3)
+    good, slivers = condition_faces(vertices, faces)
+    assert good.tolist() == [[0, 1, 2], [4, 5, 3]]  # cyclic rotation keeps the winding
+    assert len(slivers) == 1 and sorted(slivers[0]) == [6, 7, 8]
 
 
 def test_white_floor_below_the_light_is_bright_but_not_clipped():
