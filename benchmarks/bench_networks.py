@@ -2,9 +2,10 @@
 
 Usage: python benchmarks/bench_networks.py [--config compact|paper] [--arch nvr|nvr_plus]
        [--set FIELD=JSON ...] [--repeats N] [--no-prepare]
-Times are wall-clock over N runs with torch.set_num_threads(2), fp32, eval mode, batch 1, on the
-inference copy (models/inference.py: BatchNorm folded, channels-last) unless --no-prepare; the
-median is the headline and the minimum is printed beside it, since other processes share the CPU.
+fp32, eval mode, batch 1, on the inference copy (models/inference.py: BatchNorm folded,
+channels-last) unless --no-prepare. Two measurements, because other processes share the CPU:
+wall-clock with torch.set_num_threads(2) over N runs (median, and minimum beside it), and the
+CPU time of the same call on 1 thread (median), which contention barely changes.
 """
 
 from __future__ import annotations
@@ -36,8 +37,9 @@ def gflop(fn: Callable[[], object]) -> float:
     return counter.get_total_flops() / 1e9
 
 
-def times_ms(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
-    """(median, minimum) wall time in ms over `repeats` calls after one warm-up call."""
+def wall_ms(fn: Callable[[], object], repeats: int, threads: int = 2) -> tuple[float, float]:
+    """(median, minimum) wall time in ms over `repeats` calls on `threads` threads, after a warm-up call."""
+    torch.set_num_threads(threads)
     fn()
     samples = []
     for _ in range(repeats):
@@ -45,6 +47,18 @@ def times_ms(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
         fn()
         samples.append((time.perf_counter() - start) * 1000.0)
     return statistics.median(samples), min(samples)
+
+
+def cpu_ms(fn: Callable[[], object], repeats: int) -> float:
+    """Median CPU time in ms of one call on a single thread (insensitive to other processes)."""
+    torch.set_num_threads(1)
+    fn()
+    samples = []
+    for _ in range(repeats):
+        start = time.thread_time()
+        fn()
+        samples.append((time.thread_time() - start) * 1000.0)
+    return statistics.median(samples)
 
 
 def measure(config: NVRConfig, architecture: str, repeats: int, prepare: bool) -> dict[str, float]:
@@ -65,9 +79,11 @@ def measure(config: NVRConfig, architecture: str, repeats: int, prepare: bool) -
             "gflop_full": gflop(lambda: model(voxels, light, splat)),
             "gflop_light_edit": gflop(lambda: model.render_from_latent(latent, light, splat_features)),
         }
-        result["ms_full_median"], result["ms_full_min"] = times_ms(lambda: model(voxels, light, splat), repeats)
-        result["ms_light_median"], result["ms_light_min"] = times_ms(
-            lambda: model.render_from_latent(latent, light, splat_features), repeats * 3)
+        full = lambda: model(voxels, light, splat)  # noqa: E731
+        light_edit = lambda: model.render_from_latent(latent, light, splat_features)  # noqa: E731
+        result["ms_full_median"], result["ms_full_min"] = wall_ms(full, repeats)
+        result["ms_light_median"], result["ms_light_min"] = wall_ms(light_edit, repeats * 3)
+        result["cpu1_ms_full"], result["cpu1_ms_light"] = cpu_ms(full, repeats), cpu_ms(light_edit, repeats * 3)
     return result
 
 
@@ -79,7 +95,6 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--no-prepare", action="store_true", help="time the plain eval model")
     args = parser.parse_args()
-    torch.set_num_threads(2)
     overrides = {k: json.loads(v) for k, v in (item.split("=", 1) for item in args.set)}
     config = CONFIGS[args.config](**overrides)
     for architecture in args.arch or ("nvr", "nvr_plus"):

@@ -130,7 +130,12 @@ class NVRConfig:
 
 @dataclass(frozen=True)
 class PaperConfig(NVRConfig):
-    """The published widths (the authors' reference implementation): 128^3 voxels -> 256^2 image."""
+    """The published widths (the authors' reference implementation): 128^3 voxels -> 256^2 image.
+
+    Same stages, widths, kernels and block counts as the reference; where this code differs:
+    2D blocks use ReLU (the paper's text) instead of leaky ReLU, the light FCs have a ReLU
+    between them, and the U-Net upsamples by transposed convolution like the decoder does.
+    """
 
     name: ClassVar[str] = "paper"
 
@@ -158,7 +163,19 @@ class PaperConfig(NVRConfig):
 
 @dataclass(frozen=True)
 class CompactConfig(NVRConfig):
-    """Sized for live editing on a 2-core CPU at 256^2 (widths chosen by measured forward time)."""
+    """Sized for live editing on a 2-core CPU at 256^2 (widths chosen by measured forward time).
+
+    NVR+ at batch 1 (benchmarks/bench_networks.py, inference copy): a full frame is 4.4 GFLOP,
+    about 50 ms on 2 threads; a light edit (render_from_latent) is 2.2 GFLOP, about 20 ms.
+    - The two strided 3D stages are non-overlapping 2x2x2 patches: a 4^3 kernel at 128^3 costs
+      8x more (1 GFLOP for only 8 channels). One 3x3x3 convolution then works at 32^3.
+    - 24 channels at 32^3, because at batch 1 torch runs 3D convolutions with kernels <= 3 on a
+      slow reference path unless channels x 32 x 32 > 20480 (16 channels ran 10x slower).
+    - A 96-channel latent with 2 residual blocks before and 2 after the light merge, which is
+      1x1 since the tiled light code is constant over space.
+    - Full-resolution layers are 8 channels wide (a 3x3 16->16 conv at 256^2 is 0.3 GFLOP) and
+      the U-Net has two levels (16, 32).
+    """
 
     name: ClassVar[str] = "compact"
 

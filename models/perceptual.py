@@ -159,8 +159,10 @@ class PerceptualLoss(nn.Module):
         """Per-image sum over layers of weight * RMS activation difference, shape (B,)."""
         if images.shape != targets.shape or images.ndim != 4 or images.shape[1] != 3:
             raise ValueError(f"need two (B, 3, H, W) batches of one shape, got {tuple(images.shape)} and {tuple(targets.shape)}")
+        with torch.set_grad_enabled(torch.is_grad_enabled() and targets.requires_grad):
+            target_features = self.features(targets)  # no graph kept for fixed targets
         total = images.new_zeros(images.shape[0])
-        for w, a, b in zip(LAYER_WEIGHTS, self.features(images), self.features(targets)):
+        for w, a, b in zip(LAYER_WEIGHTS, self.features(images), target_features):
             # vector_norm has a zero (not NaN) gradient where the difference is exactly zero.
             total = total + w * torch.linalg.vector_norm(a - b, dim=(1, 2, 3)) / math.sqrt(a[0].numel())
         return total
