@@ -258,7 +258,9 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, np.asarray(single_color, dtype=np.float32), 0.0)
     else:
         mirror = bool(is_mirror_symmetric(rgba[..., 3] > 0.5))
-        rgba = color_voxels_from_photo(rgba, object_to_world(source_scene.object), source.image, source_camera, mirror=mirror)
+        rgba = color_voxels_from_photo(
+            rgba, object_to_world(source_scene.object), source.image, source_camera, mirror=mirror
+        ).rgba
     save_voxels(out / voxel_file, rgba)
     save_png(out / f"objects/{name}_source.png", source.image)
     save_json(out / f"objects/{name}_source_camera.json", {

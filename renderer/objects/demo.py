@@ -1,7 +1,11 @@
-"""Write the demo asset assets/demo/chair.obj: a generated chair in the `default` appearance.
+"""Write the demo assets in assets/demo/: a generated chair, a scene that shows it, and a photo of it.
 
-Run `python -m renderer.objects.demo [output.obj]`; the same code always writes the same file,
-so the asset is traceable to this seed.
+Run `python -m renderer.objects.demo`; the same code always writes the same files, so the
+assets are traceable to this seed:
+    chair.obj           a generated chair in the `default` appearance, with vertex colors
+    scene.json          the scene `make run` opens (format version 1)
+    photo.png           a path-traced "photo" of the chair from another view and light,
+    photo_camera.json   and the camera that took it (the format the data generator writes)
 """
 
 from __future__ import annotations
@@ -9,13 +13,25 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from renderer.io import atomic_path
+from renderer.io import atomic_path, save_json, save_png
 from renderer.objects.appearance import apply_appearance
 from renderer.objects.generate import generate_object
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, save_scene
 
 DEMO_CATEGORY = "chair"
 DEMO_SEED = 10  # a swivel chair: wooden seat and slatted back, metal armrests and star base (train split)
-DEMO_PATH = Path(__file__).resolve().parents[2] / "assets" / "demo" / "chair.obj"
+DEMO_DIR = Path(__file__).resolve().parents[2] / "assets" / "demo"
+DEMO_PATH = DEMO_DIR / "chair.obj"
+
+DEMO_SCENE = Scene(
+    object=ObjectSpec(mesh="chair.obj", rotation_deg=30.0),
+    floor=FloorSpec((0.53, 0.64, 0.78)),
+    light=LightSpec((1.0, 2.75, 0.5)),
+    camera=CameraSpec(30.0),
+    image_size=256,
+)
+PHOTO_VIEW = {"elevation_deg": 20.0, "rotation_deg": -40.0, "light": (-1.2, 2.9, 1.0)}
+PHOTO_SPP = 64
 
 
 def write_demo(path: Path = DEMO_PATH) -> Path:
@@ -27,5 +43,43 @@ def write_demo(path: Path = DEMO_PATH) -> Path:
     return path
 
 
+def write_demo_scene(folder: Path = DEMO_DIR) -> Path:
+    from dataclasses import replace
+
+    path = folder / "scene.json"
+    save_scene(replace(DEMO_SCENE, base_dir=folder), path)
+    return path
+
+
+def write_demo_photo(folder: Path = DEMO_DIR) -> Path:
+    """Path-trace the demo chair from PHOTO_VIEW and save the photo and its camera."""
+    from dataclasses import replace
+
+    from renderer.camera import Camera
+    from renderer.pathtrace import render_pathtraced
+    from renderer.pipeline import object_mesh
+
+    scene = replace(DEMO_SCENE, base_dir=folder)
+    scene = scene.with_changes(
+        object=replace(scene.object, rotation_deg=PHOTO_VIEW["rotation_deg"]),
+        light=LightSpec(PHOTO_VIEW["light"]),
+        camera=CameraSpec(PHOTO_VIEW["elevation_deg"]),
+    )
+    result = render_pathtraced(scene, object_mesh(scene), spp=PHOTO_SPP, seed=0, denoise=True)
+    save_png(folder / "photo.png", result.image)
+    camera = Camera.from_scene(scene)
+    save_json(folder / "photo_camera.json", {
+        "elevation_deg": PHOTO_VIEW["elevation_deg"], "rotation_deg": PHOTO_VIEW["rotation_deg"],
+        "translation": [0.0, 0.0], "light": list(PHOTO_VIEW["light"]), "width": camera.width,
+        "height": camera.height, "distance": camera.distance, "focal_mm": camera.focal_mm,
+        "sensor_mm": camera.sensor_mm,
+    })
+    return folder / "photo.png"
+
+
 if __name__ == "__main__":
-    print(write_demo(Path(sys.argv[1]) if len(sys.argv) > 1 else DEMO_PATH))
+    if len(sys.argv) > 1:
+        print(write_demo(Path(sys.argv[1])))
+    else:
+        for written in (write_demo(), write_demo_scene(), write_demo_photo()):
+            print(written)
