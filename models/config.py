@@ -96,6 +96,8 @@ class NVRConfig:
         expected = self.latent_size * 2 ** len(self.decoder_channels)
         if self.output_size != expected:
             raise ValueError(f"output_size must be latent size x 2^(decoder stages) = {expected}, got {self.output_size}")
+        if min(self.unet_channels) < 2:
+            raise ValueError("unet_channels must be at least 2 (each level upsamples to half its width)")
         if self.output_size % 2 ** len(self.unet_channels):
             raise ValueError("output_size must be divisible by 2^(U-Net levels)")
         for key in ("grid_size", "latent_channels", "light_channels", "merge_kernel",
@@ -134,7 +136,8 @@ class PaperConfig(NVRConfig):
 
     Same stages, widths, kernels and block counts as the reference; where this code differs:
     2D blocks use ReLU (the paper's text) instead of leaky ReLU, the light FCs have a ReLU
-    between them, and the U-Net upsamples by transposed convolution like the decoder does.
+    between them, the U-Net upsamples by transposed convolution like the decoder does, and its
+    middle blocks get the same long skip as the other residual stacks.
     """
 
     name: ClassVar[str] = "paper"

@@ -98,7 +98,7 @@ class ResidualBlock2d(nn.Module):
 
 
 class ResidualStack(nn.Module):
-    """`count` residual blocks with one long skip around them all (as in the reference model)."""
+    """`count` residual blocks with one long skip around them all (none when count is 0)."""
 
     def __init__(self, block_factory: Callable[[], nn.Module], count: int):
         super().__init__()
