@@ -138,6 +138,47 @@ def cmd_data_merge(args: argparse.Namespace) -> None:
     print(f"wrote {merge_datasets(args.out, args.parts)}")
 
 
+# --- nvr train / eval ----------------------------------------------------------------------
+
+
+def cmd_train(args: argparse.Namespace) -> None:
+    from models.train import TrainConfig, train
+
+    if args.steps < 1 or args.batch < 1:
+        raise InputError("--steps and --batch must be at least 1")
+    config = TrainConfig(
+        data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
+        steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, device=args.device, threads=args.threads,
+        checkpoint_minutes=args.checkpoint_minutes, perceptual_weights=args.vgg_weights,
+        perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)),
+    )
+    print(f"wrote {train(args.out, config, resume=args.resume)}")
+
+
+def _parse_overrides(items: list[str]) -> list[tuple[str, object]]:
+    """--set KEY=VALUE pairs (VALUE as JSON: 16, [8, 16], 0.5) for network config fields."""
+    import json
+
+    pairs = []
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"--set expects KEY=VALUE, got {item!r}")
+        try:
+            parsed = json.loads(value)
+        except json.JSONDecodeError:
+            raise InputError(f"--set {key}: value {value!r} is not a number or list") from None
+        pairs.append((key, tuple(parsed) if isinstance(parsed, list) else parsed))
+    return pairs
+
+
+def cmd_eval(args: argparse.Namespace) -> None:
+    from models.evaluate import evaluate
+
+    out = _output_path(args.report, args.force)
+    print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit)}")
+
+
 # --- parser ---------------------------------------------------------------------------------
 
 
@@ -186,6 +227,34 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("parts", nargs="+", help="shard folders")
     p.set_defaults(func=cmd_data_merge)
 
+    p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")
+    p.add_argument("--data", required=True, nargs="+", help="data folders made by `nvr data generate`")
+    p.add_argument("--out", required=True, help="run folder")
+    p.add_argument("--model", choices=["nvr+", "nvr"], default="nvr+")
+    p.add_argument("--config", choices=["compact", "paper"], default="compact")
+    p.add_argument("--steps", type=int, default=10000)
+    p.add_argument("--batch", type=int, default=10, help="global batch size (paper: 10)")
+    p.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (paper: 1e-4)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--device", default="cpu", help="cpu or cuda")
+    p.add_argument("--threads", type=int, default=0, help="CPU threads (0: torch's default)")
+    p.add_argument("--checkpoint-minutes", type=float, default=5.0)
+    p.add_argument("--vgg-weights", default=None, help="torchvision VGG16 state dict for the perceptual loss")
+    p.add_argument("--perceptual-crop", type=int, default=128, help="side of the perceptual loss crop (0: whole image)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a network config field, e.g. --set grid_size=64 (repeatable)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("eval", help="table 1 metrics of a model (or the splat baseline) on a test split")
+    p.add_argument("--data", required=True, nargs="+", help="test data folders")
+    p.add_argument("--model", default=None, help="weights (.safetensors); default: the shipped model")
+    p.add_argument("--renderer", choices=["nvr+", "nvr", "splat"], default="nvr+")
+    p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
+    p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
+    p.add_argument("--force", action="store_true", help="overwrite the report if it exists")
+    p.set_defaults(func=cmd_eval)
+
     p = sub.add_parser("info", help="what a scene holds, its voxel counts, values outside the training range")
     p.add_argument("scene")
     p.set_defaults(func=cmd_info)
@@ -208,3 +277,7 @@ def run(argv: list[str] | None = None) -> int:
 
 def main() -> None:
     sys.exit(run())
+
+
+if __name__ == "__main__":  # `torchrun ... -m app.cli train ...` for multi-process training
+    main()

@@ -29,8 +29,14 @@ class RenderLoss(nn.Module):
         self.perceptual = PerceptualLoss(weights_path)
         self.weights_name = self.perceptual.weights_name
 
-    def forward(self, images: torch.Tensor, targets: torch.Tensor) -> tuple[torch.Tensor, dict[str, float]]:
+    def forward(self, images: torch.Tensor, targets: torch.Tensor,
+                crop: tuple[int, int, int] | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        """L1 over the whole images; the perceptual term over the (top, left, side) crop when given."""
         l1 = (images - targets).abs().mean()
+        if crop is not None:
+            top, left, side = crop
+            images = images[..., top : top + side, left : left + side]
+            targets = targets[..., top : top + side, left : left + side]
         perceptual = self.perceptual(images, targets).mean()
         total = l1 + self.perceptual_weight * perceptual
         return total, {"l1": float(l1.detach()), "perceptual": float(perceptual.detach())}

