@@ -1,0 +1,129 @@
+"""The data generator at CI size: files, manifest, determinism, resume after a kill, shards and merge."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from renderer.dataset import (
+    DataConfig,
+    generate_dataset,
+    merge_datasets,
+    sample_test_sequence,
+    sample_train_views,
+)
+from renderer.errors import InputError
+from renderer.scene import ELEVATION_RANGE, LIGHT_Y_RANGE
+
+TINY = DataConfig(setting="default", split="train", objects=2, views=2, size=32, spp=2, denoise=False, resolution=32)
+
+
+class Killed(Exception):
+    pass
+
+
+def files_of(folder: Path) -> dict[str, bytes]:
+    """Every data file (not the config or records) by relative path, with its bytes."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file() and p.parent.name in ("objects", "images", "splats")
+    }
+
+
+def manifest_of(folder: Path) -> dict:
+    return json.loads((folder / "manifest.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("ref") / "set"
+    generate_dataset(out, TINY, progress=False)
+    return out
+
+
+def test_files_and_manifest(reference):
+    manifest = manifest_of(reference)
+    assert manifest["complete"] is True
+    assert manifest["renderer"]["name"] == "mitsuba" and manifest["renderer"]["spp"] == 2
+    assert manifest["config"]["seed"] == 0
+    assert len(manifest["objects"]) == 2 and len(manifest["samples"]) == 4
+    for sample in manifest["samples"]:
+        for key in ("target", "splat"):
+            assert (reference / sample[key]).is_file()
+        scene = sample["scene"]
+        assert (reference / scene["object"]["voxels"]).is_file()
+        assert ELEVATION_RANGE[0] <= scene["camera"]["elevation_deg"] <= ELEVATION_RANGE[1]
+        assert LIGHT_Y_RANGE[0] <= scene["light"]["position"][1] <= LIGHT_Y_RANGE[1]
+    rgba = np.load(reference / manifest["objects"][0]["voxels"])["rgba"]
+    assert rgba.shape == (32, 32, 32, 4) and (rgba[..., 3] > 0).sum() > 100
+    # no temporary files left behind
+    assert not [p for p in reference.rglob("*") if ".tmp" in p.name]
+
+
+def test_same_arguments_give_the_same_set(reference, tmp_path):
+    generate_dataset(tmp_path / "again", TINY, progress=False)
+    assert manifest_of(tmp_path / "again") == manifest_of(reference)
+    assert files_of(tmp_path / "again") == files_of(reference)
+
+
+def test_resume_after_a_kill_gives_the_same_set(reference, tmp_path):
+    def kill(index: int) -> None:
+        raise Killed
+
+    with pytest.raises(Killed):
+        generate_dataset(tmp_path / "set", TINY, progress=False, on_object_done=kill)
+    assert len(list((tmp_path / "set" / "records").glob("*.json"))) == 1
+    generate_dataset(tmp_path / "set", TINY, progress=False)
+    assert manifest_of(tmp_path / "set") == manifest_of(reference)
+    assert files_of(tmp_path / "set") == files_of(reference)
+
+
+def test_shards_merge_into_the_same_set(reference, tmp_path):
+    for i in range(2):
+        generate_dataset(tmp_path / f"shard{i}", TINY, shard=(i, 2), progress=False)
+        assert not manifest_of(tmp_path / f"shard{i}")["complete"]
+    merge_datasets(tmp_path / "merged", [tmp_path / "shard0", tmp_path / "shard1"])
+    assert manifest_of(tmp_path / "merged") == manifest_of(reference)
+    assert files_of(tmp_path / "merged") == files_of(reference)
+
+
+def test_a_folder_of_another_config_is_refused(reference):
+    other = DataConfig(**{**TINY.to_dict(), "categories": ("chair",), "seed": 1})
+    with pytest.raises(InputError, match="other arguments"):
+        generate_dataset(reference, other, progress=False)
+
+
+def test_sampling_protocol_ranges():
+    rng = np.random.default_rng(0)
+    views = sample_train_views(rng, 500)
+    elevations = [v.elevation_deg for v in views]
+    assert min(elevations) >= 5 and max(elevations) <= 50 and max(elevations) - min(elevations) > 40
+    assert all(-90 <= v.rotation_deg <= 90 for v in views)
+    assert all(abs(t) <= 0.5 for v in views for t in v.translation)
+    sequence = sample_test_sequence(rng, 8)
+    assert len({v.elevation_deg for v in sequence}) == 1 and 15 <= sequence[0].elevation_deg <= 45
+    steps = np.diff([v.rotation_deg for v in sequence])
+    assert np.allclose(np.abs(steps), 10.0) and all(-90 <= v.rotation_deg <= 90 for v in sequence)
+    lights = np.array([v.light for v in sequence])
+    assert np.allclose(np.diff(lights, 2, axis=0), 0.0, atol=1e-12)  # linear interpolation
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--setting", "fancy"], "invalid choice"),
+        (["--objects", "0"], "--objects must be at least 1"),
+        (["--out", "/proc/nvr-cannot-write-here"], "cannot create the output folder"),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_code_2(tmp_path, arguments, message):
+    base = ["--out", str(tmp_path / "x"), "--objects", "1", "--views", "1", "--size", "16", "--spp", "1"]
+    command = [sys.executable, "-m", "app.cli", "data", "generate", *base, *arguments]
+    result = subprocess.run(command, capture_output=True, text=True, cwd=Path(__file__).resolve().parents[1])
+    assert result.returncode == 2
+    assert message in result.stderr
+    assert "Traceback" not in result.stderr
