@@ -15,7 +15,8 @@ $(STAMP): setup.cfg pyproject.toml
 install: $(STAMP)
 
 run: $(STAMP)
-	$(VENV)/bin/nvr render assets/demo/scene.json -o out/demo.png
+	mkdir -p out
+	$(VENV)/bin/nvr render assets/demo/scene.json -o out/demo.png --force
 
 test: $(STAMP)
 	$(PY) -m pytest -q tests
@@ -24,4 +25,4 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
 bench: $(STAMP)
-	$(PY) benchmarks/bench_pipeline.py
+	$(PY) -m benchmarks.bench_pipeline

@@ -1,5 +1,6 @@
-"""Timing of the voxel pipeline: voxelising a 100k-face mesh at 100^3 (target under 1 s) and
-resampling object voxels into the 128^3 camera grid (target under 50 ms).
+"""Timing of the voxel pipeline: voxelising a 100k-face mesh at 100^3 (target under 1 s),
+resampling object voxels into the 128^3 camera grid (target under 50 ms), splatting at 256^2
+(target under 20 ms) and coloring voxels from a 256^2 photo.
 
 Run from the repository root: python -m benchmarks.bench_pipeline [--repeats N]
 Prints the median and minimum wall time of each entry of BENCHMARKS and its median CPU time,
@@ -17,9 +18,13 @@ from collections.abc import Callable
 import numpy as np
 import trimesh
 
+from renderer.camera import Camera
 from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, scene_grid, voxel_table
 from renderer.mesh import normalise_mesh
+from renderer.photo import color_voxels_from_photo
 from renderer.scene import ObjectSpec
+from renderer.splat import splat
+from renderer.transform import object_to_world
 from renderer.voxels import voxelize
 
 FLOOR = (0.53, 0.64, 0.78)
@@ -72,13 +77,27 @@ def grid_floor_color_stage() -> Callable[[], object]:
     return lambda: gather(voxel_table(pooled, FLOOR), indices)
 
 
+def splat_256() -> Callable[[], object]:
+    """The splatted image S of the 100^3 sphere's voxels at 256^2."""
+    rgba, camera = object_voxels_100(), Camera(ELEVATION, 256, 256)
+    return lambda: splat(rgba, object_to_world(SPEC), FLOOR, camera)
+
+
+def photo_coloring_256() -> Callable[[], object]:
+    """Coloring the 100^3 sphere's voxels from a 256^2 photo seen 20 degrees to the side."""
+    rgba, camera = object_voxels_100(), Camera(ELEVATION, 256, 256, azimuth_deg=20.0)
+    photo = splat(rgba, object_to_world(SPEC), FLOOR, camera)
+    return lambda: color_voxels_from_photo(rgba, object_to_world(SPEC), photo, camera, mirror=True)
+
+
 BENCHMARKS: list[tuple[str, Callable[[], Callable[[], object]]]] = [
     ("voxelize 101k faces at 100^3", voxelize_100k),
     ("scene grid 128^3, all stages", grid_all_stages),
     ("  geometry (elevation/placement edit)", grid_geometry_stage),
     ("  appearance (paint edit)", grid_appearance_stage),
     ("  gather only (floor color edit)", grid_floor_color_stage),
-    # Other stages (e.g. splatting, see benchmarks/bench_splat.py) can be appended here.
+    ("splat 256^2", splat_256),
+    ("color voxels from a 256^2 photo", photo_coloring_256),
 ]
 
 
