@@ -176,6 +176,15 @@ def cmd_eval(args: argparse.Namespace) -> None:
     from models.evaluate import evaluate
 
     out = _output_path(args.report, args.force)
+    if args.resolution_study:
+        from models.evaluate import resolution_study
+
+        try:
+            resolutions = [int(r) for r in args.resolution_study.split(",")]
+        except ValueError:
+            raise InputError(f"--resolution-study takes a list like 100,75,50,25, got {args.resolution_study!r}") from None
+        print(f"wrote {resolution_study(args.data, args.model, args.renderer, resolutions, out, limit=args.limit)}")
+        return
     print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit)}")
 
 
@@ -252,6 +261,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--renderer", choices=["nvr+", "nvr", "splat"], default="nvr+")
     p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
     p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
+    p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
+                   help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")
     p.set_defaults(func=cmd_eval)
 

