@@ -1,0 +1,94 @@
+"""The `nvr` command line end to end: outputs, and one-line errors with exit code 2 on bad input."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+ROOT = Path(__file__).resolve().parents[1]
+DEMO = ROOT / "assets" / "demo"
+
+
+def nvr(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "app.cli", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+def assert_user_error(result: subprocess.CompletedProcess, *fragments: str) -> None:
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("nvr: error: "), result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0]
+
+
+@pytest.fixture()
+def scene_dir(tmp_path) -> Path:
+    for name in ("scene.json", "chair.obj"):
+        shutil.copy(DEMO / name, tmp_path / name)
+    return tmp_path
+
+
+def test_render_splat_writes_the_scene_size(scene_dir):
+    result = nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png", "--size", "64")
+    assert result.returncode == 0, result.stderr
+    image = np.asarray(Image.open(scene_dir / "out.png"))
+    assert image.shape == (64, 64, 3)
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 3  # floor, background and the chair's colors
+
+
+def test_existing_output_is_kept_without_force(scene_dir):
+    (scene_dir / "out.png").write_bytes(b"precious")
+    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png"), "--force")
+    assert (scene_dir / "out.png").read_bytes() == b"precious"
+
+
+def test_voxelize_and_info(scene_dir):
+    result = nvr("voxelize", scene_dir / "chair.obj", "-o", scene_dir / "chair.npz", "--res", "24")
+    assert result.returncode == 0, result.stderr
+    rgba = np.load(scene_dir / "chair.npz")["rgba"]
+    assert rgba.shape == (24, 24, 24, 4) and rgba[..., 3].any()
+    info = nvr("info", scene_dir / "scene.json")
+    assert info.returncode == 0 and "all values inside the training ranges" in info.stdout
+    data = json.loads((scene_dir / "scene.json").read_text())
+    data["camera"]["elevation_deg"] = 70.0
+    (scene_dir / "scene.json").write_text(json.dumps(data))
+    info = nvr("info", scene_dir / "scene.json")
+    assert "camera.elevation_deg = 70 is outside the training range [5, 50]" in info.stdout
+
+
+@pytest.mark.parametrize(
+    ("change", "fragments"),
+    [
+        (lambda d, folder: d["object"].update(mesh="missing.obj"), ("missing.obj", "file not found")),
+        (lambda d, folder: (folder / "bad.obj").write_text("v 1 2\nf 1 2 9\nrubbish"), ("bad.obj",)),
+        (lambda d, folder: (folder / "empty.obj").write_text("# nothing\n"), ("empty.obj",)),
+        (lambda d, folder: d["object"].update(scale=[1, 0, 1]), ("object.scale", "positive")),
+        (lambda d, folder: d.update(image_size="big"), ("image_size", "integer")),
+        (lambda d, folder: d["light"].update(position=[0, -1, 0]), ("above the floor",)),
+    ],
+)
+def test_bad_scenes_give_one_line_and_exit_2(scene_dir, change, fragments):
+    data = json.loads((scene_dir / "scene.json").read_text())
+    change(data, scene_dir)
+    for name in ("bad.obj", "empty.obj"):
+        if (scene_dir / name).exists():
+            data["object"]["mesh"] = name
+    (scene_dir / "scene.json").write_text(json.dumps(data))
+    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png"), *fragments)
+    assert not (scene_dir / "out.png").exists()
+
+
+def test_broken_json_names_the_file(scene_dir):
+    (scene_dir / "scene.json").write_text('{"version": 1, "object": {')
+    assert_user_error(nvr("info", scene_dir / "scene.json"), "scene.json", "broken JSON")
+
+
+def test_unreadable_mesh_for_voxelize(tmp_path):
+    (tmp_path / "x.stl").write_bytes(b"\x00\x01garbage")
+    assert_user_error(nvr("voxelize", tmp_path / "x.stl", "-o", tmp_path / "x.npz"), "x.stl")
+    assert not (tmp_path / "x.npz").exists()
