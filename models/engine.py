@@ -1,0 +1,307 @@
+"""The live renderer of NVR Studio: a scene in, an image out, redoing only the stages an edit touched.
+
+The model is loaded once and turned into an inference copy (BatchNorm folded, channels-last,
+convolutions on oneDNN). Every stage keeps its last result with the exact scene parts it was
+computed from, and reruns only when those change:
+
+    stage         depends on                                              result
+    voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3
+    paint         voxels, object color, region/object paint strokes       painted object voxels
+    pool          paint, merge factors (resolution, scale)                merged voxels
+    placement     resolution, merge factors, translation, rotation,       grid row of every voxel, object's crop
+                  scale, camera elevation
+    background    camera elevation, floor color                           voxel-branch features of the ground alone
+    gather        pool, placement, floor color                            grid inside the object's crop
+    voxel_branch  as gather                                               latent (encode_voxels)
+    splat         paint, translation, rotation, scale, elevation, floor   splatted image (NVR+ only)
+    splat_branch  as splat                                                splat features (encode_splat)
+    light         all of the above and the light position                 image (render_from_latent)
+
+Floor color is the scene's floor color after its floor paint strokes. Hence, per edit:
+
+    edit                          stages rerun
+    light move                    light
+    floor color / floor paint     background, gather, voxel_branch, splat, splat_branch, light
+    paint stroke, object color    paint, pool, gather, voxel_branch, splat, splat_branch, light
+    object move or rotation       placement, gather, voxel_branch, splat, splat_branch, light
+    object scale                  pool (if the merge factors change), placement, gather, voxel_branch,
+                                  splat, splat_branch, light
+    camera elevation              placement, background, gather, voxel_branch, splat, splat_branch, light
+    new mesh, resolution or up    everything but background
+    nothing                       none (the last image again)
+
+The voxel branch runs only around the object (models/cropped_encoder.py): the ground's
+features come from the background stage, the object's from a crop of the grid, and the result
+equals the full-grid encode_voxels (`crop=False`). The engine is not thread-safe: one caller at
+a time (models/async_render.py runs it on a worker thread).
+"""
+
+from __future__ import annotations
+
+import os
+
+# OpenMP reads this when torch loads it: passive waiting keeps idle worker threads from spinning,
+# which made 2-thread inference up to 10x slower when other processes shared the cores.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+import time  # noqa: E402
+from collections.abc import Callable  # noqa: E402
+from dataclasses import dataclass, field, replace  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any, NamedTuple  # noqa: E402
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from models.cropped_encoder import CroppedVoxelEncoder, CropPlan  # noqa: E402
+from models.inference import prepare_for_inference  # noqa: E402
+from models.nvr import NVR, NVRPlus, light_to_network  # noqa: E402
+from models.onednn import use_onednn_convolutions  # noqa: E402
+from renderer.errors import InputError  # noqa: E402
+from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, voxel_table  # noqa: E402
+from renderer.paint import apply_paint, fill_object  # noqa: E402
+from renderer.pipeline import object_voxels  # noqa: E402
+from renderer.scene import MAX_ABS_POSITION, MIN_RESOLUTION, ObjectSpec, Scene  # noqa: E402
+from renderer.splat import splat_scene  # noqa: E402
+
+KINDS = {"nvr+": "nvr_plus", "nvr": "nvr"}  # renderer name -> network architecture
+# An object this far away lies outside every grid: sampling it leaves the ground alone.
+_NO_OBJECT = ObjectSpec(translation=(MAX_ABS_POSITION, MAX_ABS_POSITION))
+
+
+@dataclass(frozen=True)
+class RenderReport:
+    """What one render did: the stages that ran (in order) and their times, for status bars and tests."""
+
+    stages_run: tuple[str, ...]
+    stage_ms: dict[str, float]
+    total_ms: float
+    preview: bool
+    grid_fraction: float | None = None  # share of the grid the voxel branch read, if it ran
+
+
+class _Placement(NamedTuple):
+    indices: np.ndarray  # (D, H, W) table row per grid voxel (renderer.grid.sample_indices)
+    plan: CropPlan | None  # where the object changes the voxel branch; None if it is outside the grid
+
+
+class _Keys(NamedTuple):
+    """The scene parts each stage depends on (see the module docstring)."""
+
+    pool: tuple
+    placement: tuple
+    grid: tuple
+    splat: tuple
+
+
+@dataclass
+class _Recording:
+    stage_ms: dict[str, float] = field(default_factory=dict)
+    grid_fraction: float | None = None
+
+
+class RenderEngine:
+    """NVR or NVR+ rendering scenes, caching every stage on exactly the scene parts it depends on."""
+
+    def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None):
+        torch.set_num_threads(threads or default_threads())
+        self.config = model.config
+        self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
+        self.model_name = model_name or f"random {self.config.name}"
+        self.crop = crop
+        self.model = use_onednn_convolutions(prepare_for_inference(model))
+        self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
+        self.last_report: RenderReport | None = None
+        self._memo: dict[str, tuple[Any, Any]] = {}
+        self._recording = _Recording()
+
+    @classmethod
+    def load(cls, path: str | Path | None, kind: str = "nvr+", **options: Any) -> RenderEngine:
+        """The engine for a weights file (None: the shipped model of `kind`, 'nvr+' or 'nvr')."""
+        from models.checkpoint import load_model
+        from models.evaluate import shipped_model
+
+        if kind not in KINDS:
+            raise InputError(f"unknown network renderer {kind!r} (choose from {', '.join(KINDS)})")
+        path = Path(path) if path else shipped_model(kind)
+        model, config, _ = load_model(path)
+        if model.architecture != KINDS[kind]:
+            raise InputError(f"holds a {model.architecture} network, not {KINDS[kind]}", path)
+        return cls(model, model_name=f"{path.name} ({config.name})", **options)
+
+    @property
+    def output_size(self) -> int:
+        return self.config.output_size
+
+    def clear(self) -> None:
+        """Forget every cached stage (the next render computes all of them)."""
+        self._memo.clear()
+
+    # --- rendering ------------------------------------------------------------------------
+
+    def render(self, scene: Scene) -> np.ndarray:
+        """The image (S, S, 3) float32 sRGB of `scene` at the model's output size S (scene.image_size is not used)."""
+        start = self._begin()
+        with torch.inference_mode():
+            image = self._render(scene)
+        self._finish(start, preview=False)
+        return image.copy()
+
+    def preview(self, scene: Scene) -> np.ndarray:
+        """A fast image while the user drags: the full render when only the light changed (that is cheap),
+        else the splatted image, whose stage the full render then reuses."""
+        start = self._begin()
+        with torch.inference_mode():
+            painted, floor, paint_key = self._painted(scene)
+            keys = self._keys(scene, painted, floor, paint_key)
+            if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat_branch", keys.splat)):
+                image = self._render(scene)
+            else:
+                image = self._splat(scene, painted, floor, keys)
+        self._finish(start, preview=True)
+        return image.copy()
+
+    def _render(self, scene: Scene) -> np.ndarray:
+        painted, floor, paint_key = self._painted(scene)
+        keys = self._keys(scene, painted, floor, paint_key)
+        latent = self._latent(scene, painted, floor, keys)
+        features = None
+        if self.kind == "nvr+":
+            splat = self._splat(scene, painted, floor, keys)
+            features = self._stage("splat_branch", keys.splat, lambda: self.model.encode_splat(_image_tensor(splat)))
+        light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
+        key = (keys.grid, keys.splat, scene.light.position)
+        return self._stage("light", key, lambda: _to_image(self.model.render_from_latent(latent, light, features)))
+
+    # --- stages ---------------------------------------------------------------------------
+
+    def _painted(self, scene: Scene) -> tuple[np.ndarray, tuple[float, float, float], tuple]:
+        """Painted object voxels, the floor color after floor strokes, and the paint stage's key."""
+        source = _voxel_source(scene)
+        plain = replace(scene, object=replace(scene.object, color=None))  # the base color is painted below
+        rgba = self._stage("voxels", source, lambda: object_voxels(plain))
+        strokes = tuple(op for op in scene.paint if op.target != "floor")
+        paint_key = (source, scene.object.color, strokes)
+        painted = self._stage("paint", paint_key, lambda: _paint_object(rgba, scene.object.color, strokes))
+        _, floor = apply_paint(painted, scene.floor.color, [op for op in scene.paint if op.target == "floor"])
+        return painted, tuple(floor), paint_key
+
+    def _keys(self, scene: Scene, painted: np.ndarray, floor: tuple, paint_key: tuple) -> _Keys:
+        o, elevation = scene.object, scene.camera.elevation_deg
+        n = painted.shape[0]
+        factors = pool_factors(n, o.scale, self.config.grid_size)
+        placement = (n, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        return _Keys(pool=(paint_key, factors), placement=placement, grid=(paint_key, placement, floor),
+                     splat=(paint_key, o.translation, o.rotation_deg, o.scale, elevation, floor))
+
+    def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
+        n, factors = keys.placement[:2]
+        pooled = self._stage("pool", keys.pool, lambda: pool_voxels(painted, factors))
+        placement = self._stage("placement", keys.placement, lambda: self._place(n, factors, scene))
+        if not self.crop:
+            grid = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices))
+            self._recording.grid_fraction = 1.0
+            return self._stage("voxel_branch", keys.grid, lambda: self.model.encode_voxels(_grid_tensor(grid)))
+        elevation = scene.camera.elevation_deg
+        background = self._stage("background", (elevation, floor), lambda: self.encoder.background(
+            _grid_tensor(ground_grid(floor, elevation, self.config.grid_size))))
+        plan = placement.plan
+        if plan is None:  # the object lies outside the grid
+            self._recording.grid_fraction = 0.0
+            return background.latent
+        crop = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices[plan.grid]))
+        self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
+        return self._stage("voxel_branch", keys.grid, lambda: self.encoder.encode(background, plan, _grid_tensor(crop)))
+
+    def _place(self, n: int, factors: tuple[int, int, int], scene: Scene) -> _Placement:
+        indices = sample_indices(n, factors, scene.object, scene.camera.elevation_deg, self.config.grid_size)
+        spans = occupied_spans(indices < np.prod([-(-n // f) for f in factors]))
+        return _Placement(indices, None if spans is None else self.encoder.plan(spans))
+
+    def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+        return self._stage("splat", keys.splat, lambda: splat_scene(scene, painted, floor, size=self.output_size))
+
+    # --- the memo and the report ------------------------------------------------------------
+
+    def _stage(self, name: str, key: Any, compute: Callable[[], Any]) -> Any:
+        """The stage's cached result if it was computed for `key`, else compute, time and keep it."""
+        if self._cached(name, key):
+            return self._memo[name][1]
+        start = time.perf_counter()
+        value = compute()
+        self._recording.stage_ms[name] = (time.perf_counter() - start) * 1000.0
+        self._memo[name] = (key, value)
+        return value
+
+    def _cached(self, name: str, key: Any) -> bool:
+        return name in self._memo and self._memo[name][0] == key
+
+    def _begin(self) -> float:
+        self._recording = _Recording()
+        return time.perf_counter()
+
+    def _finish(self, start: float, preview: bool) -> None:
+        r = self._recording
+        self.last_report = RenderReport(tuple(r.stage_ms), dict(r.stage_ms), (time.perf_counter() - start) * 1000.0,
+                                        preview, r.grid_fraction)
+
+
+# --- helpers ------------------------------------------------------------------------------------
+
+
+def default_threads() -> int:
+    """Torch threads for rendering: every core this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int) -> np.ndarray:
+    """The scene grid (D, H, W, 4) of the ground alone, as renderer.grid samples it (no object)."""
+    n = MIN_RESOLUTION
+    indices = sample_indices(n, (1, 1, 1), _NO_OBJECT, elevation_deg, grid_size)
+    return gather(voxel_table(np.zeros((n, n, n, 4), np.float32), floor_color), indices)
+
+
+def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:
+    """Bounding box of the True entries of a 3D mask as one (start, stop) span per axis; None if there are none."""
+    spans = []
+    for axis in range(3):
+        hits = np.flatnonzero(mask.any(axis=tuple(a for a in range(3) if a != axis)))
+        if hits.size == 0:
+            return None
+        spans.append((int(hits[0]), int(hits[-1]) + 1))
+    return tuple(spans)
+
+
+def _voxel_source(scene: Scene) -> tuple:
+    """What the object voxels are read from, with the file's modification stamp so an edited file is reread."""
+    voxels = scene.voxels_path()
+    if voxels is not None:
+        return ("voxels", *_file_stamp(voxels))
+    return ("mesh", *_file_stamp(scene.mesh_path()), scene.object.resolution, scene.object.up)
+
+
+def _file_stamp(path: Path) -> tuple:
+    try:
+        stat = path.stat()
+    except OSError:
+        return (str(path), None, None)  # the loader reports the missing file
+    return (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+
+
+def _paint_object(rgba: np.ndarray, color: tuple[float, float, float] | None, strokes: tuple) -> np.ndarray:
+    base = rgba if color is None else fill_object(rgba, color)
+    painted, _ = apply_paint(base, (0.0, 0.0, 0.0), strokes)
+    return painted
+
+
+def _grid_tensor(grid: np.ndarray) -> torch.Tensor:
+    """A (D, H, W, 4) grid as the network's (1, 4, D, H, W) input; channels-last without a copy."""
+    return torch.from_numpy(grid).permute(3, 0, 1, 2)[None]
+
+
+def _image_tensor(image: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(image).permute(2, 0, 1)[None]
+
+
+def _to_image(batch: torch.Tensor) -> np.ndarray:
+    return batch[0].permute(1, 2, 0).contiguous().numpy()
