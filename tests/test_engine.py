@@ -1,0 +1,297 @@
+"""The live engine: cached renders equal uncached ones, the object crop equals the full grid, newest frame wins."""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from models.async_render import AsyncRenderer
+from models.checkpoint import save_model
+from models.config import CompactConfig, PaperConfig
+from models.cropped_encoder import CroppedVoxelEncoder
+from models.engine import RenderEngine, ground_grid, occupied_spans
+from models.inference import prepare_for_inference
+from models.nvr import build_model
+from models.receptive import conv_chain
+from renderer.errors import InputError
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene
+from renderer.splat import splat_scene
+from renderer.voxels import load_voxels, save_voxels
+
+# Grid 64 (not 128) keeps each render at a few milliseconds; the object still fills only part of it.
+TINY_COMPACT = CompactConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16,
+                             light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
+TINY_PAPER = PaperConfig(grid_size=64, output_size=64, voxel_channels=(4, 4, 4, 8, 8), voxel_res_blocks=2,
+                         latent_channels=16, pre_light_blocks=2, light_channels=8, post_light_blocks=1,
+                         decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8), unet_mid_blocks=1)
+
+
+@pytest.fixture(autouse=True)
+def single_thread():
+    threads = torch.get_num_threads()
+    yield
+    torch.set_num_threads(threads)
+
+
+def random_model(config, architecture: str = "nvr_plus", seed: int = 0):
+    """A random network whose BatchNorms have random statistics, so folded convolutions get non-zero biases
+    (with zero biases, empty space gives zero features and a wrong crop halo could go unnoticed), and
+    whose light code is strong enough that a light edit visibly changes the image."""
+    torch.manual_seed(seed)
+    model = build_model(architecture, config).eval()
+    model.light_decoder.light_mlp[-1].weight.data *= 30.0
+    for module in model.modules():
+        if isinstance(module, (torch.nn.BatchNorm2d, torch.nn.BatchNorm3d)):
+            module.running_mean.uniform_(-0.5, 0.5)
+            module.running_var.uniform_(0.5, 2.0)
+            module.weight.data.uniform_(0.5, 1.5)
+            module.bias.data.uniform_(-0.5, 0.5)
+    return model
+
+
+def engine(model, crop: bool = True) -> RenderEngine:
+    return RenderEngine(model, crop=crop, threads=1)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return random_model(TINY_COMPACT)
+
+
+@pytest.fixture
+def scene(tmp_path) -> Scene:
+    """A two-colored 16^3 box object (voxel file), scale 0.8, seen from 30 degrees."""
+    rgba = np.zeros((16, 16, 16, 4), np.float32)
+    rgba[4:12, 0:10, 4:12] = (0.8, 0.3, 0.2, 1.0)
+    rgba[4:12, 10:12, 4:12] = (0.2, 0.3, 0.8, 1.0)
+    save_voxels(tmp_path / "box.npz", rgba)
+    return Scene(object=ObjectSpec(voxels="box.npz", rotation_deg=20.0, scale=(0.8, 0.8, 0.8)),
+                 floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec((1.0, 2.75, 0.5)), camera=CameraSpec(30.0),
+                 image_size=64, base_dir=tmp_path)
+
+
+VOXEL_BRANCH = ["gather", "voxel_branch", "splat", "splat_branch", "light"]
+# edit -> the stages the module docstring of models/engine.py says it reruns
+EDITS = {
+    "light": (lambda s: s.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), ["light"]),
+    "floor color": (lambda s: s.with_changes(floor=FloorSpec((0.9, 0.2, 0.1))), ["background", *VOXEL_BRANCH]),
+    "floor paint": (lambda s: s.with_changes(paint=(PaintOp("floor", (0.1, 0.9, 0.1)),)), ["background", *VOXEL_BRANCH]),
+    "paint stroke": (lambda s: s.with_changes(paint=(PaintOp("region", (0.0, 1.0, 0.0), seed=(5, 11, 5)),)),
+                     ["paint", "pool", *VOXEL_BRANCH]),
+    "object color": (lambda s: s.with_changes(object=replace(s.object, color=(0.9, 0.9, 0.1))),
+                     ["paint", "pool", *VOXEL_BRANCH]),
+    "move": (lambda s: s.with_changes(object=replace(s.object, translation=(0.3, -0.2))), ["placement", *VOXEL_BRANCH]),
+    "rotate": (lambda s: s.with_changes(object=replace(s.object, rotation_deg=-35.0)), ["placement", *VOXEL_BRANCH]),
+    # 0.8 -> 1.2 keeps the merge factors at 1 (a 0.0625 voxel stays wider than the 0.04 grid voxel): no re-pooling
+    "scale": (lambda s: s.with_changes(object=replace(s.object, scale=(1.2, 1.0, 0.9))), ["placement", *VOXEL_BRANCH]),
+    "camera": (lambda s: s.with_changes(camera=CameraSpec(45.0)), ["placement", "background", *VOXEL_BRANCH]),
+}
+
+
+@pytest.mark.parametrize("edit", EDITS)
+def test_cached_render_equals_uncached_and_reruns_only_its_stages(model, scene, edit):
+    make, expected = EDITS[edit]
+    edited = make(scene)
+    live = engine(model)
+    live.render(scene)
+    image = live.render(edited)
+    assert list(live.last_report.stages_run) == expected
+    fresh = engine(model, crop=False).render(edited)  # nothing cached, full grid
+    assert image.shape == (64, 64, 3) and image.dtype == np.float32
+    np.testing.assert_allclose(image, fresh, rtol=0, atol=1e-5)
+    assert np.abs(image - live.render(scene)).max() > 1e-4  # the edit changed the image (the test can fail)
+
+
+def test_same_scene_runs_nothing_and_first_render_runs_everything(model, scene):
+    live = engine(model)
+    first = live.render(scene)
+    assert live.last_report.stages_run == ("voxels", "paint", "pool", "placement", "background", "gather",
+                                           "voxel_branch", "splat", "splat_branch", "light")
+    again = live.render(scene)
+    assert live.last_report.stages_run == ()
+    np.testing.assert_array_equal(first, again)
+    again[:] = 0.0  # the caller's copy: the cache is untouched
+    np.testing.assert_array_equal(live.render(scene), first)
+
+
+def test_nvr_has_no_splat_stages(scene):
+    live = engine(random_model(TINY_COMPACT, "nvr"))
+    image = live.render(scene)
+    assert "splat" not in live.last_report.stages_run
+    np.testing.assert_allclose(image, engine(random_model(TINY_COMPACT, "nvr"), crop=False).render(scene), atol=1e-5)
+
+
+@pytest.mark.parametrize("translation", [(0.0, 0.0), (-0.9, 0.9), (0.95, -0.6)])
+def test_occupied_region_equals_full_grid(model, scene, translation):
+    """Centre, and near the grid's left/near and right/far sides (the crop meets the grid border)."""
+    moved = scene.with_changes(object=replace(scene.object, translation=translation))
+    live = engine(model)
+    image = live.render(moved)
+    assert 0.0 < live.last_report.grid_fraction < 0.6  # the crop really is a part of the grid
+    np.testing.assert_allclose(image, engine(model, crop=False).render(moved), rtol=0, atol=1e-5)
+
+
+def test_object_outside_the_grid_renders_the_ground(model, scene):
+    away = scene.with_changes(object=replace(scene.object, translation=(40.0, 40.0)))
+    live = engine(model)
+    image = live.render(away)
+    assert live.last_report.grid_fraction == 0.0
+    np.testing.assert_allclose(image, engine(model, crop=False).render(away), rtol=0, atol=1e-5)
+
+
+def test_ground_grid_is_the_scene_grid_without_object():
+    grid = ground_grid((0.25, 0.5, 0.75), 30.0, 32)
+    occupied = grid[..., 3] == 1.0
+    assert occupied.any() and not occupied.all()
+    np.testing.assert_array_equal(grid[occupied, :3], np.tile([0.25, 0.5, 0.75], (occupied.sum(), 1)))
+    assert not grid[~occupied].any()
+    # At elevation 0 row r of a 32-grid (0.08 per row, centred on the look-at height 0.5, row 0 on top) has
+    # its centre at y = 1.78 - 0.08 (r + 0.5); the ground is the 3-voxel slab y in [-0.24, 0): rows 22, 23, 24,
+    # at every depth and column.
+    flat = ground_grid((1.0, 1.0, 1.0), 0.0, 32)[..., 3] == 1.0
+    assert np.flatnonzero(flat.any(axis=(0, 2))).tolist() == [22, 23, 24]
+    assert flat[:, 22:25, :].all()
+
+
+def test_preview_is_the_splat_unless_only_the_light_changed(model, scene):
+    live = engine(model)
+    live.render(scene)
+    lit = scene.with_changes(light=LightSpec((0.0, 3.0, 0.0)))
+    np.testing.assert_array_equal(live.preview(lit), live.render(lit))
+    assert live.last_report.stages_run == ()  # the preview already rendered it
+    moved = scene.with_changes(object=replace(scene.object, translation=(0.2, 0.2)))
+    preview = live.preview(moved)
+    assert live.last_report.preview and live.last_report.stages_run == ("splat",)
+    np.testing.assert_array_equal(preview, splat_scene(moved, load_voxels(scene.voxels_path()), (0.5, 0.6, 0.7), size=64))
+    live.render(moved)
+    assert "splat" not in live.last_report.stages_run  # the release reuses the preview's splat
+
+
+# --- the crop arithmetic, against the network itself ----------------------------------------------
+
+
+@pytest.mark.parametrize("config", [TINY_COMPACT, TINY_PAPER], ids=["compact", "paper"])
+def test_changed_outputs_match_a_perturbation(config):
+    """Perturbing one voxel changes exactly the 3D-stack outputs the arithmetic predicts (up to where the
+    perturbation happens to cancel, so predicted must contain observed and observed must reach its corners)."""
+    model = prepare_for_inference(random_model(config, "nvr"))
+    enc = model.voxel_encoder
+    chain = conv_chain(list(enc.stages.modules()) + list(enc.residual.modules()), 3)
+    g = config.grid_size
+    base = torch.zeros(1, 4, g, g, g)
+    with torch.no_grad():
+        reference = enc.residual(enc.stages(base))
+        for voxel in [(0, 0, 0), (30, 17, 63), (63, 40, 5)]:
+            poked = base.clone()
+            poked[(0, slice(None), *voxel)] = 1.0
+            changed = (enc.residual(enc.stages(poked)) - reference).abs().amax(dim=(0, 1)) > 0
+            observed = occupied_spans(changed.numpy())
+            predicted = chain.changed_outputs(tuple((v, v + 1) for v in voxel), (g, g, g))
+            assert observed == predicted
+
+
+@pytest.mark.parametrize("config", [TINY_COMPACT, TINY_PAPER], ids=["compact", "paper"])
+@pytest.mark.parametrize("box", [((20, 30), (25, 40), (30, 38)), ((0, 6), (50, 64), (60, 64))])
+def test_cropped_encoder_equals_full_encoder(config, box):
+    model = prepare_for_inference(random_model(config, "nvr", seed=1))
+    g = config.grid_size
+    gen = torch.Generator().manual_seed(0)
+    background = (torch.rand(1, 4, g, g, g, generator=gen) > 0.9).float()
+    scene = background.clone()
+    region = tuple(slice(*span) for span in box)
+    scene[(0, slice(None), *region)] = torch.rand(4, *(hi - lo for lo, hi in box), generator=gen)
+    cropped = CroppedVoxelEncoder(model.voxel_encoder, g)
+    with torch.no_grad():
+        plan = cropped.plan(box)
+        latent = cropped.encode(cropped.background(background), plan, scene[(0, slice(None), *plan.grid)][None])
+        full = model.encode_voxels(scene)
+    torch.testing.assert_close(latent, full, rtol=0, atol=1e-5)
+
+
+# --- loading -------------------------------------------------------------------------------------------
+
+
+def test_load_checks_the_architecture(tmp_path, model, scene):
+    path = tmp_path / "w.safetensors"
+    save_model(path, model, TINY_COMPACT)
+    live = RenderEngine.load(path, kind="nvr+", threads=1)
+    assert live.output_size == 64 and "w.safetensors" in live.model_name
+    np.testing.assert_allclose(live.render(scene), engine(model).render(scene), atol=1e-6)
+    with pytest.raises(InputError, match="not nvr"):
+        RenderEngine.load(path, kind="nvr")
+    with pytest.raises(InputError, match="unknown network renderer"):
+        RenderEngine.load(path, kind="splat")
+
+
+# --- the worker thread ---------------------------------------------------------------------------------
+
+
+class SlowEngine:
+    """Renders a constant image of the scene's light x after a delay; records what it rendered."""
+
+    def __init__(self, seconds: float):
+        self.seconds = seconds
+        self.rendered: list[float] = []
+        self.started = threading.Event()
+        self.last_report = None
+
+    def render(self, scene: Scene) -> np.ndarray:
+        self.started.set()
+        time.sleep(self.seconds)
+        self.rendered.append(scene.light.position[0])
+        return np.full((4, 4, 3), scene.light.position[0], np.float32)
+
+    preview = render
+
+
+def lit(x: float) -> Scene:
+    return Scene(object=ObjectSpec(voxels="unused.npz"), light=LightSpec((x, 2.75, 0.0)))
+
+
+def test_superseded_requests_are_dropped_and_never_overwrite_newer_frames():
+    slow = SlowEngine(0.2)
+    frames = []
+    worker = AsyncRenderer(slow, on_frame=frames.append)
+    try:
+        first = worker.submit(lit(0.1))
+        assert slow.started.wait(5.0)  # request 1 is rendering
+        worker.submit(lit(0.2), preview=True)  # waits, then is superseded by the next
+        last = worker.submit(lit(0.3))
+        frame = worker.wait_for(last, timeout=5.0)
+        assert worker.wait_idle(5.0)
+    finally:
+        worker.close()
+    assert slow.rendered == [0.1, 0.3]
+    assert [f.sequence for f in frames] == [first, last] and frame.sequence == last
+    assert frame.image[0, 0, 0] == pytest.approx(0.3) and not frame.preview
+    assert worker.latest() is frame
+
+
+def test_a_failing_scene_reports_its_error_and_the_worker_goes_on(scene, model):
+    worker = AsyncRenderer(engine(model))
+    try:
+        bad = worker.wait_for(worker.submit(scene.with_changes(object=replace(scene.object, voxels="missing.npz"))), 10)
+        good = worker.wait_for(worker.submit(scene), 10)
+    finally:
+        worker.close()
+    assert bad.image is None and "missing.npz" in bad.error
+    assert good.error is None and good.image.shape == (64, 64, 3)
+
+
+def test_cli_renders_with_the_engine(tmp_path, model, scene):
+    from app.cli import run
+    from renderer.io import load_image
+    from renderer.scene import save_scene
+
+    save_model(tmp_path / "w.safetensors", model, TINY_COMPACT)
+    save_scene(scene, tmp_path / "scene.json")
+    out = tmp_path / "out.png"
+    assert run(["render", str(tmp_path / "scene.json"), "-o", str(out), "--renderer", "nvr+",
+                "--model", str(tmp_path / "w.safetensors")]) == 0
+    image, _ = load_image(out)
+    np.testing.assert_allclose(image, engine(model).render(scene), atol=1 / 255)
