@@ -49,15 +49,38 @@ def load_mesh(path: str | Path, up: str = "y") -> trimesh.Trimesh:
 
 
 def _read_mesh(path: Path) -> trimesh.Trimesh:
-    """All triangle geometry of a file as one mesh, parts moved to their scene positions."""
+    """All triangle geometry of a file as one mesh, parts moved to their scene positions.
+
+    trimesh reads first; where it fails or finds no faces, open3d's readers get a try, since
+    they accept some PLY and OFF variants that trimesh does not.
+    """
     try:
         scene = trimesh.load_scene(path, process=False)
         parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh)]
     except Exception as exc:  # trimesh raises many exception types for corrupt files
-        raise InputError(f"cannot read mesh ({type(exc).__name__}: {exc})", path) from None
+        parts, problem = [], f"cannot read mesh ({type(exc).__name__}: {exc})"
+    else:
+        problem = "mesh has no faces"
     if not parts:
-        raise InputError("mesh has no faces", path)
+        fallback = _read_with_open3d(path)
+        if fallback is None:
+            raise InputError(problem, path)
+        return fallback
     return parts[0] if len(parts) == 1 else _concatenate(parts)
+
+
+def _read_with_open3d(path: Path) -> trimesh.Trimesh | None:
+    """The file's triangles (and vertex colors) through open3d, or None when it has none either."""
+    try:
+        import open3d
+    except (ImportError, OSError):  # open3d needs system libraries that may be missing
+        return None
+    o3d_mesh = open3d.io.read_triangle_mesh(str(path), print_progress=False)
+    faces = np.asarray(o3d_mesh.triangles)
+    if len(faces) == 0:
+        return None
+    colors = to_uint8(np.asarray(o3d_mesh.vertex_colors)) if o3d_mesh.has_vertex_colors() else None
+    return trimesh.Trimesh(np.asarray(o3d_mesh.vertices), faces, vertex_colors=colors, process=False)
 
 
 def _concatenate(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:

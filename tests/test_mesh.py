@@ -169,3 +169,22 @@ def test_glb_scene_keeps_each_parts_texture(tmp_path):
         left = mesh.triangles_center[:, 0] < mesh.triangles_center[:, 0].mean()
         np.testing.assert_allclose(colors[left], np.tile(expected[0], (left.sum(), 1)), atol=1e-6)
         np.testing.assert_allclose(colors[~left], np.tile(expected[1], ((~left).sum(), 1)), atol=1e-6)
+
+
+def test_open3d_reads_what_trimesh_cannot(tmp_path, monkeypatch):
+    import trimesh as trimesh_module
+
+    from renderer.mesh import load_mesh as load
+
+    box = trimesh_module.creation.box(extents=(1.0, 2.0, 3.0))
+    box.visual.vertex_colors = (255, 0, 0, 255)
+    box.export(tmp_path / "box.ply")
+
+    def fail(*args, **kwargs):
+        raise ValueError("simulated trimesh failure")
+
+    monkeypatch.setattr(trimesh_module, "load_scene", fail)
+    mesh = load(tmp_path / "box.ply")
+    assert len(mesh.faces) == 12
+    assert np.allclose(np.ptp(mesh.vertices, axis=0), (1.0, 2.0, 3.0))
+    assert (mesh.visual.vertex_colors[:, :3] == (255, 0, 0)).all()
