@@ -1,0 +1,385 @@
+"""The editor's state and commands, and its frame loop.
+
+`EditorApp` owns the open document, the voxel cache, the live render and the viewport. Its
+commands (edit, undo, paint, load a mesh, save, ...) are what the panels, the viewport tools
+and the replay file call; every failure becomes a message in the window and the scene stays
+as it was.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from app.editor import edits, state
+from app.editor.document import Document
+from app.editor.jobs import BackgroundJob
+from app.editor.orbit_view import HOME
+from app.editor.photo_capture import color_from_photo
+from app.editor.render_panel import LiveRender, RenderedFrame, export_render
+from app.editor.viewport import ViewportRenderer
+from app.editor.voxel_cache import VoxelCache
+from app.editor.window import Window, upload_image
+from renderer.errors import InputError
+from renderer.io import save_png
+from renderer.scene import PaintOp, Scene, save_scene
+
+AUTOSAVE_SECONDS = 5.0
+FRAME_SECONDS = 1.0 / 60.0  # the loop sleeps to this pace so the render thread gets the CPU it needs
+MESSAGE_SECONDS = 8.0
+PALETTE = (
+    (0.90, 0.30, 0.25), (0.95, 0.60, 0.20), (0.95, 0.85, 0.30), (0.45, 0.75, 0.35), (0.25, 0.60, 0.55),
+    (0.30, 0.50, 0.85), (0.55, 0.40, 0.80), (0.85, 0.45, 0.65), (0.55, 0.38, 0.25), (0.95, 0.95, 0.93),
+    (0.60, 0.60, 0.62), (0.15, 0.15, 0.17),
+)
+
+
+@dataclass
+class Message:
+    text: str
+    error: bool
+    shown_at: float = field(default_factory=time.monotonic)
+
+
+@dataclass
+class Prompt:
+    """A question the window asks before going on (unsaved changes, restoring an autosave)."""
+
+    title: str
+    text: str
+    choices: tuple[str, ...]
+    on_choice: object  # Callable[[str], None]
+
+
+@dataclass
+class FrameStats:
+    """UI frame times (wall time per frame, and the part spent working rather than pacing), split by
+    whether the live render was working during the frame."""
+
+    wall: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
+    work: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
+
+    def add(self, wall_seconds: float, work_seconds: float, rendering: bool) -> None:
+        self.wall[rendering].append(wall_seconds)
+        self.work[rendering].append(work_seconds)
+
+    def summary(self) -> str:
+        parts = []
+        for rendering, name in ((True, "while rendering"), (False, "idle")):
+            wall, work = self.wall[rendering], self.work[rendering]
+            if wall:
+                parts.append(f"{name}: {len(wall) / sum(wall):.1f} fps over {len(wall)} frames "
+                             f"({1000.0 * sum(work) / len(work):.1f} ms of work per frame)")
+        return "UI " + "; ".join(parts)
+
+
+class EditorApp:
+    """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
+
+    def __init__(self, window: Window, document: Document, model_path: str | None = None, headless: bool = False):
+        self.window = window
+        self.doc = document
+        self.headless = headless
+        self.voxels = VoxelCache()
+        self.live = LiveRender(self.voxels, model_path)
+        self.viewport = ViewportRenderer(window.ctx)
+        self.view = HOME
+        self.render_texture = None
+        self.shown_frame: RenderedFrame | None = None
+        self.floor_color = document.scene.floor.color
+        self.tool = "select"  # or "paint"
+        self.paint_color: tuple[float, float, float] = PALETTE[0]
+        self.tolerance = 0.1
+        self.job: BackgroundJob | None = None
+        self._job_done = None  # what to do with the job's result
+        self.message: Message | None = None
+        self.prompt: Prompt | None = None
+        self.stats = FrameStats()
+        self.quit_requested = False
+        self._synced = -1  # document revision the viewport and render were last updated for
+        self._shown_rgba = None
+        self._autosaved = document.revision
+        self._autosave_time = time.monotonic()
+        self._screenshots: list[Path] = []
+        self._offer_recovery()
+
+    # --- messages and prompts ---------------------------------------------------------------
+
+    def say(self, text: str, error: bool = False) -> None:
+        """Show a one-line message in the status bar (errors in red, and on stderr)."""
+        self.message = Message(text, error)
+        if error:
+            print(f"nvr-editor: {text}", file=sys.stderr)
+
+    def ask(self, title: str, text: str, choices: tuple[str, ...], on_choice) -> None:
+        self.prompt = Prompt(title, text, choices, on_choice)
+
+    def answer(self, choice: str) -> None:
+        """Answer the open prompt (from its buttons or a replay file)."""
+        prompt, self.prompt = self.prompt, None
+        if prompt is None or choice not in prompt.choices:
+            self.say(f"no question to answer with {choice!r}", error=True)
+            return
+        prompt.on_choice(choice)
+
+    def _offer_recovery(self) -> None:
+        recovery = state.read_recovery()
+        if recovery is None:
+            return
+        origin = recovery.origin.name if recovery.origin else "an unsaved scene"
+        text = f"Unsaved changes to {origin} were autosaved {state.age_text(recovery.saved_at)}."
+
+        def choose(choice: str) -> None:
+            if choice == "Restore":
+                self._replace_document(Document(recovery.scene, None))
+                self.doc.path = recovery.origin
+                self.say(f"restored the autosaved changes to {origin}")
+            else:
+                state.clear_recovery()
+
+        self.ask("Restore unsaved changes?", text, ("Restore", "Discard"), choose)
+
+    # --- edits ------------------------------------------------------------------------------
+
+    @property
+    def scene(self) -> Scene:
+        return self.doc.scene
+
+    def edit(self, make_scene, preview: bool = False) -> bool:
+        """Apply `make_scene(current scene)`: shown as a preview, or committed as one undo step."""
+        try:
+            scene = make_scene(self.doc.scene)
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            return False
+        if preview:
+            self.doc.preview(scene)
+            return True
+        return self.doc.commit(scene)
+
+    def commit_preview(self) -> None:
+        if self.doc.previewing:
+            self.doc.commit()
+
+    def cancel_preview(self) -> None:
+        self.doc.cancel_preview()
+
+    def undo(self) -> None:
+        if not self.doc.undo():
+            self.say("nothing to undo")
+
+    def redo(self) -> None:
+        if not self.doc.redo():
+            self.say("nothing to redo")
+
+    def paint_region(self, seed: tuple[int, int, int]) -> None:
+        """Bucket fill: the connected region of similar color around voxel `seed` takes the palette color."""
+        op = PaintOp("region", tuple(self.paint_color), tuple(int(s) for s in seed), float(self.tolerance))
+        rgba, _ = self.voxels.painted(self.scene)
+        if not (all(0 <= s < rgba.shape[0] for s in op.seed) and rgba[op.seed][3] >= 0.5):
+            self.say(f"voxel {list(op.seed)} is not part of the object", error=True)
+            return
+        self.edit(lambda s: edits.paint(s, op))
+
+    def fill_object(self) -> None:
+        self.edit(lambda s: edits.paint(s, PaintOp("object", tuple(self.paint_color))))
+
+    def fill_floor(self) -> None:
+        self.edit(lambda s: edits.paint(s, PaintOp("floor", tuple(self.paint_color))))
+
+    # --- files ------------------------------------------------------------------------------
+
+    def open_scene(self, path: str | Path) -> None:
+        """Open a scene file, asking first when the current one has unsaved changes."""
+        def go(choice: str = "Discard") -> None:
+            if choice == "Save" and not self.save():
+                return
+            if choice == "Cancel":
+                return
+            try:
+                self._replace_document(Document.open(path))
+            except InputError as exc:
+                self.say(str(exc), error=True)
+                return
+            self.say(f"opened {path}")
+
+        if self.doc.dirty and not self.headless:
+            choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
+            self.ask("Unsaved changes", "Save the current scene before opening another?", choices, go)
+        else:
+            go()
+
+    def save(self, path: str | Path | None = None) -> bool:
+        """Write the scene (atomically) to `path` or to the file it came from."""
+        target = Path(path) if path else self.doc.path
+        if target is None:
+            self.say("choose a file name to save to (File tab)", error=True)
+            return False
+        self.doc.cancel_preview()
+        try:
+            save_scene(state.adopt_capture(self.scene, target), target)
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            return False
+        self.doc.mark_saved(target)
+        state.clear_recovery()
+        self.say(f"saved {target}")
+        return True
+
+    def export(self, path: str | Path) -> bool:
+        """Write the neural render of the committed scene as `nvr render --renderer nvr+` would."""
+        try:
+            used = export_render(self.doc.history.current, path, self.live.model_path)
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            return False
+        self.say(f"exported {path} ({used})")
+        return True
+
+    def screenshot(self, path: str | Path) -> None:
+        """Save the whole window at the end of this frame."""
+        self._screenshots.append(Path(path))
+
+    def load_mesh(self, path: str | Path, up: str = "y") -> None:
+        """Voxelise a mesh in the background (progress in the window), then put it in place of the object."""
+        try:
+            candidate = edits.replace_object_source(self.doc.history.current, mesh=Path(path), up=up)
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            return
+        self._start_job(f"Voxelising {Path(path).name}", lambda progress: self.voxels.object_rgba(candidate, progress),
+                        lambda _: self.edit(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)))
+
+    def load_photo(self, photo: str | Path, camera: str | Path) -> None:
+        """Recolor the object from a photo taken with a known camera (photo_camera.json format)."""
+        scene = self.doc.history.current
+
+        def work(progress):
+            rgba, _ = self.voxels.painted(scene)
+            colored = color_from_photo(rgba, scene.object, photo, camera)
+            progress(0.9)
+            return state.save_capture(colored)
+
+        def done(capture: Path) -> None:
+            def recolor(s: Scene) -> Scene:
+                return edits.replace_object_source(s, mesh=s.mesh_path(), voxels=capture, up=s.object.up)
+
+            if self.edit(recolor):
+                self.say(f"colored the object from {Path(photo).name}")
+
+        self._start_job(f"Coloring from {Path(photo).name}", work, done)
+
+    def _start_job(self, title: str, work, on_result) -> None:
+        if self.job is not None and not self.job.done:
+            self.say(f"busy: {self.job.title}", error=True)
+            return
+        self.job = BackgroundJob(title, work)
+        self._job_done = on_result
+
+    def _replace_document(self, document: Document) -> None:
+        self.doc = document
+        self._synced = -1
+        self._autosaved = document.revision
+
+    # --- the frame loop ---------------------------------------------------------------------
+
+    @property
+    def busy(self) -> str | None:
+        """What is still under way (a job, a render, a scene not yet shown), or None when all is done."""
+        if self.job is not None:
+            return self.job.title
+        if not self.live.idle:
+            return "rendering"
+        if self._synced != self.doc.revision or self.shown_frame is None or self.shown_frame.scene != self.scene:
+            return "showing the latest edit"
+        return None
+
+    def request_quit(self) -> None:
+        """Close the window, asking first about unsaved changes (never in headless runs)."""
+        if not self.doc.dirty or self.headless:
+            self.quit_requested = True
+            return
+
+        def choose(choice: str) -> None:
+            if choice == "Save" and not self.save():
+                return
+            if choice in ("Save", "Discard"):
+                if choice == "Discard":
+                    state.clear_recovery()
+                self.quit_requested = True
+
+        choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
+        self.ask("Unsaved changes", "Save the scene before closing?", choices, choose)
+
+    def update(self) -> None:
+        """Once per frame, before drawing: finish jobs, bring viewport and render up to date, autosave."""
+        if self.job is not None and self.job.done:
+            job, self.job = self.job, None
+            if job.error:
+                self.say(job.error, error=True)
+            else:
+                self._job_done(job.result)
+        if self._synced != self.doc.revision:
+            self._sync()
+        frame = self.live.poll()
+        if frame is not None:
+            self.shown_frame = frame
+            self.render_texture = upload_image(self.window.ctx, self.render_texture, frame.image)
+        if self.live.error:
+            self.say(self.live.error, error=True)
+            self.live.error = None
+        self._autosave()
+
+    def _sync(self) -> None:
+        """Show the document's scene: upload its voxels (voxelising in the background first if needed), render it."""
+        scene = self.doc.scene
+        if not self.voxels.has_object(scene):
+            if self.job is None:
+                self._start_job(f"Voxelising {Path(scene.object.voxels or scene.object.mesh).name}",
+                                lambda progress: self.voxels.object_rgba(scene, progress), lambda _: None)
+            return
+        try:
+            rgba, self.floor_color = self.voxels.painted(scene)
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            self._synced = self.doc.revision
+            return
+        if rgba is not self._shown_rgba:
+            self.viewport.set_voxels(rgba)
+            self._shown_rgba = rgba
+        self.live.submit(scene, preview=self.doc.previewing)
+        self._synced = self.doc.revision
+
+    def _autosave(self) -> None:
+        now = time.monotonic()
+        if self.doc.revision == self._autosaved or now - self._autosave_time < AUTOSAVE_SECONDS:
+            return
+        self.autosave_now()
+
+    def autosave_now(self) -> None:
+        """Write the recovery file now if there are unsaved changes (else remove it)."""
+        try:
+            if self.doc.dirty:
+                state.write_recovery(self.doc.history.current, self.doc.path)
+            else:
+                state.clear_recovery()
+        except (InputError, OSError) as exc:
+            self.say(f"autosave failed: {exc}", error=True)
+        self._autosaved = self.doc.revision
+        self._autosave_time = time.monotonic()
+
+    def take_screenshots(self) -> None:
+        """Save the screenshots asked for this frame (the frame is drawn but not yet shown)."""
+        for path in self._screenshots:
+            try:
+                save_png(path, self.window.screenshot())
+            except InputError as exc:
+                self.say(str(exc), error=True)
+        self._screenshots.clear()
+
+    def close(self) -> None:
+        """End the session: keep an autosave when changes are unsaved, else remove it."""
+        self.autosave_now()
+        self.live.close()

@@ -1,0 +1,322 @@
+"""The interface drawn each frame with Dear ImGui: menu, viewport, live render, tools, status bar, questions.
+
+Numeric fields preview their value while being dragged or typed and commit one undo step
+when released, like every other edit.
+"""
+
+from __future__ import annotations
+
+import shutil
+import time
+from dataclasses import dataclass
+
+from imgui_bundle import imgui
+
+from app.editor import edits
+from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
+from app.editor.layout import Rect, layout_for
+from app.editor.orbit_view import viewport_camera
+from app.editor.viewport_input import ViewportInput
+
+FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+         | imgui.WindowFlags_.no_bring_to_front_on_focus | imgui.WindowFlags_.no_saved_settings)
+RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
+AMBER = imgui.ImVec4(1.0, 0.75, 0.3, 1.0)
+GREEN = imgui.ImVec4(0.5, 0.85, 0.5, 1.0)
+GRAY = imgui.ImVec4(0.65, 0.65, 0.68, 1.0)
+
+
+@dataclass
+class Fields:
+    """Text typed into the path fields."""
+
+    scene_path: str = ""
+    save_path: str = ""
+    export_path: str = "render.png"
+    mesh_path: str = ""
+    mesh_up: int = 0  # 0: y up, 1: z up
+    photo_path: str = ""
+    camera_path: str = ""
+
+
+class Interface:
+    """Draws the whole window for an EditorApp and routes what the user does to its commands."""
+
+    def __init__(self, app: EditorApp):
+        self.app = app
+        self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(app.doc.path or "scene.json"))
+        self.viewport_input = ViewportInput()
+        self._popup_title: str | None = None
+        self._dialogs = None  # a portable_file_dialogs dialog being shown, and what to do with its answer
+        self.has_file_dialogs = bool(shutil.which("zenity") or shutil.which("kdialog"))
+
+    def draw(self) -> None:
+        width, height = self.app.window.size
+        panels = layout_for(width, height)
+        self._menu()
+        self._viewport(panels.viewport)
+        self._render_panel(panels.render, panels.render_image)
+        self._tools(panels.tools)
+        self._status(panels.status)
+        self._prompt()
+        self._shortcuts()
+        self._poll_file_dialog()
+
+    # --- menu and shortcuts --------------------------------------------------------------
+
+    def _menu(self) -> None:
+        app = self.app
+        if not imgui.begin_main_menu_bar():
+            return
+        if imgui.begin_menu("File"):
+            if imgui.menu_item_simple("Save", "Ctrl+S"):
+                app.save()
+            if imgui.menu_item_simple("Export render", "Ctrl+E"):
+                app.export(self.fields.export_path)
+            if imgui.menu_item_simple("Quit", "Ctrl+Q"):
+                app.request_quit()
+            imgui.end_menu()
+        if imgui.begin_menu("Edit"):
+            if imgui.menu_item_simple("Undo", "Ctrl+Z", enabled=app.doc.history.can_undo):
+                app.undo()
+            if imgui.menu_item_simple("Redo", "Ctrl+Shift+Z", enabled=app.doc.history.can_redo):
+                app.redo()
+            imgui.end_menu()
+        title = app.doc.path.name if app.doc.path else "untitled"
+        imgui.text_colored(GRAY, f"   {title}{' *' if app.doc.dirty else ''}")
+        imgui.end_main_menu_bar()
+
+    def _shortcuts(self) -> None:
+        app, io = self.app, imgui.get_io()
+        if io.want_text_input or not io.key_ctrl or app.prompt is not None:
+            return
+        if imgui.is_key_pressed(imgui.Key.z, False):
+            app.redo() if io.key_shift else app.undo()
+        elif imgui.is_key_pressed(imgui.Key.y, False):
+            app.redo()
+        elif imgui.is_key_pressed(imgui.Key.s, False):
+            app.save()
+        elif imgui.is_key_pressed(imgui.Key.e, False):
+            app.export(self.fields.export_path)
+        elif imgui.is_key_pressed(imgui.Key.q, False):
+            app.request_quit()
+
+    # --- viewport -----------------------------------------------------------------------
+
+    def _viewport(self, rect: Rect) -> None:
+        app = self.app
+        _place(rect)
+        imgui.push_style_var(imgui.StyleVar_.window_padding, imgui.ImVec2(0, 0))
+        imgui.begin("Viewport", None, FIXED | imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar
+                    | imgui.WindowFlags_.no_scroll_with_mouse | imgui.WindowFlags_.no_background)
+        imgui.pop_style_var()
+        size = imgui.get_content_region_avail()
+        w, h = max(int(size.x), 1), max(int(size.y), 1)
+        origin = imgui.get_cursor_screen_pos()
+        inputs = self.viewport_input
+        texture = app.viewport.draw(w, h, viewport_camera(app.view, w, h), app.scene, app.floor_color,
+                                    light_active=inputs.light_drag is not None or inputs.light_hovered,
+                                    picked_voxel=inputs.hovered_voxel)
+        imgui.image(imgui.ImTextureRef(texture.glo), imgui.ImVec2(w, h), imgui.ImVec2(0, 1), imgui.ImVec2(1, 0))
+        hovered = imgui.is_item_hovered() and app.prompt is None
+        mouse = imgui.get_io().mouse_pos
+        inputs.update(app, (mouse.x - origin.x, mouse.y - origin.y), (w, h), hovered)
+        imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
+        imgui.text_colored(GRAY, inputs.hint)
+        if app.job is not None:
+            imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + h - 34))
+            imgui.progress_bar(app.job.progress, imgui.ImVec2(min(360, w - 16), 0), f"{app.job.title} {app.job.progress:.0%}")
+        imgui.end()
+
+    # --- live render --------------------------------------------------------------------
+
+    def _render_panel(self, rect: Rect, image: Rect) -> None:
+        app = self.app
+        _place(rect)
+        imgui.begin("Neural render", None, FIXED | imgui.WindowFlags_.no_scrollbar)
+        frame = app.shown_frame
+        if frame is None:
+            imgui.text_colored(AMBER, "rendering...")
+        else:
+            stale = frame.scene != app.scene
+            if stale:
+                imgui.text_colored(AMBER, "STALE")
+            elif frame.preview:
+                imgui.text_colored(AMBER, "PREVIEW")
+            else:
+                imgui.text_colored(GREEN, "UP TO DATE")
+            imgui.same_line()
+            imgui.text_colored(GRAY, f"last render {frame.seconds * 1000:.0f} ms")
+        if not app.live.neural:
+            imgui.same_line()
+            imgui.text_colored(AMBER, app.live.label)
+        if app.render_texture is not None:
+            imgui.set_cursor_screen_pos(imgui.ImVec2(image.x, image.y))
+            imgui.image(imgui.ImTextureRef(app.render_texture.glo), imgui.ImVec2(image.width, image.height))
+        imgui.end()
+
+    # --- tools --------------------------------------------------------------------------
+
+    def _tools(self, rect: Rect) -> None:
+        _place(rect)
+        imgui.begin("Tools", None, FIXED)
+        if imgui.begin_tab_bar("tool tabs"):
+            for name, draw in (("Object", self._object_tab), ("Light & camera", self._light_tab),
+                               ("Paint", self._paint_tab), ("Photo", self._photo_tab), ("File", self._file_tab)):
+                if imgui.begin_tab_item_simple(name):
+                    draw()
+                    imgui.end_tab_item()
+            imgui.end_tab_bar()
+        imgui.end()
+
+    def _field(self, changed: bool, make_scene) -> None:
+        """Preview an edited numeric field; commit one undo step when the field is released."""
+        if changed:
+            self.app.edit(make_scene, preview=True)
+        if imgui.is_item_deactivated_after_edit():
+            self.app.commit_preview()
+
+    def _object_tab(self) -> None:
+        o = self.app.scene.object
+        changed, t = imgui.drag_float2("position x, z", list(o.translation), 0.01, -5.0, 5.0, "%.3f")
+        self._field(changed, lambda s: edits.place_object(s, translation=tuple(t)))
+        changed, r = imgui.drag_float("rotation (deg)", o.rotation_deg, 0.5, -180.0, 180.0, "%.1f")
+        self._field(changed, lambda s: edits.place_object(s, rotation_deg=r))
+        changed, sc = imgui.drag_float3("scale x, y, z", list(o.scale), 0.01, edits.MIN_SCALE, edits.MAX_SCALE, "%.3f")
+        self._field(changed, lambda s: edits.place_object(s, scale=tuple(sc)))
+        imgui.separator()
+        f = self.fields
+        _, f.mesh_path = imgui.input_text("mesh file", f.mesh_path)
+        self._browse("mesh", "Open a mesh", ["Meshes", "*.obj *.ply *.stl *.off *.glb *.gltf"], "mesh_path")
+        _, f.mesh_up = imgui.combo("up axis", f.mesh_up, ["y up", "z up"])
+        if imgui.button("Load and voxelise") and f.mesh_path:
+            self.app.load_mesh(f.mesh_path, up="yz"[f.mesh_up])
+
+    def _light_tab(self) -> None:
+        scene = self.app.scene
+        changed, p = imgui.drag_float3("light x, y, z", list(scene.light.position), 0.01, -10.0, 10.0, "%.2f")
+        self._field(changed, lambda s: edits.move_light(s, tuple(p)))
+        changed, e = imgui.slider_float("camera elevation", scene.camera.elevation_deg, 0.0, edits.MAX_ELEVATION, "%.1f deg")
+        self._field(changed, lambda s: edits.set_elevation(s, e))
+        changed, c = imgui.color_edit3("floor color", list(scene.floor.color))
+        self._field(changed, lambda s: edits.set_floor_color(s, tuple(c)))
+        imgui.text_colored(GRAY, "Drag the light square in the viewport; Shift+drag sets its height.")
+
+    def _paint_tab(self) -> None:
+        app = self.app
+        if imgui.radio_button("select / move light", app.tool == "select"):
+            app.tool = "select"
+        imgui.same_line()
+        if imgui.radio_button("bucket fill", app.tool == "paint"):
+            app.tool = "paint"
+        for i, color in enumerate(PALETTE):
+            if i % 12:
+                imgui.same_line()
+            if imgui.color_button(f"palette {i}", imgui.ImVec4(*color, 1.0), 0, imgui.ImVec2(22, 22)):
+                app.paint_color = color
+                app.tool = "paint"
+        _, c = imgui.color_edit3("paint color", list(app.paint_color))
+        app.paint_color = tuple(c)
+        _, app.tolerance = imgui.slider_float("tolerance", app.tolerance, 0.0, 1.0, "%.2f")
+        if imgui.button("Fill whole object"):
+            app.fill_object()
+        imgui.same_line()
+        if imgui.button("Fill floor"):
+            app.fill_floor()
+
+    def _photo_tab(self) -> None:
+        f = self.fields
+        _, f.photo_path = imgui.input_text("photo", f.photo_path)
+        self._browse("photo", "Open a photo", ["Images", "*.png *.jpg *.jpeg"], "photo_path")
+        _, f.camera_path = imgui.input_text("camera file", f.camera_path)
+        self._browse("camera", "Open a photo camera file", ["Camera", "*.json"], "camera_path")
+        if imgui.button("Color the object from the photo") and f.photo_path and f.camera_path:
+            self.app.load_photo(f.photo_path, f.camera_path)
+
+    def _file_tab(self) -> None:
+        f, app = self.fields, self.app
+        _, f.scene_path = imgui.input_text("##open", f.scene_path)
+        imgui.same_line()
+        if imgui.button("Open scene") and f.scene_path:
+            app.open_scene(f.scene_path)
+        _, f.save_path = imgui.input_text("##save", f.save_path)
+        imgui.same_line()
+        if imgui.button("Save as") and f.save_path:
+            app.save(f.save_path)
+        _, f.export_path = imgui.input_text("##export", f.export_path)
+        imgui.same_line()
+        if imgui.button("Export PNG") and f.export_path:
+            app.export(f.export_path)
+
+    def _browse(self, key: str, title: str, filters: list[str], field_name: str) -> None:
+        """A 'Browse' button opening the system file dialog, when the system has one (zenity or kdialog)."""
+        if not self.has_file_dialogs:
+            return
+        imgui.same_line()
+        if imgui.button(f"Browse##{key}") and self._dialogs is None:
+            from imgui_bundle import portable_file_dialogs as pfd
+
+            self._dialogs = (pfd.open_file(title, "", filters), field_name)
+
+    def _poll_file_dialog(self) -> None:
+        if self._dialogs is None:
+            return
+        dialog, field_name = self._dialogs
+        if dialog.ready(0):
+            chosen = dialog.result()
+            if chosen:
+                setattr(self.fields, field_name, chosen[0])
+            self._dialogs = None
+
+    # --- status bar and questions -------------------------------------------------------
+
+    def _status(self, rect: Rect) -> None:
+        app = self.app
+        _place(rect)
+        imgui.push_style_var(imgui.StyleVar_.window_padding, imgui.ImVec2(8, 4))
+        imgui.begin("Status", None, FIXED | imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar)
+        imgui.pop_style_var()
+        io = imgui.get_io()
+        frame = app.shown_frame
+        render_ms = f"{frame.seconds * 1000:.0f} ms/render" if frame else "-"
+        imgui.text_colored(GRAY, f"model: {app.live.label}  |  device: {app.live.device}  |  "
+                                 f"UI {1000.0 / max(io.framerate, 1e-3):.1f} ms/frame ({io.framerate:.0f} fps)  |  {render_ms}")
+        message = app.message
+        if message is not None and (message.error or time.monotonic() - message.shown_at < MESSAGE_SECONDS):
+            imgui.same_line()
+            imgui.text_colored(RED if message.error else GREEN, f"  {message.text}")
+        imgui.end()
+
+    def _prompt(self) -> None:
+        prompt = self.app.prompt
+        if prompt is None:
+            self._close_answered_popup()
+            return
+        self._popup_title = prompt.title
+        if not imgui.is_popup_open(prompt.title):
+            imgui.open_popup(prompt.title)
+        width, height = self.app.window.size
+        imgui.set_next_window_pos(imgui.ImVec2(width / 2, height / 2), imgui.Cond_.always, imgui.ImVec2(0.5, 0.5))
+        opened, _ = imgui.begin_popup_modal(prompt.title, None, imgui.WindowFlags_.always_auto_resize)
+        if opened:
+            imgui.text(prompt.text)
+            for i, choice in enumerate(prompt.choices):
+                if i:
+                    imgui.same_line()
+                if imgui.button(choice, imgui.ImVec2(100, 0)):
+                    imgui.close_current_popup()
+                    self.app.answer(choice)
+            imgui.end_popup()
+
+    def _close_answered_popup(self) -> None:
+        """Close the question's popup when it was answered elsewhere (a replay file)."""
+        if self._popup_title is not None and imgui.is_popup_open(self._popup_title):
+            if imgui.begin_popup_modal(self._popup_title)[0]:
+                imgui.close_current_popup()
+                imgui.end_popup()
+        self._popup_title = None
+
+
+def _place(rect: Rect) -> None:
+    imgui.set_next_window_pos(imgui.ImVec2(rect.x, rect.y), imgui.Cond_.always)
+    imgui.set_next_window_size(imgui.ImVec2(rect.width, rect.height), imgui.Cond_.always)

@@ -1,0 +1,118 @@
+"""The live render beside the viewport: the neural engine off the UI thread, or splatting when there is no model.
+
+All coupling to models/engine.py and models/async_render.py lives here. Without a trained
+model (RenderEngine.load raises InputError) a stand-in engine renders the splatted image S
+instead, and the panel says so. The AsyncRenderer renders only the newest scene submitted,
+so a drag never queues up stale frames.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from app.editor.voxel_cache import VoxelCache
+from models.async_render import AsyncRenderer
+from models.engine import RenderEngine, RenderReport, default_threads
+from renderer.errors import InputError
+from renderer.io import save_png
+from renderer.pipeline import object_voxels, painted_voxels
+from renderer.scene import Scene
+from renderer.splat import splat_scene
+
+NO_MODEL_LABEL = "no trained model: showing splat"
+
+
+@dataclass(frozen=True)
+class RenderedFrame:
+    image: np.ndarray  # (S, S, 3) float32 sRGB in [0, 1]
+    scene: Scene  # the scene it shows
+    preview: bool  # a quick render while an edit is in progress
+    seconds: float  # how long it took
+
+
+class SplatEngine:
+    """The engine's interface over the splatted image, for when no trained model is available."""
+
+    def __init__(self, voxels: VoxelCache):
+        self._voxels = voxels
+        self.last_report: RenderReport | None = None
+
+    def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
+        start = time.perf_counter()
+        image = splat_scene(scene, *self._voxels.painted(scene))
+        ms = (time.perf_counter() - start) * 1000.0
+        self.last_report = RenderReport(("splat",), {"splat": ms}, ms, preview)
+        return image
+
+    def preview(self, scene: Scene) -> np.ndarray:
+        return self.render(scene, preview=True)
+
+
+class LiveRender:
+    """Submits scenes to a worker thread and hands each newly finished frame to the UI once."""
+
+    def __init__(self, voxels: VoxelCache, model_path: str | None = None):
+        self.model_path = model_path
+        try:
+            self.engine = RenderEngine.load(model_path, kind="nvr+")
+            self.neural = True
+            self.label = f"NVR+ {self.engine.model_name}"
+            self.device = f"cpu, {default_threads()} threads"
+        except InputError as exc:
+            self.engine = SplatEngine(voxels)
+            self.neural = False
+            self.label = NO_MODEL_LABEL
+            self.device = "cpu (splatting)"
+            print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
+        self._renderer = AsyncRenderer(self.engine)
+        self._scenes: dict[int, Scene] = {}  # submitted and not yet handed out, by sequence number
+        self._handed = 0
+        self.error: str | None = None
+
+    def submit(self, scene: Scene, preview: bool = False) -> None:
+        """Ask for `scene` (replacing any request not started yet)."""
+        self._scenes[self._renderer.submit(scene, preview)] = scene
+
+    def poll(self) -> RenderedFrame | None:
+        """The newest finished frame not handed out yet, or None; a failed render sets `error`."""
+        frame = self._renderer.latest()
+        if frame is None or frame.sequence <= self._handed:
+            return None
+        self._handed = frame.sequence
+        scene = self._scenes.pop(frame.sequence)
+        self._scenes = {k: v for k, v in self._scenes.items() if k > frame.sequence}
+        if frame.image is None:
+            self.error = frame.error
+            return None
+        seconds = frame.report.total_ms / 1000.0 if frame.report is not None else 0.0
+        return RenderedFrame(frame.image, scene, frame.preview, seconds)
+
+    @property
+    def idle(self) -> bool:
+        """Nothing waiting or rendering, and every finished frame handed out."""
+        return self._renderer.wait_idle(timeout=0) and not self._scenes
+
+    def close(self) -> None:
+        self._renderer.close()
+
+
+def export_render(scene: Scene, path: str | Path, model_path: str | None = None) -> str:
+    """Write the image `nvr render SCENE --renderer nvr+` makes (the splat when no model loads); returns what was used."""
+    try:
+        engine = RenderEngine.load(model_path, kind="nvr+")
+    except InputError:
+        if model_path is not None:
+            raise
+        rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+        save_png(path, splat_scene(scene, rgba, floor_color))
+        return "splat, no trained model"
+    if scene.image_size != engine.output_size:
+        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; "
+                         f"the scene's image_size {scene.image_size} is not supported")
+    save_png(path, engine.render(scene))
+    return f"nvr+ {engine.model_name}"

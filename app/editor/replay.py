@@ -1,0 +1,208 @@
+"""Replay files: a JSON list of actions the editor performs one per frame, for tests and demos.
+
+High-level actions call the same commands as the interface:
+    {"action": "drag_light", "to": [x, y, z], "steps": 8}     preview on the way, one undo step
+    {"action": "move_object", "translation": [x, z]}          also "rotate_object" {"deg"}, "scale_object" {"scale"}
+    {"action": "set_elevation", "deg": 20}                    {"action": "set_floor_color", "color": [r, g, b]}
+    {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1}
+    {"action": "fill_object", "color": [...]}                 {"action": "fill_floor", "color": [...]}
+    {"action": "undo"} {"action": "redo"}
+    {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
+    {"action": "load_mesh", "path": ..., "up": "y"}           {"action": "load_photo", "photo": ..., "camera": ...}
+    {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
+    {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
+Raw input goes through the window backend's own event handlers, as real input does:
+    {"action": "mouse_move", "pos": [x, y]}   window pixels
+    {"action": "mouse_down", "button": 0} {"action": "mouse_up", "button": 0}   0 left, 1 right, 2 middle
+    {"action": "scroll", "dy": 1}
+    {"action": "key", "key": "g", "mods": ["ctrl", "shift"]}   press and release
+Before each action the replay waits until the editor is idle (jobs done, render up to date),
+so a screenshot always shows the finished result of what came before.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import glfw
+from imgui_bundle import imgui
+
+from app.editor import edits
+from renderer.errors import InputError
+from renderer.io import load_json
+from renderer.scene import PaintOp
+
+MODIFIER_KEYS = {"ctrl": glfw.KEY_LEFT_CONTROL, "shift": glfw.KEY_LEFT_SHIFT, "alt": glfw.KEY_LEFT_ALT}
+MODIFIER_BITS = {"ctrl": glfw.MOD_CONTROL, "shift": glfw.MOD_SHIFT, "alt": glfw.MOD_ALT}
+MODIFIER_IMGUI = {"ctrl": imgui.Key.mod_ctrl, "shift": imgui.Key.mod_shift, "alt": imgui.Key.mod_alt}
+
+
+def load_replay(path: str | Path) -> list[dict[str, Any]]:
+    """Read and check a replay file: a list of objects with a known "action"."""
+    actions = load_json(path)
+    if not isinstance(actions, list):
+        raise InputError("a replay file must hold a JSON list of actions", path)
+    for i, action in enumerate(actions):
+        if not isinstance(action, dict) or not isinstance(action.get("action"), str):
+            raise InputError(f"action {i} must be an object with an \"action\" name", path)
+        if action["action"] not in ACTIONS:
+            raise InputError(f"action {i}: unknown action {action['action']!r} (known: {', '.join(sorted(ACTIONS))})", path)
+    return actions
+
+
+class Replay:
+    """Feeds the actions to an app, one step per frame, waiting for the app to be idle between actions."""
+
+    def __init__(self, actions: list[dict[str, Any]]):
+        self._pending = list(actions)
+        self._running: Iterator[None] | None = None
+        self._current: dict[str, Any] | None = None
+
+    @property
+    def done(self) -> bool:
+        return not self._pending and self._running is None
+
+    def step(self, app) -> None:
+        """Advance by one frame; call before the frame's input is read."""
+        if self._running is None:
+            if not self._pending or app.busy:
+                return
+            self._current = self._pending.pop(0)
+            self._running = _run(app, self._current)
+        try:
+            next(self._running)
+        except StopIteration:
+            self._running = None
+        except (KeyError, TypeError, ValueError) as exc:
+            self._running = None
+            app.say(f"replay: bad action {self._current}: {type(exc).__name__}: {exc}", error=True)
+
+
+def _run(app, action: dict[str, Any]) -> Iterator[None]:
+    result = ACTIONS[action["action"]](app, action)
+    if isinstance(result, Iterator):  # an action spread over several frames
+        yield from result
+
+
+# --- high-level actions -----------------------------------------------------------------------
+
+
+def _color(action: dict[str, Any]) -> tuple[float, float, float]:
+    r, g, b = (float(c) for c in action["color"])
+    return r, g, b
+
+
+def _drag_light(app, action) -> Iterator[None]:
+    start = app.scene.light.position
+    target = tuple(float(c) for c in action["to"])
+    steps = max(1, int(action.get("steps", 6)))
+    for k in range(1, steps + 1):
+        point = tuple(a + (b - a) * k / steps for a, b in zip(start, target))
+        app.edit(lambda s, p=point: edits.move_light(s, p), preview=True)
+        yield
+    app.commit_preview()
+
+
+def _paint(app, action) -> None:
+    if "color" in action:
+        app.paint_color = _color(action)
+    app.tolerance = float(action.get("tolerance", app.tolerance))
+    app.paint_region(tuple(int(v) for v in action["voxel"]))
+
+
+def _fill(target: str):
+    def run(app, action) -> None:
+        app.edit(lambda s: edits.paint(s, PaintOp(target, _color(action))))
+    return run
+
+
+def _wait(app, action) -> Iterator[None]:
+    for _ in range(int(action.get("frames", 1))):
+        yield
+
+
+def _set_tool(app, action) -> None:
+    if action["name"] not in ("select", "paint"):
+        raise ValueError(f"tool must be select or paint, got {action['name']!r}")
+    app.tool = action["name"]
+
+
+# --- raw input through the glfw backend's callbacks ----------------------------------------------
+
+
+def _window(app) -> int:
+    return ctypes.cast(app.window.handle, ctypes.c_void_p).value
+
+
+def _mouse_move(app, action) -> None:
+    x, y = (float(v) for v in action["pos"])
+    imgui.backends.glfw_cursor_enter_callback(_window(app), 1)
+    imgui.backends.glfw_cursor_pos_callback(_window(app), x, y)
+
+
+def _mouse_button(down: bool):
+    def run(app, action) -> None:
+        imgui.backends.glfw_mouse_button_callback(_window(app), int(action.get("button", 0)),
+                                                  glfw.PRESS if down else glfw.RELEASE, 0)
+    return run
+
+
+def _scroll(app, action) -> None:
+    imgui.backends.glfw_scroll_callback(_window(app), 0.0, float(action.get("dy", 1.0)))
+
+
+def _key(app, action) -> Iterator[None]:
+    """Press the modifiers and the key in one frame, release them in the next.
+
+    ImGui's glfw backend reads the modifier state from glfwGetKey (the real keyboard) on every
+    key event, so the pressed modifiers are sent to ImGui after the key, directly.
+    """
+    name = str(action["key"]).upper()
+    key = getattr(glfw, f"KEY_{name}", None)
+    if key is None:
+        raise ValueError(f"unknown key {action['key']!r}")
+    mods = [str(m).lower() for m in action.get("mods", [])]
+    bits = sum(MODIFIER_BITS[m] for m in mods)
+    window = _window(app)
+    for m in mods:
+        imgui.backends.glfw_key_callback(window, MODIFIER_KEYS[m], 0, glfw.PRESS, bits)
+    imgui.backends.glfw_key_callback(window, key, 0, glfw.PRESS, bits)
+    for m in mods:
+        imgui.get_io().add_key_event(MODIFIER_IMGUI[m], True)
+    yield
+    imgui.backends.glfw_key_callback(window, key, 0, glfw.RELEASE, bits)
+    for m in mods:
+        imgui.backends.glfw_key_callback(window, MODIFIER_KEYS[m], 0, glfw.RELEASE, 0)
+    yield
+
+
+ACTIONS = {
+    "drag_light": _drag_light,
+    "move_object": lambda app, a: app.edit(lambda s: edits.place_object(s, translation=tuple(a["translation"]))),
+    "rotate_object": lambda app, a: app.edit(lambda s: edits.place_object(s, rotation_deg=float(a["deg"]))),
+    "scale_object": lambda app, a: app.edit(lambda s: edits.place_object(s, scale=tuple(a["scale"]))),
+    "set_elevation": lambda app, a: app.edit(lambda s: edits.set_elevation(s, float(a["deg"]))),
+    "set_floor_color": lambda app, a: app.edit(lambda s: edits.set_floor_color(s, _color(a))),
+    "paint": _paint,
+    "fill_object": _fill("object"),
+    "fill_floor": _fill("floor"),
+    "undo": lambda app, a: app.undo(),
+    "redo": lambda app, a: app.redo(),
+    "open": lambda app, a: app.open_scene(a["path"]),
+    "save": lambda app, a: app.save(a.get("path")),
+    "export": lambda app, a: app.export(a["path"]),
+    "load_mesh": lambda app, a: app.load_mesh(a["path"], up=a.get("up", "y")),
+    "load_photo": lambda app, a: app.load_photo(a["photo"], a["camera"]),
+    "screenshot": lambda app, a: app.screenshot(a["path"]),
+    "answer": lambda app, a: app.answer(a["choice"]),
+    "tool": _set_tool,
+    "wait": _wait,
+    "mouse_move": _mouse_move,
+    "mouse_down": _mouse_button(True),
+    "mouse_up": _mouse_button(False),
+    "scroll": _scroll,
+    "key": _key,
+}

@@ -1,0 +1,279 @@
+"""The 3D viewport, drawn with moderngl into an offscreen image the UI shows: voxels, ground, light, render camera.
+
+Voxels are instanced quads (app/editor/voxel_faces.py) placed by the object's placement
+matrix, shaded by the direction to the light plus ambient. Faces turned away from the viewer
+are dropped in the vertex shader. The ground is the floor square with a faint grid, the
+light is its square seen as a glowing rectangle with a line down to the floor, and the render
+camera is drawn as its viewing frustum.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from app.editor.orbit_view import frustum_corners, view_projection
+from app.editor.voxel_faces import exposed_faces
+from renderer.camera import Camera
+from renderer.scene import FLOOR_HALF_SIZE, LIGHT_SIZE, OBJECT_SIZE, Scene
+from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
+
+BACKGROUND = (0.16, 0.17, 0.19)
+LIGHT_COLOR = (1.0, 0.93, 0.55)
+LIGHT_ACTIVE_COLOR = (1.0, 0.6, 0.2)
+FRUSTUM_COLOR = (0.95, 0.55, 0.25)
+BOX_COLOR = (0.9, 0.9, 0.95)
+PICK_COLOR = (1.0, 1.0, 1.0)
+FRUSTUM_DEPTH = 0.9  # depth of the drawn camera pyramid, world units
+
+_VOXEL_VS = """
+#version 330
+in vec2 corner;
+in vec4 cell;   // i, j, k, face id
+in vec3 color;
+uniform mat4 view_projection;
+uniform mat4 object_to_world;
+uniform mat3 normal_to_world;
+uniform vec3 eye;
+uniform float voxel_size;
+uniform vec3 box_min;
+out vec3 v_color;
+out vec3 v_normal;
+out vec3 v_world;
+void main() {
+    int face = int(cell.w + 0.5);
+    int axis = face / 2;
+    float side = (face % 2 == 0) ? 1.0 : 0.0;
+    vec3 p = cell.xyz;
+    vec3 n = vec3(0.0);
+    if (axis == 0) { p += vec3(side, corner.x, corner.y); n.x = side * 2.0 - 1.0; }
+    else if (axis == 1) { p += vec3(corner.y, side, corner.x); n.y = side * 2.0 - 1.0; }
+    else { p += vec3(corner.x, corner.y, side); n.z = side * 2.0 - 1.0; }
+    vec4 world = object_to_world * vec4(box_min + p * voxel_size, 1.0);
+    v_world = world.xyz;
+    v_normal = normalize(normal_to_world * n);
+    v_color = color;
+    gl_Position = view_projection * world;
+    if (dot(v_normal, eye - world.xyz) <= 0.0) gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // faces away: outside the clip volume
+}
+"""
+
+_SHADED_FS = """
+#version 330
+in vec3 v_color;
+in vec3 v_normal;
+in vec3 v_world;
+uniform vec3 light_position;
+out vec4 frag;
+void main() {
+    vec3 to_light = normalize(light_position - v_world);
+    float diffuse = max(dot(normalize(v_normal), to_light), 0.0);
+    frag = vec4(v_color * (0.38 + 0.72 * diffuse), 1.0);
+}
+"""
+
+_GROUND_VS = """
+#version 330
+in vec3 position;
+uniform mat4 view_projection;
+out vec3 v_world;
+void main() { v_world = position; gl_Position = view_projection * vec4(position, 1.0); }
+"""
+
+_GROUND_FS = """
+#version 330
+in vec3 v_world;
+uniform vec3 floor_color;
+uniform vec3 light_position;
+out vec4 frag;
+void main() {
+    vec3 to_light = normalize(light_position - v_world);
+    vec3 shaded = floor_color * (0.38 + 0.72 * max(to_light.y, 0.0));
+    vec2 cell = abs(fract(v_world.xz * 2.0 + 0.5) - 0.5) / fwidth(v_world.xz * 2.0);
+    float line = 1.0 - min(min(cell.x, cell.y), 1.0);
+    frag = vec4(mix(shaded, shaded * 0.8, line * 0.6), 1.0);
+}
+"""
+
+_FLAT_VS = """
+#version 330
+in vec3 position;
+uniform mat4 view_projection;
+void main() { gl_Position = view_projection * vec4(position, 1.0); }
+"""
+
+_FLAT_FS = """
+#version 330
+uniform vec3 color;
+out vec4 frag;
+void main() { frag = vec4(color, 1.0); }
+"""
+
+_QUAD_CORNERS = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
+
+
+class ViewportRenderer:
+    """Owns the GL objects of the viewport; `draw` renders a scene into a texture of the requested size."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self._voxel_program = ctx.program(vertex_shader=_VOXEL_VS, fragment_shader=_SHADED_FS)
+        self._ground_program = ctx.program(vertex_shader=_GROUND_VS, fragment_shader=_GROUND_FS)
+        self._flat_program = ctx.program(vertex_shader=_FLAT_VS, fragment_shader=_FLAT_FS)
+        self._corners = ctx.buffer(_QUAD_CORNERS.tobytes())
+        self._cells = ctx.buffer(reserve=16)
+        self._colors = ctx.buffer(reserve=12)
+        self._voxels_vao = None
+        self._instances = 0
+        self._resolution = 1
+        h = FLOOR_HALF_SIZE
+        ground = np.array([[-h, 0, -h], [h, 0, -h], [h, 0, h], [-h, 0, -h], [h, 0, h], [-h, 0, h]], dtype=np.float32)
+        self._ground_vao = ctx.vertex_array(self._ground_program, [(ctx.buffer(ground.tobytes()), "3f", "position")])
+        self._lines = ctx.buffer(reserve=4096)
+        self._lines_vao = ctx.vertex_array(self._flat_program, [(self._lines, "3f", "position")])
+        self._fbo: moderngl.Framebuffer | None = None
+        self.texture: moderngl.Texture | None = None
+        self._voxels_version = 0
+        self._drawn = None  # what the texture shows; an unchanged frame is not drawn again
+
+    def set_voxels(self, rgba: np.ndarray) -> int:
+        """Upload the object's visible faces; returns how many quads there are."""
+        cells, colors = exposed_faces(rgba)
+        self._voxels_version += 1
+        self._resolution = rgba.shape[0]
+        self._instances = len(cells)
+        if self._instances == 0:
+            return 0
+        self._cells.orphan(cells.nbytes)
+        self._cells.write(cells.tobytes())
+        self._colors.orphan(colors.nbytes)
+        self._colors.write(colors.tobytes())
+        self._voxels_vao = self.ctx.vertex_array(self._voxel_program, [
+            (self._corners, "2f", "corner"),
+            (self._cells, "4f/i", "cell"),
+            (self._colors, "3f/i", "color"),
+        ])
+        return self._instances
+
+    def draw(self, width: int, height: int, view: Camera, scene: Scene, floor_color, light_active: bool = False,
+             picked_voxel: tuple[int, int, int] | None = None) -> moderngl.Texture:
+        """Render the scene seen by `view` (already sized width x height) and return the color texture.
+
+        llvmpipe (software OpenGL) needs tens of milliseconds for a frame, so a frame identical
+        to the last one is not drawn again.
+        """
+        drawn = (width, height, view, scene, tuple(floor_color), light_active, picked_voxel, self._voxels_version)
+        if drawn == self._drawn:
+            return self.texture
+        self._drawn = drawn
+        fbo = self._framebuffer(width, height)
+        fbo.use()
+        ctx = self.ctx
+        ctx.viewport = (0, 0, width, height)
+        ctx.clear(*BACKGROUND, 1.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        vp = _gl_matrix(view_projection(view))
+        light = tuple(float(c) for c in scene.light.position)
+
+        self._ground_program["view_projection"].write(vp)
+        self._ground_program["floor_color"].value = tuple(float(c) for c in floor_color)
+        self._ground_program["light_position"].value = light
+        self._ground_vao.render()
+
+        if self._voxels_vao is not None and self._instances:
+            placement = object_to_world(scene.object)
+            p = self._voxel_program
+            p["view_projection"].write(vp)
+            p["object_to_world"].write(_gl_matrix(placement))
+            p["normal_to_world"].write(np.linalg.inv(placement[:3, :3]).T.astype("f4").tobytes(order="F"))
+            p["eye"].value = tuple(float(c) for c in view.position)
+            p["voxel_size"].value = OBJECT_SIZE / self._resolution
+            p["box_min"].value = tuple(float(c) for c in OBJECT_BOX_MIN)
+            p["light_position"].value = light
+            self._voxels_vao.render(instances=self._instances)
+
+        self._flat_program["view_projection"].write(vp)
+        self._draw_lines(_light_lines(scene), LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR)
+        self._draw_lines(_frustum_lines(Camera.from_scene(scene)), FRUSTUM_COLOR)
+        self._draw_lines(_box_lines(object_to_world(scene.object), OBJECT_BOX_MIN, OBJECT_BOX_MAX), BOX_COLOR)
+        if picked_voxel is not None:
+            n = self._resolution
+            lo = OBJECT_BOX_MIN + np.asarray(picked_voxel) * (OBJECT_SIZE / n)
+            self._draw_lines(_box_lines(object_to_world(scene.object), lo, lo + OBJECT_SIZE / n), PICK_COLOR)
+        self._draw_light_square(scene, LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR)
+        ctx.disable(moderngl.DEPTH_TEST)
+        return self.texture
+
+    def read(self) -> np.ndarray:
+        """The last drawn image as (H, W, 3) uint8, top row first."""
+        w, h = self.texture.size
+        return np.frombuffer(self._fbo.read(components=3), dtype=np.uint8).reshape(h, w, 3)[::-1]
+
+    def _framebuffer(self, width: int, height: int) -> moderngl.Framebuffer:
+        if self.texture is None or self.texture.size != (width, height):
+            if self._fbo is not None:
+                self._fbo.release()
+                self.texture.release()
+            self.texture = self.ctx.texture((width, height), 4)
+            self._fbo = self.ctx.framebuffer(self.texture, self.ctx.depth_renderbuffer((width, height)))
+        return self._fbo
+
+    def _draw_lines(self, points: np.ndarray, color: tuple[float, float, float]) -> None:
+        data = np.ascontiguousarray(points, dtype=np.float32)
+        if data.nbytes > self._lines.size:
+            self._lines.orphan(data.nbytes)
+        self._lines.write(data.tobytes())
+        self._flat_program["color"].value = color
+        self._lines_vao.render(moderngl.LINES, vertices=len(data))
+
+    def _draw_light_square(self, scene: Scene, color: tuple[float, float, float]) -> None:
+        corners = _light_corners(scene)
+        triangles = corners[[0, 1, 2, 0, 2, 3]]
+        data = triangles.astype(np.float32)
+        if data.nbytes > self._lines.size:
+            self._lines.orphan(data.nbytes)
+        self._lines.write(data.tobytes())
+        self._flat_program["color"].value = tuple(0.5 * c + 0.5 for c in color)
+        self._lines_vao.render(moderngl.TRIANGLES, vertices=6)
+
+
+def _gl_matrix(m: np.ndarray) -> bytes:
+    """A 4x4 numpy matrix as the column-major float32 bytes GLSL expects."""
+    return np.asarray(m, dtype="f4").tobytes(order="F")
+
+
+def _light_corners(scene: Scene) -> np.ndarray:
+    x, y, z = scene.light.position
+    h = 0.5 * LIGHT_SIZE
+    return np.array([[x - h, y, z - h], [x + h, y, z - h], [x + h, y, z + h], [x - h, y, z + h]])
+
+
+def _light_lines(scene: Scene) -> np.ndarray:
+    """The light square's outline, a line down to the floor and a cross where it lands."""
+    c = _light_corners(scene)
+    x, y, z = scene.light.position
+    outline = [c[0], c[1], c[1], c[2], c[2], c[3], c[3], c[0]]
+    drop = [(x, y, z), (x, 0.0, z), (x - 0.15, 0.0, z), (x + 0.15, 0.0, z), (x, 0.0, z - 0.15), (x, 0.0, z + 0.15)]
+    return np.array(outline + [np.array(p) for p in drop])
+
+
+def _frustum_lines(camera: Camera) -> np.ndarray:
+    """The render camera as a pyramid (centre to image corners), an 'up' triangle, and its line of sight."""
+    eye = camera.position
+    far = frustum_corners(camera, FRUSTUM_DEPTH)
+    lines = [eye, np.asarray(camera.target)]
+    for i in range(4):
+        lines += [eye, far[i], far[i], far[(i + 1) % 4]]
+    top_mid = 0.5 * (far[0] + far[1])
+    up = camera.camera_to_world()[:3, 1] * 0.15 * np.linalg.norm(far[1] - far[0])
+    lines += [far[0] + 0.3 * (far[1] - far[0]), top_mid + up, top_mid + up, far[0] + 0.7 * (far[1] - far[0])]
+    return np.array(lines)
+
+
+def _box_lines(matrix: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The 12 edges of the box [lo, hi] (object coordinates) placed by `matrix`."""
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    world = apply_transform(matrix, corners)
+    edges = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+    return np.array([world[i] for edge in edges for i in edge])

@@ -1,0 +1,204 @@
+"""Mouse and keys in the viewport, after Blender and MagicaVoxel.
+
+- Middle-drag (or right-drag) orbits, Shift + that drag pans, the wheel zooms.
+- Left-drag on the light square moves the light over the ground; with Shift held the drag
+  changes its height instead. The render follows while dragging; releasing commits one undo step.
+- G, R, S grab, rotate or scale the object; X, Y, Z limit the change to one axis; a left click
+  or Enter confirms, a right click or Esc cancels.
+- With the bucket tool, a left click on a voxel fills its connected region of similar color.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from imgui_bundle import imgui
+
+from app.editor import edits
+from app.editor.orbit_view import orbit, pan, viewport_camera, zoom
+from app.editor.picking import hits_light, pick_voxel, ray_at_height
+from renderer.camera import Camera
+from renderer.scene import Scene
+from renderer.surface import occupancy
+
+LIGHT_HEIGHT_PER_PIXEL = 0.01
+ROTATE_KEYS = {imgui.Key.g: "grab", imgui.Key.r: "rotate", imgui.Key.s: "scale"}
+AXIS_KEYS = {imgui.Key.x: 0, imgui.Key.y: 1, imgui.Key.z: 2}
+HINTS = {
+    "grab": "Grab: move the mouse over the floor",
+    "rotate": "Rotate: circle the mouse around the object",
+    "scale": "Scale: move the mouse away from or towards the object",
+}
+
+
+@dataclass
+class Transform:
+    """A G/R/S operation in progress."""
+
+    kind: str
+    start_scene: Scene
+    start_mouse: tuple[float, float]
+    axis: int | None = None
+
+
+@dataclass
+class LightDrag:
+    start_scene: Scene
+    offset: np.ndarray  # light centre minus the grabbed point, on the light's plane
+
+
+class ViewportInput:
+    """Turns mouse and keys over the viewport image into view changes and edits of the app's scene."""
+
+    def __init__(self) -> None:
+        self.camera: Camera | None = None
+        self.transform: Transform | None = None
+        self.light_drag: LightDrag | None = None
+        self.navigating: int | None = None  # mouse button of an orbit/pan drag
+        self.hovered_voxel: tuple[int, int, int] | None = None
+        self.light_hovered = False
+
+    @property
+    def interacting(self) -> bool:
+        """A drag or a G/R/S operation is in progress."""
+        return self.transform is not None or self.light_drag is not None or self.navigating is not None
+
+    @property
+    def hint(self) -> str:
+        if self.transform is not None:
+            axis = "" if self.transform.axis is None else f", {'XYZ'[self.transform.axis]} axis only"
+            return f"{HINTS[self.transform.kind]}{axis}. Click or Enter: confirm; right click or Esc: cancel"
+        if self.light_drag is not None:
+            return "Moving the light (hold Shift to change its height)"
+        return "Middle/right drag: orbit, +Shift: pan, wheel: zoom. G/R/S: grab/rotate/scale, drag the light square"
+
+    def update(self, app, mouse: tuple[float, float], size: tuple[int, int], hovered: bool) -> None:
+        """One frame of input; `mouse` is in viewport pixels, `hovered` whether the mouse is over the viewport."""
+        app.view = self._navigate(app.view, hovered)
+        self.camera = viewport_camera(app.view, *size)
+        origin, direction = self.camera.pixel_rays(np.array(mouse[0]), np.array(mouse[1]))
+        ray = (origin, np.asarray(direction))
+        if self.transform is not None:
+            self._update_transform(app, mouse, ray)
+            return
+        if self.light_drag is not None:
+            self._update_light_drag(app, ray)
+            return
+        self.light_hovered = hovered and hits_light(*ray, app.scene.light.position)
+        self.hovered_voxel = self._voxel_under(app, ray) if hovered and app.tool == "paint" else None
+        if not hovered:
+            return
+        if imgui.is_mouse_clicked(imgui.MouseButton_.left):
+            if self.hovered_voxel is not None:
+                app.paint_region(self.hovered_voxel)
+            elif self.light_hovered:
+                self._start_light_drag(app, ray)
+        io = imgui.get_io()
+        if not io.want_text_input:
+            for key, kind in ROTATE_KEYS.items():
+                if imgui.is_key_pressed(key, False) and not io.key_ctrl:
+                    self.transform = Transform(kind, app.doc.history.current, mouse)
+
+    # --- navigation -----------------------------------------------------------------------
+
+    def _navigate(self, view: Camera, hovered: bool) -> Camera:
+        io = imgui.get_io()
+        if self.navigating is None and hovered:
+            for button in (imgui.MouseButton_.middle, imgui.MouseButton_.right):
+                if imgui.is_mouse_clicked(button) and self.transform is None:
+                    self.navigating = button
+        if self.navigating is not None:
+            if not imgui.is_mouse_down(self.navigating):
+                self.navigating = None
+            else:
+                dx, dy = io.mouse_delta.x, io.mouse_delta.y
+                view = pan(view, dx, dy) if io.key_shift else orbit(view, dx, dy)
+        if hovered and io.mouse_wheel:
+            view = zoom(view, io.mouse_wheel)
+        return view
+
+    # --- picking --------------------------------------------------------------------------
+
+    def _voxel_under(self, app, ray) -> tuple[int, int, int] | None:
+        if app.job is not None or app._shown_rgba is None:
+            return None
+        return pick_voxel(occupancy(app._shown_rgba), app.scene.object, *ray)
+
+    # --- the light ------------------------------------------------------------------------
+
+    def _start_light_drag(self, app, ray) -> None:
+        light = np.asarray(app.scene.light.position, dtype=np.float64)
+        hit = ray_at_height(*ray, light[1])
+        if hit is not None:
+            self.light_drag = LightDrag(app.doc.history.current, light - hit)
+
+    def _update_light_drag(self, app, ray) -> None:
+        drag = self.light_drag
+        if not imgui.is_mouse_down(imgui.MouseButton_.left):
+            self.light_drag = None
+            app.commit_preview()
+            return
+        if imgui.is_key_pressed(imgui.Key.escape):
+            self.light_drag = None
+            app.cancel_preview()
+            return
+        light = np.asarray(app.scene.light.position, dtype=np.float64)
+        io = imgui.get_io()
+        if io.key_shift:
+            light[1] -= io.mouse_delta.y * LIGHT_HEIGHT_PER_PIXEL
+            hit = ray_at_height(*ray, max(light[1], edits.MIN_LIGHT_HEIGHT))
+            if hit is not None:  # re-anchor so releasing Shift does not make the light jump
+                drag.offset = light - hit
+        else:
+            hit = ray_at_height(*ray, light[1])
+            if hit is not None:
+                light[[0, 2]] = (hit + drag.offset)[[0, 2]]
+        app.edit(lambda s: edits.move_light(s, tuple(light)), preview=True)
+
+    # --- grab, rotate, scale --------------------------------------------------------------
+
+    def _update_transform(self, app, mouse: tuple[float, float], ray) -> None:
+        t = self.transform
+        for key, axis in AXIS_KEYS.items():
+            if imgui.is_key_pressed(key, False):
+                t.axis = None if t.axis == axis else axis
+        if imgui.is_key_pressed(imgui.Key.escape) or imgui.is_mouse_clicked(imgui.MouseButton_.right):
+            self.transform = None
+            app.cancel_preview()
+            return
+        confirm = imgui.is_mouse_clicked(imgui.MouseButton_.left) or imgui.is_key_pressed(imgui.Key.enter)
+        scene = self._transformed(t, mouse, ray)
+        if scene is not None:
+            app.edit(lambda _: scene, preview=True)
+        if confirm:
+            self.transform = None
+            app.commit_preview()
+
+    def _transformed(self, t: Transform, mouse: tuple[float, float], ray) -> Scene | None:
+        o = t.start_scene.object
+        if t.kind == "grab":
+            start_origin, start_dir = self.camera.pixel_rays(np.array(t.start_mouse[0]), np.array(t.start_mouse[1]))
+            start, now = ray_at_height(start_origin, np.asarray(start_dir), 0.0), ray_at_height(*ray, 0.0)
+            if start is None or now is None:
+                return None
+            delta = (now - start)[[0, 2]]
+            if t.axis is not None:
+                delta = delta * (np.array([t.axis == 0, t.axis == 2]))
+            return edits.place_object(t.start_scene, translation=tuple(np.asarray(o.translation) + delta))
+        centre = self._object_centre_px(t.start_scene)
+        start_vec = np.asarray(t.start_mouse) - centre
+        now_vec = np.asarray(mouse) - centre
+        if t.kind == "rotate":
+            turned = math.atan2(-now_vec[1], now_vec[0]) - math.atan2(-start_vec[1], start_vec[0])
+            return edits.place_object(t.start_scene, rotation_deg=o.rotation_deg + math.degrees(turned))
+        factor = float(np.linalg.norm(now_vec) / max(np.linalg.norm(start_vec), 1.0))
+        scale = np.asarray(o.scale) * (factor if t.axis is None else np.where(np.arange(3) == t.axis, factor, 1.0))
+        return edits.place_object(t.start_scene, scale=tuple(scale))
+
+    def _object_centre_px(self, scene: Scene) -> np.ndarray:
+        """Where the middle of the object's vertical axis appears in the viewport."""
+        tx, tz = scene.object.translation
+        u, v, _ = self.camera.project(np.array([tx, 0.5 * scene.object.scale[1], tz]))
+        return np.array([float(u), float(v)])

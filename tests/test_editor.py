@@ -1,0 +1,259 @@
+"""The editor's real window under Xvfb: panels on screen, light drag, bucket fill, undo, export, recovery.
+
+Each test runs `nvr-editor --frames ... --replay ...` in a subprocess on its own Xvfb display
+and checks the pixels of its screenshots and the scene files it saves. The scene is a 16^3
+box, red below and blue on top, rendered by a tiny random NVR+ network (so the light matters).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from app.editor.layout import layout_for
+from models.checkpoint import save_model
+from models.config import CompactConfig
+from models.nvr import build_model
+from renderer.pipeline import object_voxels, painted_voxels
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, load_scene, save_scene
+from renderer.voxels import load_voxels, save_voxels
+
+WINDOW = (1280, 800)
+RED, BLUE, GREEN = (0.8, 0.3, 0.2), (0.2, 0.3, 0.8), (0.1, 0.8, 0.2)
+TINY = CompactConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16, light_channels=8,
+                     decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
+EDITOR = [sys.executable, "-m", "app.editor.main"]
+
+
+# --- fixtures: a display, a scene, a model ------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def display():
+    """An Xvfb display of its own (skips the module when Xvfb is not installed)."""
+    if shutil.which("Xvfb") is None:
+        pytest.skip("Xvfb is not installed (apt-get install xvfb)")
+    number = next(n for n in range(150, 250) if not Path(f"/tmp/.X{n}-lock").exists())
+    server = subprocess.Popen(["Xvfb", f":{number}", "-screen", "0", f"{WINDOW[0]}x{WINDOW[1]}x24", "-nolisten", "tcp"],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    socket = Path(f"/tmp/.X11-unix/X{number}")
+    deadline = time.monotonic() + 10
+    while not socket.exists() and time.monotonic() < deadline and server.poll() is None:
+        time.sleep(0.05)
+    if not socket.exists():
+        server.kill()
+        pytest.fail(f"Xvfb did not start on :{number}")
+    yield f":{number}"
+    server.terminate()
+    server.wait(timeout=10)
+
+
+@pytest.fixture(scope="module")
+def model_file(tmp_path_factory) -> Path:
+    import torch
+
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", TINY).eval()
+    # A fresh network renders a nearly flat image that hardly depends on the light. Random
+    # BatchNorm statistics with gains of 1-3 spread its output, and a light MLP 100x stronger makes
+    # a light move change the image by about 0.04 on average.
+    for module in model.modules():
+        if isinstance(module, (torch.nn.BatchNorm2d, torch.nn.BatchNorm3d)):
+            module.running_mean.uniform_(-0.5, 0.5)
+            module.running_var.uniform_(0.5, 2.0)
+            module.weight.data.uniform_(1.0, 3.0)
+            module.bias.data.uniform_(-0.5, 0.5)
+    with torch.no_grad():
+        for parameter in model.light_decoder.light_mlp.parameters():
+            parameter.mul_(10.0)
+    path = tmp_path_factory.mktemp("model") / "tiny.safetensors"
+    save_model(path, model, TINY)
+    return path
+
+
+def box_voxels() -> np.ndarray:
+    rgba = np.zeros((16, 16, 16, 4), np.float32)
+    rgba[4:12, 0:10, 4:12] = (*RED, 1.0)
+    rgba[4:12, 10:12, 4:12] = (*BLUE, 1.0)
+    return rgba
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory) -> Path:
+    """The box scene (tests save their edits elsewhere, so one file serves them all)."""
+    tmp_path = tmp_path_factory.mktemp("scene")
+    save_voxels(tmp_path / "box.npz", box_voxels())
+    scene = Scene(object=ObjectSpec(voxels="box.npz", resolution=16, rotation_deg=20.0),
+                  floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec((1.0, 2.75, 0.5)), camera=CameraSpec(30.0),
+                  image_size=64, base_dir=tmp_path)
+    save_scene(scene, tmp_path / "scene.json")
+    return tmp_path / "scene.json"
+
+
+def run_editor(display: str, tmp_path: Path, scene: Path, actions: list | None = None, *args: str,
+               state: Path | None = None) -> subprocess.CompletedProcess:
+    env = dict(os.environ, DISPLAY=display, XDG_STATE_HOME=str(state or tmp_path / "state"), NVR_EDITOR_TIMEOUT="120")
+    command = [*EDITOR, str(scene), "--frames", "3", *args]
+    if actions is not None:
+        replay = tmp_path / f"replay{time.monotonic_ns()}.json"
+        replay.write_text(json.dumps(actions))
+        command += ["--replay", str(replay)]
+    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=240,
+                            cwd=Path(__file__).resolve().parents[1])
+    assert result.returncode == 0, result.stderr
+    return result
+
+
+def pixels(path: Path, rect) -> np.ndarray:
+    """The screenshot's pixels inside a layout rectangle, as floats in [0, 1]."""
+    image = np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
+    assert image.shape == (WINDOW[1], WINDOW[0], 3)
+    return image[rect.y:rect.y + rect.height, rect.x:rect.x + rect.width]
+
+
+def share_of(region: np.ndarray, color: tuple[float, float, float]) -> float:
+    """Share of pixels whose color is a shade of `color` (same channel ratios, any brightness)."""
+    c = np.asarray(color)
+    brightness = region.sum(axis=-1, keepdims=True) / c.sum()
+    close = np.abs(region - brightness * c).max(axis=-1) < 0.05
+    return float(np.mean(close & (brightness[..., 0] > 0.2)))
+
+
+def downscale(region: np.ndarray, size: int) -> np.ndarray:
+    image = Image.fromarray((region * 255).round().astype(np.uint8)).resize((size, size), Image.Resampling.BOX)
+    return np.asarray(image, dtype=np.float64) / 255.0
+
+
+def load_png(path: Path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
+
+
+PANELS = layout_for(*WINDOW)
+
+
+# --- tests ----------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def plain_run(display, tmp_path_factory, scene_file, model_file) -> tuple[Path, Path]:
+    """Screenshot and export of the editor opened on the box scene, untouched."""
+    tmp_path = tmp_path_factory.mktemp("plain")
+    shot, export = tmp_path / "window.png", tmp_path / "export.png"
+    run_editor(display, tmp_path, scene_file, None, "--model", str(model_file), "--screenshot", str(shot),
+               "--export", str(export))
+    return shot, export
+
+
+def test_window_shows_viewport_and_render_panel(plain_run):
+    shot, export = plain_run
+    viewport = pixels(shot, PANELS.viewport)
+    assert share_of(viewport, RED) > 0.005  # the box's red voxels, shaded
+    assert share_of(viewport, FloorSpec((0.5, 0.6, 0.7)).color) > 0.2  # the ground
+    shown = downscale(pixels(shot, PANELS.render_image), TINY.output_size)
+    assert np.abs(shown - load_png(export)).mean() < 0.03  # the panel shows the network's image
+
+
+def test_dragging_the_light_changes_the_render(display, tmp_path, scene_file, model_file):
+    before, after = tmp_path / "before.png", tmp_path / "after.png"
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "screenshot", "path": str(before)},
+        {"action": "drag_light", "to": [-1.5, 2.5, -1.0], "steps": 4},
+        {"action": "screenshot", "path": str(after)},
+        {"action": "save", "path": str(tmp_path / "moved.json")},
+    ], "--model", str(model_file))
+    assert load_scene(tmp_path / "moved.json").light.position == (-1.5, 2.5, -1.0)
+    change = np.abs(pixels(before, PANELS.render_image) - pixels(after, PANELS.render_image)).mean()
+    assert change > 0.01
+    viewport_change = np.abs(pixels(before, PANELS.viewport) - pixels(after, PANELS.viewport)).max(axis=-1)
+    assert (viewport_change > 0.1).mean() > 0.002  # the light square moved
+
+
+def test_bucket_fill_changes_viewport_and_scene_file(display, tmp_path, scene_file, model_file):
+    before, after, saved = tmp_path / "before.png", tmp_path / "after.png", tmp_path / "painted.json"
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "screenshot", "path": str(before)},
+        {"action": "paint", "voxel": [8, 5, 11], "color": list(GREEN), "tolerance": 0.05},
+        {"action": "screenshot", "path": str(after)},
+        {"action": "save", "path": str(saved)},
+    ], "--model", str(model_file))
+    assert share_of(pixels(before, PANELS.viewport), RED) > 0.005
+    assert share_of(pixels(after, PANELS.viewport), RED) < 0.0005
+    assert share_of(pixels(after, PANELS.viewport), GREEN) > 0.005
+    scene = load_scene(saved)
+    rgba, _ = painted_voxels(scene, object_voxels(scene))
+    expected = load_voxels(scene_file.parent / "box.npz")  # the box as stored (colors rounded to 8 bits)
+    expected[4:12, 0:10, 4:12, :3] = GREEN  # the red block is one connected region of one color
+    np.testing.assert_allclose(rgba, expected, atol=1e-6)
+
+
+def test_undo_restores_the_scene_exactly_and_redo_repeats(display, tmp_path, scene_file, model_file):
+    s = {name: str(tmp_path / f"{name}.json") for name in ("start", "undone", "redone", "edited")}
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "save", "path": s["start"]},
+        {"action": "move_object", "translation": [0.3, -0.2]},
+        {"action": "set_elevation", "deg": 15.0},
+        {"action": "paint", "voxel": [8, 11, 8], "color": list(GREEN), "tolerance": 0.05},
+        {"action": "drag_light", "to": [0.0, 2.9, 1.0], "steps": 3},
+        {"action": "fill_floor", "color": [0.9, 0.9, 0.2]},
+        {"action": "save", "path": s["edited"]},
+        {"action": "load_mesh", "path": str(tmp_path / "missing.obj")},  # an error: the scene survives
+        {"action": "undo"}, {"action": "undo"}, {"action": "undo"},
+        {"action": "key", "key": "z", "mods": ["ctrl"]},
+        {"action": "key", "key": "z", "mods": ["ctrl"]},
+        {"action": "save", "path": s["undone"]},
+        {"action": "redo"}, {"action": "redo"},
+        {"action": "key", "key": "z", "mods": ["ctrl", "shift"]},
+        {"action": "redo"}, {"action": "redo"},
+        {"action": "save", "path": s["redone"]},
+    ], "--model", str(model_file))
+    assert Path(s["undone"]).read_text() == Path(s["start"]).read_text()
+    assert Path(s["redone"]).read_text() == Path(s["edited"]).read_text()
+    edited = load_scene(s["edited"])
+    assert edited.object.translation == (0.3, -0.2)
+    assert edited.camera.elevation_deg == 15.0
+    assert edited.light.position == (0.0, 2.9, 1.0)
+    assert [op.target for op in edited.paint] == ["region", "floor"]
+
+
+def test_grab_with_g_and_an_axis_key_moves_along_that_axis_only(display, tmp_path, scene_file, model_file):
+    v = PANELS.viewport
+    centre = [v.x + v.width / 2, v.y + v.height / 2]
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "mouse_move", "pos": centre},
+        {"action": "key", "key": "g"},
+        {"action": "key", "key": "x"},
+        {"action": "mouse_move", "pos": [centre[0] + 80, centre[1] + 40]},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "grabbed.json")},
+    ], "--model", str(model_file))
+    x, z = load_scene(tmp_path / "grabbed.json").object.translation
+    assert abs(x) > 0.05 and z == 0.0
+
+
+def test_export_equals_nvr_render(plain_run, tmp_path, scene_file, model_file):
+    mine, cli = plain_run[1], tmp_path / "cli.png"
+    subprocess.run([sys.executable, "-m", "app.cli", "render", str(scene_file), "--renderer", "nvr+", "--model",
+                    str(model_file), "-o", str(cli)], check=True, capture_output=True, timeout=120)
+    np.testing.assert_array_equal(np.asarray(Image.open(mine)), np.asarray(Image.open(cli)))
+
+
+def test_unsaved_changes_are_offered_back_on_the_next_start(display, tmp_path, scene_file, model_file):
+    state = tmp_path / "state"
+    run_editor(display, tmp_path, scene_file, [{"action": "move_object", "translation": [0.4, 0.1]}],
+               "--model", str(model_file), state=state)
+    assert (state / "nvr-studio" / "recovery" / "scene.json").is_file()
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "answer", "choice": "Restore"},
+        {"action": "save", "path": str(tmp_path / "restored.json")},
+    ], "--model", str(model_file), state=state)
+    assert load_scene(tmp_path / "restored.json").object.translation == (0.4, 0.1)
