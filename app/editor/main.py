@@ -85,7 +85,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
             work_start = time.perf_counter()
             app.update()
             interface.draw()
-            window.end_frame()
+            window.end_frame(interface.underlay)
             app.take_screenshots()
             window.present()
             frame += 1

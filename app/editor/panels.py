@@ -46,6 +46,7 @@ class Interface:
         self.app = app
         self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(app.doc.path or "scene.json"))
         self.viewport_input = ViewportInput()
+        self.underlay = None
         self._popup_title: str | None = None
         self._dialogs = None  # a portable_file_dialogs dialog being shown, and what to do with its answer
         self.has_file_dialogs = bool(shutil.which("zenity") or shutil.which("kdialog"))
@@ -114,10 +115,12 @@ class Interface:
         w, h = max(int(size.x), 1), max(int(size.y), 1)
         origin = imgui.get_cursor_screen_pos()
         inputs = self.viewport_input
-        texture = app.viewport.draw(w, h, viewport_camera(app.view, w, h), app.scene, app.floor_color,
-                                    light_active=inputs.light_drag is not None or inputs.light_hovered,
-                                    picked_voxel=inputs.hovered_voxel)
-        imgui.image(imgui.ImTextureRef(texture.glo), imgui.ImVec2(w, h), imgui.ImVec2(0, 1), imgui.ImVec2(1, 0))
+        framebuffer = app.viewport.draw(w, h, viewport_camera(app.view, w, h), app.scene, app.floor_color,
+                                        light_active=inputs.light_drag is not None or inputs.light_hovered,
+                                        picked_voxel=inputs.hovered_voxel)
+        self.underlay = (framebuffer, int(origin.x), int(origin.y))  # copied under the interface (Window.end_frame)
+        imgui.invisible_button("viewport", imgui.ImVec2(w, h), imgui.ButtonFlags_.mouse_button_left
+                               | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
         hovered = imgui.is_item_hovered() and app.prompt is None
         mouse = imgui.get_io().mouse_pos
         inputs.update(app, (mouse.x - origin.x, mouse.y - origin.y), (w, h), hovered)

@@ -1,4 +1,4 @@
-"""The 3D viewport, drawn with moderngl into an offscreen image the UI shows: voxels, ground, light, render camera.
+"""The 3D viewport, drawn with moderngl into an offscreen framebuffer the window shows: voxels, ground, light, render camera.
 
 Voxels are instanced quads (app/editor/voxel_faces.py) placed by the object's placement
 matrix, shaded by the direction to the light plus ambient. Faces turned away from the viewer
@@ -109,11 +109,11 @@ out vec4 frag;
 void main() { frag = vec4(color, 1.0); }
 """
 
-_QUAD_CORNERS = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
+_QUAD_CORNERS = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], dtype=np.float32)  # one triangle strip per face
 
 
 class ViewportRenderer:
-    """Owns the GL objects of the viewport; `draw` renders a scene into a texture of the requested size."""
+    """Owns the GL objects of the viewport; `draw` renders a scene into a framebuffer of the requested size."""
 
     def __init__(self, ctx: moderngl.Context):
         self.ctx = ctx
@@ -132,9 +132,8 @@ class ViewportRenderer:
         self._lines = ctx.buffer(reserve=4096)
         self._lines_vao = ctx.vertex_array(self._flat_program, [(self._lines, "3f", "position")])
         self._fbo: moderngl.Framebuffer | None = None
-        self.texture: moderngl.Texture | None = None
         self._voxels_version = 0
-        self._drawn = None  # what the texture shows; an unchanged frame is not drawn again
+        self._drawn = None  # what the framebuffer shows; an unchanged frame is not drawn again
 
     def set_voxels(self, rgba: np.ndarray) -> int:
         """Upload the object's visible faces; returns how many quads there are."""
@@ -156,15 +155,15 @@ class ViewportRenderer:
         return self._instances
 
     def draw(self, width: int, height: int, view: Camera, scene: Scene, floor_color, light_active: bool = False,
-             picked_voxel: tuple[int, int, int] | None = None) -> moderngl.Texture:
-        """Render the scene seen by `view` (already sized width x height) and return the color texture.
+             picked_voxel: tuple[int, int, int] | None = None) -> moderngl.Framebuffer:
+        """Render the scene seen by `view` (already sized width x height) into the returned framebuffer.
 
         llvmpipe (software OpenGL) needs tens of milliseconds for a frame, so a frame identical
         to the last one is not drawn again.
         """
         drawn = (width, height, view, scene, tuple(floor_color), light_active, picked_voxel, self._voxels_version)
         if drawn == self._drawn:
-            return self.texture
+            return self._fbo
         self._drawn = drawn
         fbo = self._framebuffer(width, height)
         fbo.use()
@@ -191,7 +190,7 @@ class ViewportRenderer:
             p["voxel_size"].value = OBJECT_SIZE / self._resolution
             p["box_min"].value = tuple(float(c) for c in OBJECT_BOX_MIN)
             p["light_position"].value = light
-            self._voxels_vao.render(instances=self._instances)
+            self._voxels_vao.render(moderngl.TRIANGLE_STRIP, instances=self._instances)
 
         self._flat_program["view_projection"].write(vp)
         self._draw_lines(_light_lines(scene), LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR)
@@ -203,20 +202,16 @@ class ViewportRenderer:
             self._draw_lines(_box_lines(object_to_world(scene.object), lo, lo + OBJECT_SIZE / n), PICK_COLOR)
         self._draw_light_square(scene, LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR)
         ctx.disable(moderngl.DEPTH_TEST)
-        return self.texture
-
-    def read(self) -> np.ndarray:
-        """The last drawn image as (H, W, 3) uint8, top row first."""
-        w, h = self.texture.size
-        return np.frombuffer(self._fbo.read(components=3), dtype=np.uint8).reshape(h, w, 3)[::-1]
+        return fbo
 
     def _framebuffer(self, width: int, height: int) -> moderngl.Framebuffer:
-        if self.texture is None or self.texture.size != (width, height):
+        if self._fbo is None or self._fbo.size != (width, height):
             if self._fbo is not None:
+                for attachment in (*self._fbo.color_attachments, self._fbo.depth_attachment):
+                    attachment.release()
                 self._fbo.release()
-                self.texture.release()
-            self.texture = self.ctx.texture((width, height), 4)
-            self._fbo = self.ctx.framebuffer(self.texture, self.ctx.depth_renderbuffer((width, height)))
+            size = (width, height)
+            self._fbo = self.ctx.framebuffer(self.ctx.renderbuffer(size, 4), self.ctx.depth_renderbuffer(size))
         return self._fbo
 
     def _draw_lines(self, points: np.ndarray, color: tuple[float, float, float]) -> None:
