@@ -1,0 +1,246 @@
+"""The editor's parts that need no window: history, document, edits, picking, viewport camera, faces, files."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from app.editor import edits, state
+from app.editor.document import Document
+from app.editor.history import History
+from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
+from app.editor.photo_capture import color_from_photo, load_photo_camera
+from app.editor.picking import hits_light, pick_voxel, ray_at_height
+from app.editor.voxel_cache import VoxelCache
+from app.editor.voxel_faces import exposed_faces
+from renderer.camera import Camera
+from renderer.errors import InputError
+from renderer.paint import apply_paint
+from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene, load_scene
+from renderer.voxels import save_voxels
+
+
+@pytest.fixture
+def box_scene(tmp_path) -> Scene:
+    """An 8^3 object: a red 4x4x4 cube with a blue top layer, standing in the middle of its grid."""
+    rgba = np.zeros((8, 8, 8, 4), np.float32)
+    rgba[2:6, 0:3, 2:6] = (0.8, 0.2, 0.2, 1.0)
+    rgba[2:6, 3, 2:6] = (0.2, 0.2, 0.8, 1.0)
+    save_voxels(tmp_path / "box.npz", rgba)
+    return Scene(object=ObjectSpec(voxels="box.npz", resolution=8), base_dir=tmp_path)
+
+
+# --- history and document -------------------------------------------------------------------------
+
+
+def test_history_undo_redo_and_a_new_edit_drops_the_redo_stack(box_scene):
+    a, b, c = box_scene, edits.set_elevation(box_scene, 20.0), edits.set_elevation(box_scene, 40.0)
+    h = History(a)
+    assert not h.commit(a)  # no change, no step
+    assert h.commit(b) and h.commit(c)
+    assert h.undo() and h.current == b
+    assert h.undo() and h.current == a
+    assert not h.undo()
+    assert h.redo() and h.current == b
+    h.commit(c)
+    assert not h.can_redo and h.current == c
+
+
+def test_document_preview_is_not_an_undo_step_and_dirty_follows_saves(box_scene, tmp_path):
+    doc = Document(box_scene, tmp_path / "scene.json")
+    assert not doc.dirty
+    start = doc.revision
+    for x in (0.5, 1.0, 1.5):  # a drag: three previews
+        doc.preview(edits.move_light(box_scene, (x, 2.7, 0.0)))
+    assert doc.previewing and doc.dirty and doc.revision == start + 3
+    doc.commit()
+    assert not doc.previewing and doc.scene.light.position == (1.5, 2.7, 0.0)
+    assert doc.undo() and doc.scene == box_scene and not doc.dirty  # the three previews were one step
+    doc.redo()
+    doc.mark_saved(tmp_path / "other.json")
+    assert not doc.dirty and doc.path == tmp_path / "other.json"
+    doc.preview(edits.set_elevation(doc.scene, 10.0))
+    doc.cancel_preview()
+    assert doc.scene.camera.elevation_deg == box_scene.camera.elevation_deg
+
+
+# --- edits ----------------------------------------------------------------------------------------
+
+
+def test_edits_clamp_to_what_a_scene_may_hold(box_scene):
+    assert edits.move_light(box_scene, (0.0, -3.0, 0.0)).light.position[1] == edits.MIN_LIGHT_HEIGHT
+    assert edits.set_elevation(box_scene, 95.0).camera.elevation_deg == edits.MAX_ELEVATION
+    assert edits.set_elevation(box_scene, -5.0).camera.elevation_deg == 0.0
+    assert edits.place_object(box_scene, rotation_deg=190.0).object.rotation_deg == pytest.approx(-170.0)
+    assert edits.place_object(box_scene, scale=(0.0, 1.0, 2.0)).object.scale == (edits.MIN_SCALE, 1.0, 2.0)
+    assert edits.set_floor_color(box_scene, (1.5, 0.5, -1.0)).floor.color == (1.0, 0.5, 0.0)
+
+
+def test_a_new_object_keeps_placement_and_floor_strokes_only(box_scene, tmp_path):
+    scene = edits.place_object(box_scene, translation=(0.3, 0.1), rotation_deg=45.0)
+    scene = edits.paint(edits.paint(scene, PaintOp("object", (0.1, 0.1, 0.1))), PaintOp("floor", (0.9, 0.9, 0.9)))
+    mesh = tmp_path / "chair.obj"
+    changed = edits.replace_object_source(scene, mesh=mesh)
+    assert changed.object.mesh == str(mesh.resolve()) and changed.object.voxels is None
+    assert changed.object.translation == (0.3, 0.1) and changed.object.rotation_deg == 45.0
+    assert [op.target for op in changed.paint] == ["floor"]
+
+
+# --- picking --------------------------------------------------------------------------------------
+
+
+def test_pick_voxel_finds_the_first_occupied_voxel_along_the_ray():
+    occupied = np.zeros((8, 8, 8), bool)
+    occupied[2:6, 0:4, 2:6] = True
+    spec = ObjectSpec(voxels="x.npz", resolution=8)
+    # Straight down through the centre of voxel (3, *, 4): x = -0.5 + 3.5/8, z = -0.5 + 4.5/8; the top layer is j = 3.
+    x, z = -0.5 + 3.5 / 8, -0.5 + 4.5 / 8
+    assert pick_voxel(occupied, spec, np.array([x, 5.0, z]), np.array([0.0, -1.0, 0.0])) == (3, 3, 4)
+    # From the +z side, level with j = 1: the first voxel is on the cube's front face k = 5.
+    y = 1.5 / 8
+    assert pick_voxel(occupied, spec, np.array([x, y, 4.0]), np.array([0.0, 0.0, -1.0])) == (3, 1, 5)
+    # Beside the cube: a miss.
+    assert pick_voxel(occupied, spec, np.array([0.45, 5.0, 0.0]), np.array([0.0, -1.0, 0.0])) is None
+
+
+def test_pick_voxel_follows_the_placement():
+    occupied = np.zeros((8, 8, 8), bool)
+    occupied[7, 0, 4] = True  # the voxel at the object's +x end
+    spec = ObjectSpec(voxels="x.npz", resolution=8, translation=(1.0, -2.0), rotation_deg=90.0, scale=(2.0, 1.0, 1.0))
+    # Rotating +90 degrees about y takes +x to -z; scale 2 along x puts the voxel centre 2 * 7.5/8 - 1 from the axis.
+    reach = 2.0 * (-0.5 + 7.5 / 8)
+    z_offset = -0.5 + 4.5 / 8  # the voxel's own z becomes +x after the turn
+    centre = np.array([1.0 + z_offset, 0.5 / 8, -2.0 - reach])
+    assert pick_voxel(occupied, spec, centre + [0.0, 3.0, 0.0], np.array([0.0, -1.0, 0.0])) == (7, 0, 4)
+
+
+def test_rays_meet_horizontal_planes_and_the_light_square():
+    hit = ray_at_height(np.array([0.0, 2.0, 0.0]), np.array([1.0, -1.0, 0.0]) / math.sqrt(2), 0.0)
+    np.testing.assert_allclose(hit, [2.0, 0.0, 0.0], atol=1e-12)
+    assert ray_at_height(np.array([0.0, 2.0, 0.0]), np.array([0.0, 1.0, 0.0]), 0.0) is None  # plane behind
+    up = np.array([0.0, 1.0, 0.0])
+    assert hits_light(np.array([1.5, 0.0, 0.5]), up, (1.0, 2.75, 0.5), margin=0.0)  # 0.5 from the centre: the edge
+    assert not hits_light(np.array([1.7, 0.0, 0.5]), up, (1.0, 2.75, 0.5), margin=0.0)
+
+
+# --- the viewport camera --------------------------------------------------------------------------
+
+
+def test_gl_projection_puts_points_where_the_camera_model_does():
+    camera = viewport_camera(HOME, 640, 400)
+    points = np.array([[0.0, 0.0, 0.0], [0.4, 1.0, -0.3], [-1.0, 0.2, 0.8]])
+    clip = (projection_matrix(camera) @ camera.world_to_camera() @ np.c_[points, np.ones(3)].T).T
+    ndc = clip[:, :3] / clip[:, 3:]
+    u, v, _ = camera.project(points)
+    np.testing.assert_allclose((ndc[:, 0] + 1) / 2 * 640, u, atol=1e-9)
+    np.testing.assert_allclose((1 - ndc[:, 1]) / 2 * 400, v, atol=1e-9)
+    assert np.all(np.abs(ndc[:, 2]) < 1)  # inside the depth range
+
+
+def test_frustum_corners_project_to_the_image_corners():
+    camera = Camera(elevation_deg=30.0, width=256, height=256)
+    u, v, depth = camera.project(frustum_corners(camera, 1.5))
+    np.testing.assert_allclose(u, [0, 256, 256, 0], atol=1e-9)
+    np.testing.assert_allclose(v, [0, 0, 256, 256], atol=1e-9)
+    np.testing.assert_allclose(depth, 1.5, atol=1e-12)
+
+
+def test_orbit_pan_zoom():
+    view = viewport_camera(HOME, 800, 600)
+    turned = orbit(view, 100, 50)
+    assert turned.distance == view.distance and turned.target == view.target
+    assert turned.elevation_deg == pytest.approx(view.elevation_deg + 20.0)
+    assert orbit(view, 0, 10_000).elevation_deg == 89.0
+    moved = pan(view, 30, 0)
+    assert moved.distance == view.distance
+    # Panning moves the target along the view's left-right axis only, by distance / focal length per pixel.
+    shift = np.asarray(moved.target) - np.asarray(view.target)
+    assert np.linalg.norm(shift) == pytest.approx(30 * view.distance / view.focal_px)
+    assert abs(shift @ view.camera_to_world()[:3, 2]) < 1e-12
+    assert zoom(view, 1).distance == pytest.approx(view.distance * 0.88)
+    assert zoom(view, -100).distance == 60.0
+
+
+# --- faces ----------------------------------------------------------------------------------------
+
+
+def test_exposed_faces_of_two_touching_voxels():
+    rgba = np.zeros((4, 4, 4, 4), np.float32)
+    rgba[1, 1, 1] = (1.0, 0.0, 0.0, 1.0)
+    rgba[2, 1, 1] = (0.0, 1.0, 0.0, 1.0)
+    cells, colors = exposed_faces(rgba)
+    assert len(cells) == 10  # 12 faces, minus the two they share
+    red = cells[colors[:, 0] == 1.0]
+    assert sorted(red[:, 3].tolist()) == [1, 2, 3, 4, 5]  # every face but +x (id 0), which touches green
+    assert np.all(red[:, :3] == [1, 1, 1])
+
+
+# --- voxel cache ----------------------------------------------------------------------------------
+
+
+def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
+    cache = VoxelCache()
+    one = edits.paint(box_scene, PaintOp("region", (0.1, 0.9, 0.1), seed=(3, 3, 3), tolerance=0.05))
+    two = edits.paint(one, PaintOp("region", (0.9, 0.9, 0.1), seed=(3, 0, 3), tolerance=0.05))
+    two = edits.paint(two, PaintOp("floor", (0.3, 0.3, 0.3)))
+    first, _ = cache.painted(one)
+    rgba, floor = cache.painted(two)  # painted from `one`'s result
+    expected, expected_floor = apply_paint(cache.object_rgba(box_scene), box_scene.floor.color, two.paint)
+    np.testing.assert_array_equal(rgba, expected)
+    assert floor == expected_floor == (0.3, 0.3, 0.3)
+    assert cache.painted(one)[0] is first  # undo back to `one`: no repaint
+
+
+# --- photo camera ---------------------------------------------------------------------------------
+
+
+def test_photo_camera_file_gives_camera_and_placement(tmp_path):
+    demo = load_scene("assets/demo/scene.json")
+    camera, placed = load_photo_camera("assets/demo/photo_camera.json", demo.object)
+    assert (camera.elevation_deg, camera.width, camera.height) == (20.0, 256, 256)
+    assert placed.rotation_deg == -40.0 and placed.scale == demo.object.scale
+    bad = tmp_path / "camera.json"
+    bad.write_text('{"elevation_deg": 20, "width": 256}')
+    with pytest.raises(InputError, match="missing height"):
+        load_photo_camera(bad, demo.object)
+
+
+def test_a_photo_of_the_wrong_size_is_a_clear_error(box_scene, tmp_path):
+    from renderer.io import save_png
+
+    save_png(tmp_path / "small.png", np.zeros((32, 32, 3)))
+    rgba = VoxelCache().object_rgba(box_scene)
+    with pytest.raises(InputError, match="small.png.*32x32 pixels but its camera is 256x256"):
+        color_from_photo(rgba, box_scene.object, tmp_path / "small.png", "assets/demo/photo_camera.json")
+
+
+# --- recovery and captures ------------------------------------------------------------------------
+
+
+def test_recovery_round_trip(box_scene, tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    assert state.read_recovery() is None
+    moved = replace(box_scene, light=LightSpec((0.1, 2.9, 0.2)))
+    state.write_recovery(moved, tmp_path / "scene.json")
+    recovery = state.read_recovery()
+    assert recovery.origin == (tmp_path / "scene.json").resolve()
+    assert recovery.scene.voxels_path().resolve() == moved.voxels_path().resolve()  # written relative to the recovery folder
+    assert replace(recovery.scene, object=moved.object) == moved
+    state.clear_recovery()
+    assert state.read_recovery() is None
+
+
+def test_captures_are_named_by_content_and_copied_beside_a_saved_scene(box_scene, tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_STATE_HOME", str(tmp_path / "state"))
+    rgba = VoxelCache().object_rgba(box_scene)
+    path = state.save_capture(rgba)
+    assert state.save_capture(rgba.copy()) == path
+    scene = replace(box_scene, object=replace(box_scene.object, voxels=str(path)))
+    (tmp_path / "out").mkdir()
+    adopted = state.adopt_capture(scene, tmp_path / "out" / "mine.json")
+    assert adopted.voxels_path() == (tmp_path / "out" / "mine.voxels.npz").resolve()
+    np.testing.assert_array_equal(VoxelCache().object_rgba(adopted), rgba)
+    assert state.adopt_capture(box_scene, tmp_path / "out" / "mine.json") is box_scene
