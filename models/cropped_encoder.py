@@ -7,7 +7,10 @@ arithmetic of models/receptive.py; `encode` runs the network's own layers on a c
 that holds everything those outputs read (snapped to the strides, so the crop's outputs line up
 with the full grid's) and pastes them over the background: first the 3D stack, then the
 depth-folding projection and the 2D blocks over the changed latent rows and columns.
-The result equals VoxelEncoder on the full grid up to float rounding (tests/test_engine.py).
+The ground is the same in every grid column (the camera has no roll), so the background is
+computed from a ground grid only a few columns wide (`NarrowGround`): its outputs next to the
+two sides are those of the full grid's sides, and its middle column is every column between.
+Both equal VoxelEncoder on the full grid up to float rounding (tests/test_engine.py).
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from dataclasses import dataclass
 import torch
 
 from models.nvr import VoxelEncoder
-from models.receptive import Span, conv_chain
+from models.receptive import ConvChain, Span, conv_chain
 
 
 @dataclass(frozen=True)
@@ -28,6 +31,15 @@ class Background:
 
     volume: torch.Tensor
     latent: torch.Tensor
+
+
+@dataclass(frozen=True)
+class NarrowGround:
+    """A ground grid `width` columns wide gives the full grid's background: its output columns before
+    `middle` are the full grid's first ones, those after it the last ones, and `middle` all the others."""
+
+    width: int
+    middle: int
 
 
 @dataclass(frozen=True)
@@ -53,11 +65,22 @@ class CroppedVoxelEncoder:
         self.volume_chain = conv_chain(itertools.chain(encoder.stages.modules(), encoder.residual.modules()), 3)
         self.plane_chain = conv_chain(encoder.blocks.modules(), 2)
         self.volume_size = self.volume_chain.sizes((grid_size,) * 3)[-1]
+        columns = ConvChain([c.along(2) for c in self.volume_chain.convs] + [c.along(1) for c in self.plane_chain.convs], 1)
+        self.narrow = narrow_ground(columns, grid_size)
 
     def background(self, ground: torch.Tensor) -> Background:
-        """Features of the ground-only grid (1, 4, D, H, W): the full network, run once per elevation and floor color."""
+        """Features of the ground-only grid (1, 4, D, H, W), run once per elevation and floor color.
+
+        W is the full grid size, or `self.narrow.width` for a ground that is the same in every column.
+        """
+        if ground.shape[-1] != self.grid_size and (self.narrow is None or ground.shape[-1] != self.narrow.width):
+            raise ValueError(f"a ground grid {ground.shape[-1]} columns wide: expected {self.grid_size} or the narrow width")
         volume = self.encoder.residual(self.encoder.stages(ground))
-        return Background(volume, self.encoder.blocks(self._project(volume)))
+        latent = self.encoder.blocks(self._project(volume))
+        if ground.shape[-1] == self.grid_size:
+            return Background(volume, latent)
+        columns = self.volume_size[2]
+        return Background(_widen(volume, self.narrow.middle, columns), _widen(latent, self.narrow.middle, columns))
 
     def plan(self, object_spans: tuple[Span, Span, Span]) -> CropPlan | None:
         """The crops for an object whose voxels lie in the grid spans `object_spans`; None if it changes nothing."""
@@ -88,6 +111,28 @@ class CroppedVoxelEncoder:
         """The projection unit: depth folded into channels, then the 1x1 convolution (as VoxelEncoder does)."""
         b, c, d, h, w = volume.shape
         return self.encoder.projection(volume.reshape(b, c * d, h, w))
+
+
+def narrow_ground(columns: ConvChain, grid_size: int) -> NarrowGround | None:
+    """The narrowest ground grid that gives every output column of the full one (see NarrowGround), from the
+    one-axis chain of all convolutions along the columns; None if it would not be narrower than the grid."""
+    contact = columns.border_contact(grid_size)
+    first = next((i for i, (before, _) in enumerate(contact) if not before), len(contact))  # reached by the start's padding
+    last = next((i for i, (_, after) in enumerate(reversed(contact)) if not after), len(contact))  # ... by the end's
+    stride = columns.total_stride[0]
+    for width in range((first + last + 1) * stride, grid_size, stride):
+        narrow = columns.border_contact(width)
+        if (len(narrow) - first - 1 >= last and not any(after for _, after in narrow[:first + 1])
+                and not any(before for before, _ in narrow[first:])):
+            return NarrowGround(width, first)
+    return None
+
+
+def _widen(narrow: torch.Tensor, middle: int, columns: int) -> torch.Tensor:
+    """Repeat the middle column of `narrow` so it is `columns` wide (last axis)."""
+    repeats = columns - narrow.shape[-1] + 1
+    fill = narrow[..., middle:middle + 1].expand(*narrow.shape[:-1], repeats)
+    return torch.cat([narrow[..., :middle], fill, narrow[..., middle + 1:]], dim=-1)
 
 
 def _slices(spans: tuple[Span, ...], offsets: tuple[int, ...] | list[int] | None = None) -> tuple[slice, ...]:

@@ -31,7 +31,8 @@ Floor color is the scene's floor color after its floor paint strokes. Hence, per
     nothing                       none (the last image again)
 
 The voxel branch runs only around the object (models/cropped_encoder.py): the ground's
-features come from the background stage, the object's from a crop of the grid, and the result
+features come from the background stage (computed on a ground grid a few columns wide, since
+the ground is the same in every column), the object's from a crop of the grid, and the result
 equals the full-grid encode_voxels (`crop=False`). The engine is not thread-safe: one caller at
 a time (models/async_render.py runs it on a worker thread).
 """
@@ -39,9 +40,15 @@ a time (models/async_render.py runs it on a worker thread).
 from __future__ import annotations
 
 import os
+import sys
+import warnings
 
 # OpenMP reads this when torch loads it: passive waiting keeps idle worker threads from spinning,
-# which made 2-thread inference up to 10x slower when other processes shared the cores.
+# which made 2-thread rendering 10x slower when other processes shared the cores (measured here).
+if "torch" in sys.modules and "OMP_WAIT_POLICY" not in os.environ:
+    warnings.warn("models.engine was imported after torch, so OMP_WAIT_POLICY=PASSIVE is not in effect and "
+                  "rendering may be 10x slower on a shared CPU: import models.engine first, or set the variable",
+                  stacklevel=2)
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import time  # noqa: E402
@@ -53,12 +60,12 @@ from typing import Any, NamedTuple  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
-from models.cropped_encoder import CroppedVoxelEncoder, CropPlan  # noqa: E402
+from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # noqa: E402
 from models.inference import prepare_for_inference  # noqa: E402
 from models.nvr import NVR, NVRPlus, light_to_network  # noqa: E402
 from models.onednn import use_onednn_convolutions  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
-from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, voxel_table  # noqa: E402
+from renderer.grid import gather, grid_index_to_world, pool_factors, pool_voxels, sample_indices, voxel_table  # noqa: E402
 from renderer.paint import apply_paint, fill_object  # noqa: E402
 from renderer.pipeline import object_voxels  # noqa: E402
 from renderer.scene import MAX_ABS_POSITION, MIN_RESOLUTION, ObjectSpec, Scene  # noqa: E402
@@ -203,8 +210,7 @@ class RenderEngine:
             self._recording.grid_fraction = 1.0
             return self._stage("voxel_branch", keys.grid, lambda: self.model.encode_voxels(_grid_tensor(grid)))
         elevation = scene.camera.elevation_deg
-        background = self._stage("background", (elevation, floor), lambda: self.encoder.background(
-            _grid_tensor(ground_grid(floor, elevation, self.config.grid_size))))
+        background = self._stage("background", (elevation, floor), lambda: self._background(floor, elevation))
         plan = placement.plan
         if plan is None:  # the object lies outside the grid
             self._recording.grid_fraction = 0.0
@@ -212,6 +218,12 @@ class RenderEngine:
         crop = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices[plan.grid]))
         self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", keys.grid, lambda: self.encoder.encode(background, plan, _grid_tensor(crop)))
+
+    def _background(self, floor: tuple, elevation: float) -> Background:
+        """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""
+        g, narrow = self.config.grid_size, self.encoder.narrow
+        columns = narrow.width if narrow is not None and ground_is_column_invariant(elevation, g) else g
+        return self.encoder.background(_grid_tensor(ground_grid(floor, elevation, g, columns)))
 
     def _place(self, n: int, factors: tuple[int, int, int], scene: Scene) -> _Placement:
         indices = sample_indices(n, factors, scene.object, scene.camera.elevation_deg, self.config.grid_size)
@@ -254,11 +266,20 @@ def default_threads() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
-def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int) -> np.ndarray:
-    """The scene grid (D, H, W, 4) of the ground alone, as renderer.grid samples it (no object)."""
+def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int,
+                columns: int | None = None) -> np.ndarray:
+    """The scene grid (D, H, W, 4) of the ground alone, as renderer.grid samples it (no object); its first `columns` columns."""
     n = MIN_RESOLUTION
-    indices = sample_indices(n, (1, 1, 1), _NO_OBJECT, elevation_deg, grid_size)
+    indices = sample_indices(n, (1, 1, 1), _NO_OBJECT, elevation_deg, grid_size)[:, :, :columns]
     return gather(voxel_table(np.zeros((n, n, n, 4), np.float32), floor_color), indices)
+
+
+def ground_is_column_invariant(elevation_deg: float, grid_size: int) -> bool:
+    """Whether world height is exactly constant along grid columns, so every column of the ground grid is the same.
+
+    True for the project's camera (no roll): the column coefficient of world y is exactly 0.
+    """
+    return bool(grid_index_to_world(elevation_deg, grid_size)[1, 2] == 0.0)
 
 
 def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:

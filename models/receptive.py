@@ -40,6 +40,10 @@ class ConvAxes:
         k, s, p = self.kernel[axis], self.stride[axis], self.pad_before[axis]
         return span[0] * s - p, (span[1] - 1) * s - p + k
 
+    def along(self, axis: int) -> ConvAxes:
+        """This convolution on one of its axes only."""
+        return ConvAxes((self.kernel[axis],), (self.stride[axis],), (self.pad_before[axis],), (self.pad_after[axis],))
+
     def reached(self, axis: int, span: Span, n_out: int) -> Span:
         """Outputs (within [0, n_out)) that read any input of `span`."""
         k, s, p = self.kernel[axis], self.stride[axis], self.pad_before[axis]
@@ -79,6 +83,20 @@ class ConvChain:
         for conv, size in zip(reversed(self.convs), reversed(sizes[:-1])):
             spans = tuple(_clip(conv.reads(a, spans[a]), size[a]) for a in range(self.dims))
         return spans
+
+
+    def border_contact(self, n: int) -> list[tuple[bool, bool]]:
+        """For a one-axis chain on n inputs: per output, whether some layer of its cone reads the zero
+        padding before the start, and after the end. Outputs without contact depend on input values only."""
+        sizes = [s[0] for s in self.sizes((n,))]
+        out = []
+        for o in range(sizes[-1]):
+            span, before, after = (o, o + 1), False, False
+            for conv, size in zip(reversed(self.convs), reversed(sizes[:-1])):
+                span = conv.reads(0, span)
+                before, after = before or span[0] < 0, after or span[1] > size
+            out.append((before, after))
+        return out
 
 
 def _clip(span: Span, n: int) -> Span:

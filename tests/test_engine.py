@@ -13,7 +13,7 @@ import torch
 from models.async_render import AsyncRenderer
 from models.checkpoint import save_model
 from models.config import CompactConfig, PaperConfig
-from models.cropped_encoder import CroppedVoxelEncoder
+from models.cropped_encoder import CroppedVoxelEncoder, NarrowGround
 from models.engine import RenderEngine, ground_grid, occupied_spans
 from models.inference import prepare_for_inference
 from models.nvr import build_model
@@ -211,6 +211,23 @@ def test_cropped_encoder_equals_full_encoder(config, box):
         latent = cropped.encode(cropped.background(background), plan, scene[(0, slice(None), *plan.grid)][None])
         full = model.encode_voxels(scene)
     torch.testing.assert_close(latent, full, rtol=0, atol=1e-5)
+
+
+def test_narrow_ground_gives_the_full_background():
+    model = prepare_for_inference(random_model(TINY_COMPACT, "nvr"))
+    cropped = CroppedVoxelEncoder(model.voxel_encoder, 64)
+    # Hand count: volume column o reads input columns [4(o - 1), 4(o + 2)), so only the first and last reach the
+    # padding; the four 3x3 convolutions of the two latent blocks reach 4 columns further. Latent columns 0-4 and
+    # the last 5 touch the sides: 5 + 1 + 5 latent columns (44 input columns), the middle one at index 5.
+    assert cropped.narrow == NarrowGround(44, 5)
+    ground = ground_grid((0.3, 0.6, 0.9), 25.0, 64)
+    assert (ground == ground[:, :, :1]).all()  # the ground is the same in every column
+    with torch.no_grad():
+        full = cropped.background(torch.from_numpy(ground).permute(3, 0, 1, 2)[None])
+        narrow = cropped.background(torch.from_numpy(ground[:, :, :44].copy()).permute(3, 0, 1, 2)[None])
+    torch.testing.assert_close(narrow.volume, full.volume, rtol=0, atol=1e-6)
+    torch.testing.assert_close(narrow.latent, full.latent, rtol=0, atol=1e-6)
+    assert CroppedVoxelEncoder(prepare_for_inference(random_model(TINY_PAPER, "nvr")).voxel_encoder, 64).narrow is None
 
 
 # --- loading -------------------------------------------------------------------------------------------
