@@ -188,6 +188,19 @@ def cmd_eval(args: argparse.Namespace) -> None:
     print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit)}")
 
 
+# --- nvr bench ------------------------------------------------------------------------------
+
+
+def cmd_bench(args: argparse.Namespace) -> None:
+    from models.bench import DOCS, FULL, QUICK, run_bench, write_outputs
+
+    report = Path(args.report) if args.report else DOCS / "benchmarks.md"
+    results = run_bench(QUICK if args.quick else FULL, data=args.data, model_paths=args.model, note=args.note)
+    write_outputs(results, report, Path(args.json) if args.json else None)
+    print(f"wrote {report}{f' and {args.json}' if args.json else ''}: light edit {results['nvrplus_light_edit_ms']:.1f} ms, "
+          f"frame {results['nvrplus_frame_ms']:.1f} ms, path tracing 1 spp + OIDN {results['pathtrace_1spp_oidn_ms']:.1f} ms")
+
+
 # --- parser ---------------------------------------------------------------------------------
 
 
@@ -265,6 +278,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")
     p.set_defaults(func=cmd_eval)
+
+    p = sub.add_parser("bench", help="every renderer on the same scenes: time, memory and error; writes docs/benchmarks.md")
+    p.add_argument("--data", nargs="+", default=None, help="test data folders to take scenes from (default: procedural)")
+    p.add_argument("--model", action="append", default=None, help="weights to include (repeatable; default: assets/models)")
+    p.add_argument("--quick", action="store_true", help="a CI-sized subset (one scene, 1 and 4 spp, no paper config)")
+    p.add_argument("--json", default=None, help="also write the numbers as JSON here")
+    p.add_argument("--report", default=None, help="Markdown report (default docs/benchmarks.md; the figure goes beside it)")
+    p.add_argument("--note", default="", help="a line for the report, e.g. what else ran on the machine")
+    p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("info", help="what a scene holds, its voxel counts, values outside the training range")
     p.add_argument("scene")

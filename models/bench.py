@@ -1,0 +1,380 @@
+"""`nvr bench`: every renderer of the project on the same scenes in one process, speed against error.
+
+Renderers: path tracing at 1, 4, 16, 64 and 256 spp, raw and denoised by OIDN; splatting; NVR
+and NVR+ through the live engine for every weights file (--model, else assets/models/*.safetensors);
+for timing only, the compact networks when they have no weights yet and the paper configuration,
+with random weights. For each: median time per frame at 256^2 and its interquartile range over
+all scenes and repeats, peak memory (models/bench_system.py), and MSE, DSSIM and the perceptual
+distance against a raw path-traced reference of the same scene (1024 spp; --quick: 32).
+Also: the engine's latency per edit type with the object crop and with the full grid, the FLOPs
+per frame of each network configuration, and the share of a measured fp32 matmul peak they imply.
+
+A network's time per frame is a re-render after an object transform (resampling, voxel branch,
+splat and shading; the mesh is voxelised once per scene); path tracing's is sampling plus
+denoising with the Mitsuba scene already built; splatting's is the splat of painted voxels.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import statistics
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+# isort: split
+import models.engine  # noqa: F401 - before torch, so OMP_WAIT_POLICY is set when torch loads OpenMP
+
+# isort: split
+import numpy as np
+import torch
+from torch.utils.flop_counter import FlopCounterMode
+
+from models.bench_plot import Point, draw_speed_vs_error, pareto_front
+from models.bench_scenes import BenchScene, data_scenes, procedural_scenes
+from models.bench_system import PeakMemory, cpu_snapshot, machine_description, other_load
+from models.checkpoint import load_model
+from models.config import CompactConfig, NVRConfig, PaperConfig
+from models.engine import RenderEngine
+from models.evaluate import ASSET_MODELS
+from models.inference import prepare_for_inference
+from models.metrics import ImageMetrics
+from models.nvr import build_model
+from renderer.errors import InputError
+from renderer.io import save_json
+from renderer.pathtrace import PathTracer
+from renderer.pipeline import object_voxels, painted_voxels
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.splat import splat_scene
+
+SIZE = 256
+REFERENCE_SEED = 1_000_003
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+FAMILY = {"nvr_plus": "NVR+", "nvr": "NVR"}
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    spps: tuple[int, ...] = (1, 4, 16, 64, 256)
+    reference_spp: int = 1024
+    repeats: int = 5  # timed frames per scene (fewer above 16 spp, see repeats_for)
+    scenes: int = 4
+    paper: bool = True  # time the paper configuration (seconds per frame on a CPU)
+    full_grid_edits: bool = True  # also time every edit without the object crop
+    matmul_size: int = 2048
+
+    def repeats_for(self, spp: int) -> int:
+        return self.repeats if spp <= 16 else max(1, self.repeats // (2 if spp <= 64 else 5))
+
+
+FULL = BenchSettings()
+QUICK = BenchSettings(spps=(1, 4), reference_spp=32, repeats=3, scenes=1, paper=False, full_grid_edits=False,
+                      matmul_size=1024)
+
+
+@dataclass
+class Row:
+    """One renderer and setting: time per frame (ms), peak memory (MB) and errors (None: timing only)."""
+
+    family: str
+    setting: str
+    ms: float
+    ms_q25: float
+    ms_q75: float
+    peak_mb: float
+    mse: float | None = None
+    dssim: float | None = None
+    perceptual: float | None = None
+
+    @property
+    def label(self) -> str:
+        return f"{self.family} {self.setting}".strip()
+
+
+def run_bench(settings: BenchSettings, data: list[str] | None = None, model_paths: list[str] | None = None,
+              note: str = "") -> dict[str, Any]:
+    """Run everything and return the numbers (JSON-ready); see the module docstring."""
+    started, cpu_before, load_before = time.perf_counter(), cpu_snapshot(), os.getloadavg()
+    memory = PeakMemory()
+    metrics = ImageMetrics()
+    with tempfile.TemporaryDirectory(prefix="nvr-bench-") as workdir:
+        scenes = data_scenes(data, settings.scenes) if data else procedural_scenes(Path(workdir), settings.scenes)
+        tracers = [PathTracer(b.scene, b.mesh, size=SIZE) for b in scenes]
+        references = [t.render(spp=settings.reference_spp, seed=REFERENCE_SEED).image for t in tracers]
+
+        def score(images: list[np.ndarray]) -> dict[str, float]:
+            values = [metrics(_batch(i), _batch(r)) for i, r in zip(images, references)]
+            return {k: float(np.mean([float(v[k][0]) for v in values])) for k in ("mse", "dssim", "perceptual")}
+
+        rows = bench_pathtracing(tracers, settings, memory, score)
+        rows.append(bench_splatting(scenes, settings, memory, score))
+        trained = [_load_engine(path) for path in _weights_files(model_paths)]
+        for engine in trained:
+            rows.append(bench_network(engine, scenes, settings, memory, score))
+        timing_only = _random_engines(settings, trained)
+        for engine in timing_only:
+            rows.append(bench_network(engine, scenes, settings, memory, None))
+        live = next((e for e in trained + timing_only if e.kind == "nvr+" and e.config.name == "compact"), None)
+        edits = bench_edits(live, scenes[0], settings)
+        networks = bench_networks(settings)
+    peak = matmul_peak_gflops(settings.matmul_size)
+    for net in networks:
+        net["frame_fraction_of_peak"] = net["gflop_frame"] / net["frame_ms"] * 1000.0 / peak
+        net["light_fraction_of_peak"] = net["gflop_light_edit"] / net["light_edit_ms"] * 1000.0 / peak
+    front = pareto_front([_point(r) for r in rows if r.mse is not None])
+    rival = next(r for r in rows if r.family == "path tracing" and r.setting == "1 spp + OIDN")
+    return {
+        "nvrplus_light_edit_ms": edits["light"]["ms"],
+        "nvrplus_frame_ms": edits["object transform"]["ms"],
+        "pathtrace_1spp_oidn_ms": rival.ms,
+        "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+        "quick": settings == QUICK,
+        "seconds": time.perf_counter() - started,
+        "note": note,
+        "machine": machine_description(),
+        "load": {"loadavg_before": list(load_before), "loadavg_after": list(os.getloadavg()),
+                 "other_processes": [asdict(p) for p in other_load(cpu_before, cpu_snapshot())]},
+        "memory_method": memory.method,
+        "size": SIZE,
+        "reference_spp": settings.reference_spp,
+        "scenes": [b.name for b in scenes],
+        "renderers": [asdict(r) | {"label": r.label} for r in rows],
+        "pareto_front": [p.label for p in front],
+        "edits": edits,
+        "networks": networks,
+        "matmul_peak_gflops": peak,
+    }
+
+
+# --- renderers -------------------------------------------------------------------------------------
+
+
+def bench_pathtracing(tracers: list[PathTracer], settings: BenchSettings, memory: PeakMemory,
+                      score: Callable[[list[np.ndarray]], dict]) -> list[Row]:
+    for tracer in tracers:  # compile Mitsuba's kernels and start OIDN outside the timings
+        tracer.render(spp=1, seed=0, denoise=True)
+    rows = []
+    for spp in settings.spps:
+        for denoise in (False, True):
+            memory.start()
+            times, images = [], []
+            for tracer in tracers:
+                for repeat in range(settings.repeats_for(spp)):
+                    start = time.perf_counter()
+                    result = tracer.render(spp=spp, seed=repeat + 1, denoise=denoise)
+                    times.append(_ms_since(start))
+                images.append(result.image)
+            setting = f"{spp} spp" + (" + OIDN" if denoise else "")
+            rows.append(Row("path tracing", setting, *_spread(times), memory.peak_mb(), **score(images)))
+    return rows
+
+
+def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
+                    score: Callable[[list[np.ndarray]], dict]) -> Row:
+    memory.start()
+    times, images = [], []
+    for bench in scenes:
+        rgba, floor = painted_voxels(bench.scene, object_voxels(bench.scene))
+        images.append(splat_scene(bench.scene, rgba, floor, size=SIZE))
+        times += _time_ms(lambda: splat_scene(bench.scene, rgba, floor, size=SIZE), settings.repeats)  # noqa: B023
+    return Row("splatting", "", *_spread(times), memory.peak_mb(), **score(images))
+
+
+def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
+                  score: Callable[[list[np.ndarray]], dict] | None) -> Row:
+    """Frame time = re-render after an object transform; errors of each scene's render if `score` is given."""
+    memory.start()
+    times, images = [], []
+    repeats = settings.repeats if engine.config.name == "compact" else 2
+    for bench in scenes:
+        images.append(engine.render(bench.scene))
+        times += _alternating_ms(engine, _transform_pair(bench.scene), repeats)
+    errors = score(images) if score is not None else {}
+    setting = engine.model_name if score is not None else f"{engine.config.name} (random weights: timing only)"
+    return Row(FAMILY["nvr_plus" if engine.kind == "nvr+" else "nvr"], setting, *_spread(times), memory.peak_mb(), **errors)
+
+
+def bench_edits(engine: RenderEngine, bench: BenchScene, settings: BenchSettings) -> dict[str, dict]:
+    """Latency of each edit type through the engine, with the object crop and (unless quick) with the full grid."""
+    rgba = object_voxels(bench.scene)
+    occupied = np.argwhere(rgba[..., 3] >= 0.5)
+    paint_seed = tuple(int(i) for i in occupied[len(occupied) // 2])
+    out = {}
+    for name, pair in _edit_pairs(bench.scene, paint_seed).items():
+        times = _alternating_ms(engine, pair, settings.repeats)
+        report = engine.last_report
+        row = {"ms": statistics.median(times), "ms_q25": _spread(times)[1], "ms_q75": _spread(times)[2],
+               "stages": list(report.stages_run), "grid_fraction": report.grid_fraction,
+               "voxel_branch_ms": report.stage_ms.get("gather", 0.0) + report.stage_ms.get("voxel_branch", 0.0)}
+        if settings.full_grid_edits:
+            engine.crop = False
+            full = _alternating_ms(engine, pair, settings.repeats)
+            row["full_grid_ms"] = statistics.median(full)
+            row["full_grid_voxel_branch_ms"] = sum(engine.last_report.stage_ms.get(s, 0.0) for s in ("gather", "voxel_branch"))
+            engine.crop = True
+            engine.clear()
+        out[name] = row
+    return {"model": engine.model_name, "scene": bench.name, **out}
+
+
+def _edit_pairs(scene: Scene, paint_seed: tuple[int, int, int]) -> dict[str, tuple[Scene, Scene]]:
+    """Two scenes per edit type that differ only in that edit: rendering them in turn measures the edit.
+
+    The paint stroke is a region fill around `paint_seed`, an occupied voxel of the object.
+    """
+    x, y, z = scene.light.position
+    return {
+        "light": (scene, scene.with_changes(light=LightSpec((x - 0.6, y, z + 0.4)))),
+        "paint": tuple(scene.with_changes(paint=(*scene.paint, PaintOp("region", color, seed=paint_seed)))
+                       for color in ((0.9, 0.2, 0.2), (0.2, 0.2, 0.9))),
+        "floor color": (scene, scene.with_changes(floor=FloorSpec((0.8, 0.7, 0.3)))),
+        "object transform": _transform_pair(scene),
+        "camera": (scene, scene.with_changes(camera=CameraSpec(scene.camera.elevation_deg + 5.0))),
+    }
+
+
+def _transform_pair(scene: Scene) -> tuple[Scene, Scene]:
+    """The scene and the scene with its object moved by (0.15, -0.1) and turned by 20 degrees."""
+    o = scene.object
+    moved = replace(o, translation=(o.translation[0] + 0.15, o.translation[1] - 0.1), rotation_deg=o.rotation_deg + 20.0)
+    return scene, scene.with_changes(object=moved)
+
+
+def _alternating_ms(engine: RenderEngine, pair: tuple[Scene, Scene], repeats: int) -> list[float]:
+    """Render the pair's scenes in turn (after one of each to fill the caches); ms per render."""
+    engine.render(pair[1])
+    engine.render(pair[0])
+    times = []
+    for k in range(repeats):
+        start = time.perf_counter()
+        engine.render(pair[(k + 1) % 2])
+        times.append(_ms_since(start))
+    return times
+
+
+# --- networks: FLOPs and the matmul peak ---------------------------------------------------------------
+
+
+def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
+    """Per configuration and architecture: GFLOP of a full-grid frame and of a light edit, and their times."""
+    configs: list[NVRConfig] = [CompactConfig()] + ([PaperConfig()] if settings.paper else [])
+    out = []
+    for config in configs:
+        for architecture in ("nvr_plus", "nvr"):
+            torch.manual_seed(0)
+            model = build_model(architecture, config).eval()
+            counted = _network_calls(prepare_for_inference(model), config)  # FlopCounterMode knows these convolutions
+            timed = _network_calls(RenderEngine(model).model, config)  # the engine's copy, on oneDNN
+            repeats = settings.repeats if config.name == "compact" else 2
+            with torch.inference_mode():
+                out.append({
+                    "config": config.name, "architecture": FAMILY[architecture],
+                    "gflop_frame": _gflop(counted[0]), "gflop_light_edit": _gflop(counted[1]),
+                    "frame_ms": statistics.median(_time_ms(timed[0], repeats)),
+                    "light_edit_ms": statistics.median(_time_ms(timed[1], repeats)),
+                })
+    return out
+
+
+def _network_calls(model, config: NVRConfig) -> tuple[Callable[[], Any], Callable[[], Any]]:
+    """A full forward pass on a 10%-occupied grid and the light edit (render_from_latent) after it."""
+    g, s = config.grid_size, config.output_size
+    generator = torch.Generator().manual_seed(0)
+    voxels = (torch.rand(g, g, g, 4, generator=generator) < 0.1).float().permute(3, 0, 1, 2)[None]
+    light = torch.tensor([[0.3, 0.9, -0.8]])
+    splat = torch.rand(1, 3, s, s, generator=generator) if model.architecture == "nvr_plus" else None
+    with torch.inference_mode():
+        latent = model.encode_voxels(voxels)
+        features = model.encode_splat(splat) if splat is not None else None
+    return (lambda: model(voxels, light, splat)), (lambda: model.render_from_latent(latent, light, features))
+
+
+def _gflop(call: Callable[[], Any]) -> float:
+    """Floating-point operations of one call (a multiply-add counts 2), in billions."""
+    with FlopCounterMode(display=False) as counter:
+        call()
+    return counter.get_total_flops() / 1e9
+
+
+def matmul_peak_gflops(n: int, repeats: int = 5) -> float:
+    """Best fp32 GFLOP/s of an n x n matrix product on the engine's threads (the CPU's practical peak)."""
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    best = min(_time_ms(lambda: torch.mm(a, b), repeats))
+    return 2.0 * n**3 / (best / 1000.0) / 1e9
+
+
+# --- engines ------------------------------------------------------------------------------------------
+
+
+def _weights_files(paths: list[str] | None) -> list[Path]:
+    if paths:
+        return [Path(p) for p in paths]
+    return sorted(ASSET_MODELS.glob("*.safetensors")) if ASSET_MODELS.is_dir() else []
+
+
+def _load_engine(path: Path) -> RenderEngine:
+    model, config, _ = load_model(path)
+    if config.output_size != SIZE:
+        raise InputError(f"renders {config.output_size}^2; the benchmark compares at {SIZE}^2", path)
+    return RenderEngine(model, model_name=f"{config.name} ({path.name})")
+
+
+def _random_engines(settings: BenchSettings, trained: list[RenderEngine]) -> list[RenderEngine]:
+    """Random-weight engines for timing: compact ones without trained weights, and the paper's."""
+    have = {(e.kind, e.config.name) for e in trained}
+    configs = [CompactConfig()] + ([PaperConfig()] if settings.paper else [])
+    engines = []
+    for config in configs:
+        for architecture, kind in (("nvr_plus", "nvr+"), ("nvr", "nvr")):
+            if (kind, config.name) not in have:
+                torch.manual_seed(0)
+                engines.append(RenderEngine(build_model(architecture, config).eval()))
+    return engines
+
+
+# --- small helpers ----------------------------------------------------------------------------------------
+
+
+def _time_ms(call: Callable[[], Any], repeats: int) -> list[float]:
+    """Wall times in ms of `repeats` calls after one warm-up call."""
+    call()
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        call()
+        times.append(_ms_since(start))
+    return times
+
+
+def _ms_since(start: float) -> float:
+    return (time.perf_counter() - start) * 1000.0
+
+
+def _spread(times: list[float]) -> tuple[float, float, float]:
+    """Median, first and third quartile."""
+    q25, median, q75 = np.percentile(times, [25, 50, 75])
+    return float(median), float(q25), float(q75)
+
+
+def _batch(image: np.ndarray) -> torch.Tensor:
+    return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
+
+
+def _point(row: Row) -> Point:
+    return Point(row.label, row.family, row.ms, row.mse)
+
+
+def write_outputs(results: dict[str, Any], report: Path, json_path: Path | None) -> None:
+    """The Markdown report, the figure beside it, and the JSON numbers."""
+    from models.bench_report import write_report
+
+    rows = [r for r in results["renderers"] if r["mse"] is not None]
+    figure = report.parent / "speed_vs_error.png"
+    draw_speed_vs_error([Point(r["label"], r["family"], r["ms"], r["mse"]) for r in rows], figure)
+    write_report(results, report, figure)
+    if json_path is not None:
+        save_json(json_path, results)

@@ -1,0 +1,111 @@
+"""The speed-against-error figure of `nvr bench`, drawn with PIL: error against time on log axes, Pareto front marked.
+
+A point is on the Pareto front when no other point is at least as fast and at least as accurate
+and strictly better in one of the two.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from PIL import Image, ImageDraw, ImageFont
+
+from renderer.io import atomic_path
+
+WIDTH, HEIGHT = 1100, 760
+MARGIN_LEFT, MARGIN_RIGHT, MARGIN_TOP, MARGIN_BOTTOM = 90, 30, 50, 70
+FAMILY_COLORS = {"path tracing": (200, 80, 40), "splatting": (60, 140, 60), "NVR": (70, 110, 200), "NVR+": (130, 60, 170)}
+
+
+@dataclass(frozen=True)
+class Point:
+    label: str
+    family: str  # a key of FAMILY_COLORS
+    ms: float
+    error: float
+
+
+def pareto_front(points: list[Point]) -> list[Point]:
+    """The non-dominated points, fastest first."""
+    front = [p for p in points if not any(_dominates(q, p) for q in points)]
+    return sorted(front, key=lambda p: (p.ms, p.error))
+
+
+def _dominates(q: Point, p: Point) -> bool:
+    return q.ms <= p.ms and q.error <= p.error and (q.ms < p.ms or q.error < p.error)
+
+
+def draw_speed_vs_error(points: list[Point], path: str | Path, error_name: str = "MSE (0-255)") -> None:
+    """Write the figure as PNG (atomically); points need positive time and error."""
+    points = [p for p in points if p.ms > 0 and p.error > 0]
+    image = Image.new("RGB", (WIDTH, HEIGHT), "white")
+    draw = ImageDraw.Draw(image)
+    font = ImageFont.load_default(size=14)
+    if not points:
+        draw.text((WIDTH // 3, HEIGHT // 2), "no renderer with an error measurement", fill="black", font=font)
+    else:
+        x_axis = _LogAxis(min(p.ms for p in points), max(p.ms for p in points), MARGIN_LEFT, WIDTH - MARGIN_RIGHT)
+        y_axis = _LogAxis(min(p.error for p in points), max(p.error for p in points), HEIGHT - MARGIN_BOTTOM, MARGIN_TOP)
+        _draw_axes(draw, font, x_axis, y_axis, error_name)
+        front = pareto_front(points)
+        xy = [(x_axis(p.ms), y_axis(p.error)) for p in front]
+        for (x0, y0), (x1, y1) in zip(xy, xy[1:]):  # staircase: nothing below and left of it
+            draw.line([(x0, y0), (x1, y0), (x1, y1)], fill=(120, 120, 120), width=2)
+        for p in points:
+            x, y = x_axis(p.ms), y_axis(p.error)
+            color = FAMILY_COLORS.get(p.family, (0, 0, 0))
+            on_front = p in front
+            draw.ellipse([x - 6, y - 6, x + 6, y + 6], fill=color if on_front else "white", outline=color, width=2)
+            width = draw.textlength(p.label, font=font)
+            draw.text((x + 8 if x + 8 + width < WIDTH - MARGIN_RIGHT else x - 8 - width, y - 16), p.label, fill=color, font=font)
+        _draw_legend(draw, font)
+    with atomic_path(path) as tmp:
+        image.save(tmp, format="PNG")
+
+
+class _LogAxis:
+    """Maps values to pixels on a log scale from a little below lo to a little above hi."""
+
+    MARGIN_DECADES = 0.15
+
+    def __init__(self, lo: float, hi: float, start_px: float, end_px: float):
+        self.lo = math.log10(lo) - self.MARGIN_DECADES
+        self.hi = math.log10(hi) + self.MARGIN_DECADES
+        self.start_px, self.end_px = start_px, end_px
+
+    def __call__(self, value: float) -> float:
+        t = (math.log10(value) - self.lo) / (self.hi - self.lo)
+        return self.start_px + t * (self.end_px - self.start_px)
+
+    def ticks(self) -> list[tuple[float, bool]]:
+        """Grid values m * 10^d inside the axis, and whether each gets a label (m = 1, 2, 5)."""
+        return [(m * 10.0**d, m in (1, 2, 5)) for d in range(math.floor(self.lo), math.ceil(self.hi) + 1)
+                for m in range(1, 10) if self.lo <= math.log10(m * 10.0**d) <= self.hi]
+
+
+def _draw_axes(draw: ImageDraw.ImageDraw, font, x_axis: _LogAxis, y_axis: _LogAxis, error_name: str) -> None:
+    left, right, top, bottom = MARGIN_LEFT, WIDTH - MARGIN_RIGHT, MARGIN_TOP, HEIGHT - MARGIN_BOTTOM
+    for value, labelled in x_axis.ticks():
+        x = x_axis(value)
+        draw.line([(x, top), (x, bottom)], fill=(210, 210, 210) if labelled else (238, 238, 238))
+        if labelled:
+            draw.text((x - 10, bottom + 8), f"{value:g}", fill="black", font=font)
+    for value, labelled in y_axis.ticks():
+        y = y_axis(value)
+        draw.line([(left, y), (right, y)], fill=(210, 210, 210) if labelled else (238, 238, 238))
+        if labelled:
+            draw.text((left - 60, y - 8), f"{value:g}", fill="black", font=font)
+    draw.rectangle([left, top, right, bottom], outline="black")
+    draw.text(((left + right) // 2 - 120, bottom + 34), "time per frame at 256x256 (ms, log scale)", fill="black", font=font)
+    draw.text((left, 15), f"{error_name} against a high-spp reference (log scale); filled and joined: Pareto front",
+              fill="black", font=font)
+
+
+def _draw_legend(draw: ImageDraw.ImageDraw, font) -> None:
+    x, y = WIDTH - MARGIN_RIGHT - 150, MARGIN_TOP + 10
+    for family, color in FAMILY_COLORS.items():
+        draw.ellipse([x, y, x + 10, y + 10], fill=color)
+        draw.text((x + 16, y - 3), family, fill=color, font=font)
+        y += 20

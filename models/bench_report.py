@@ -1,0 +1,128 @@
+"""docs/benchmarks.md from the numbers of one `nvr bench` run (models/bench.py)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from renderer.io import atomic_path
+
+LIGHT_TARGET_MS = 33.0  # 30 frames a second
+EDIT_TARGET_MS = 100.0  # the paper's NVR+ time on a desktop GPU
+BUSY_LOAD = 0.5  # load average above which the timings are not those of an idle machine
+
+
+def write_report(results: dict[str, Any], path: Path, figure: Path) -> None:
+    lines = _header(results) + _renderers(results) + _targets(results) + _edits(results) + _networks(results)
+    lines += ["## Speed against error", "", f"![error against time]({figure.name})", "", *_method(results)]
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def _header(r: dict[str, Any]) -> list[str]:
+    load = r["load"]
+    busy = max(load["loadavg_before"][0], load["loadavg_after"][0]) > BUSY_LOAD or load["other_processes"]
+    lines = [
+        "# Benchmarks: speed against error",
+        "",
+        f"Written by `nvr bench{' --quick' if r['quick'] else ''}` on {r['date']} ({r['seconds']:.0f} s).",
+        "",
+    ]
+    if busy:
+        lines += ["**Measured on a busy machine: other processes shared the CPU (below), so times are inflated "
+                  "and not final.**", ""]
+    if r["note"]:
+        lines += [r["note"], ""]
+    lines += ["| machine | |", "|---|---|"] + [f"| {k} | {v} |" for k, v in r["machine"].items()]
+    lines += [f"| peak memory | {r['memory_method']} |", ""]
+    before, after = load["loadavg_before"], load["loadavg_after"]
+    lines += [f"What else was running: load average {before[0]:.2f} at the start, {after[0]:.2f} at the end."]
+    if load["other_processes"]:
+        lines += ["Other processes that used CPU during the run:", ""]
+        lines += [f"- {p['cpu_seconds']:.0f} CPU s: `{p['command']}`" for p in load["other_processes"]]
+    else:
+        lines += ["No other process used more than half a CPU second."]
+    lines += ["", f"Scenes ({len(r['scenes'])}): {', '.join(r['scenes'])}. Reference: {r['reference_spp']} spp "
+              f"path tracing, raw. Images {r['size']}x{r['size']}.", ""]
+    return lines
+
+
+def _renderers(r: dict[str, Any]) -> list[str]:
+    front = set(r["pareto_front"])
+    lines = ["## Renderers", "",
+             "| renderer | setting | median ms / frame | IQR (ms) | peak MB | MSE (0-255) | DSSIM | perceptual | Pareto |",
+             "|---|---|---:|---|---:|---:|---:|---:|:---:|"]
+    for row in r["renderers"]:
+        errors = ("—", "—", "—") if row["mse"] is None else (
+            f"{row['mse']:.2f}", f"{row['dssim']:.4f}", f"{row['perceptual']:.3f}")
+        lines.append(f"| {row['family']} | {row['setting']} | {row['ms']:.1f} | {row['ms_q25']:.1f}–{row['ms_q75']:.1f} "
+                     f"| {row['peak_mb']:.0f} | {' | '.join(errors)} | {'yes' if row['label'] in front else ''} |")
+    return lines + [""]
+
+
+def _targets(r: dict[str, Any]) -> list[str]:
+    edits = {k: v for k, v in r["edits"].items() if isinstance(v, dict)}
+    light = edits["light"]["ms"]
+    slowest = max((k for k in edits if k != "light"), key=lambda k: edits[k]["ms"])
+    rival = next(row for row in r["renderers"] if row["label"] == "path tracing 1 spp + OIDN")
+    lines = ["## Targets", "",
+             f"- Light edit: {light:.1f} ms (target {LIGHT_TARGET_MS:.0f} ms): {'met' if light < LIGHT_TARGET_MS else 'missed'}.",
+             f"- Other edits: slowest is {slowest}, {edits[slowest]['ms']:.1f} ms (target {EDIT_TARGET_MS:.0f} ms): "
+             f"{'met' if edits[slowest]['ms'] < EDIT_TARGET_MS else 'missed'}."]
+    trained = [row for row in r["renderers"] if row["family"] == "NVR+" and row["mse"] is not None]
+    for row in trained:
+        on_front = row["label"] in r["pareto_front"]
+        lines.append(f"- NVR+ {row['setting']}: {row['ms']:.1f} ms per frame, MSE {row['mse']:.2f}; "
+                     f"{'on' if on_front else 'not on'} the Pareto front. Against path tracing 1 spp + OIDN "
+                     f"({rival['ms']:.1f} ms, MSE {rival['mse']:.2f}): {rival['ms'] / row['ms']:.1f}x faster, "
+                     f"MSE {row['mse'] - rival['mse']:+.2f}.")
+    if not trained:
+        lines.append("- NVR+ on the Pareto front: no trained NVR+ weights were given, so it has no error yet "
+                     f"(rival: path tracing 1 spp + OIDN, {rival['ms']:.1f} ms, MSE {rival['mse']:.2f}).")
+    return lines + [""]
+
+
+def _edits(r: dict[str, Any]) -> list[str]:
+    e = r["edits"]
+    rows = {k: v for k, v in e.items() if isinstance(v, dict)}
+    has_full = any("full_grid_ms" in v for v in rows.values())
+    lines = ["## Latency per edit (live engine)", "",
+             f"NVR+ {e['model']} on {e['scene']}; median ms of alternating between two scenes that differ in the edit. "
+             "The voxel branch runs on the object's crop of the grid (share of the grid in the last column)"
+             + ("; the full-grid columns time the same edit without the crop." if has_full else "."), ""]
+    header = "| edit | median ms | IQR (ms) | voxel branch ms |" + (" full grid ms | full-grid voxel branch ms |" if has_full else "")
+    lines += [header + " stages rerun | grid share |", "|---|---:|---|---:|" + ("---:|---:|" if has_full else "") + "---|---:|"]
+    for name, v in rows.items():
+        full = f" {v['full_grid_ms']:.1f} | {v['full_grid_voxel_branch_ms']:.1f} |" if has_full else ""
+        share = "—" if v["grid_fraction"] is None else f"{v['grid_fraction']:.2f}"
+        lines.append(f"| {name} | {v['ms']:.1f} | {v['ms_q25']:.1f}–{v['ms_q75']:.1f} | {v['voxel_branch_ms']:.1f} |{full} "
+                     f"{', '.join(v['stages'])} | {share} |")
+    return lines + [""]
+
+
+def _networks(r: dict[str, Any]) -> list[str]:
+    lines = ["## Compute per frame", "",
+             f"fp32 matrix-multiply peak measured in this run: {r['matmul_peak_gflops']:.0f} GFLOP/s. Network alone "
+             "(no resampling or splat), full 128^3 grid, batch 1, random weights, on the engine's inference copy.", "",
+             "| network | config | GFLOP / frame | ms / frame | share of peak | GFLOP / light edit | ms / light edit | share of peak |",
+             "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for n in r["networks"]:
+        lines.append(f"| {n['architecture']} | {n['config']} | {n['gflop_frame']:.2f} | {n['frame_ms']:.1f} | "
+                     f"{n['frame_fraction_of_peak']:.0%} | {n['gflop_light_edit']:.2f} | {n['light_edit_ms']:.1f} | "
+                     f"{n['light_fraction_of_peak']:.0%} |")
+    return lines + [""]
+
+
+def _method(r: dict[str, Any]) -> list[str]:
+    return [
+        "## How these were measured", "",
+        "- Time per frame: median and interquartile range over all scenes and repeats, wall clock. Path tracing: "
+        "sampling plus OIDN with the Mitsuba scene built once per scene (kernels compiled before timing). "
+        "Splatting: the splat of already painted voxels. NVR / NVR+: a re-render after an object transform "
+        "through the live engine (resampling, voxel branch on the object's crop, splat, shading); the mesh is "
+        "voxelised once per scene.",
+        f"- Peak memory: resident memory above the level before each renderer ({r['memory_method']}).",
+        "- Errors: mean over scenes of MSE (0-255), DSSIM and the perceptual distance of models/metrics.py against "
+        f"the {r['reference_spp']}-spp reference, whose own noise is included. Networks with random weights are timed only.",
+        "- Pareto front: no other renderer is both at least as fast and at least as accurate (MSE).",
+    ]

@@ -1,0 +1,54 @@
+"""`nvr bench`: the quick run writes its JSON, report and figure; the Pareto front and the memory probe."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+from PIL import Image
+
+from app.cli import run
+from models.bench_plot import Point, pareto_front
+from models.bench_system import PeakMemory
+
+
+def test_quick_bench_writes_json_report_and_figure(tmp_path):
+    """The CI-sized run (about 15 s on an idle 2-core CPU: one scene, 1 and 4 spp, compact networks)."""
+    report, numbers = tmp_path / "benchmarks.md", tmp_path / "bench.json"
+    assert run(["bench", "--quick", "--json", str(numbers), "--report", str(report)]) == 0
+    results = json.loads(numbers.read_text())
+    for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms"):
+        assert math.isfinite(results[key]) and results[key] > 0.0
+    # A light edit reruns only the last stage, so it is faster than a frame after an object transform.
+    assert results["nvrplus_light_edit_ms"] < results["nvrplus_frame_ms"]
+    assert results["edits"]["light"]["stages"] == ["light"]
+    labels = {row["label"] for row in results["renderers"]}
+    assert {"path tracing 1 spp", "path tracing 1 spp + OIDN", "path tracing 4 spp + OIDN", "splatting"} <= labels
+    rows = {row["label"]: row for row in results["renderers"]}
+    # Denoising a 1-spp image brings it far closer to the reference than the raw samples.
+    assert rows["path tracing 1 spp + OIDN"]["mse"] < rows["path tracing 1 spp"]["mse"] / 10
+    assert set(results["pareto_front"]) <= labels
+    assert all(n["gflop_frame"] > n["gflop_light_edit"] > 0 for n in results["networks"])
+    text = report.read_text()
+    assert "| path tracing | 1 spp + OIDN |" in text and "## Latency per edit" in text
+    with Image.open(tmp_path / "speed_vs_error.png") as figure:
+        assert figure.format == "PNG" and figure.size == (1100, 760)
+
+
+def test_pareto_front_by_hand():
+    points = [Point("a", "NVR+", 10, 50), Point("b", "path tracing", 100, 5), Point("c", "splatting", 5, 3000),
+              Point("d", "path tracing", 200, 40), Point("e", "NVR", 10, 60)]
+    # d is slower and worse than b; e ties a on time and is worse.
+    assert [p.label for p in pareto_front(points)] == ["c", "a", "b"]
+
+
+def test_peak_memory_sees_a_native_allocation():
+    memory = PeakMemory()
+    memory.start()
+    block = np.ones(50_000_000)  # 400 MB, touched
+    del block
+    assert memory.peak_mb() >= 380.0
+    if memory.method.startswith("VmHWM"):  # the peak is reset per measurement
+        memory.start()
+        assert memory.peak_mb() < 50.0
