@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,11 +21,14 @@ import pytest
 from PIL import Image
 
 from app.editor.layout import layout_for
+from app.editor.orbit_view import HOME, viewport_camera
 from models.checkpoint import save_model
 from models.config import CompactConfig
 from models.nvr import build_model
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, load_scene, save_scene
+from renderer.surface import voxel_centers_at
+from renderer.transform import apply_transform, object_to_world
 from renderer.voxels import load_voxels, save_voxels
 
 WINDOW = (1280, 800)
@@ -224,20 +228,49 @@ def test_undo_restores_the_scene_exactly_and_redo_repeats(display, tmp_path, sce
     assert [op.target for op in edited.paint] == ["region", "floor"]
 
 
-def test_grab_with_g_and_an_axis_key_moves_along_that_axis_only(display, tmp_path, scene_file, model_file):
+def screen_position(point, scene_view=HOME) -> list[float]:
+    """Window pixel where the viewport (at its starting view) shows a world point."""
     v = PANELS.viewport
-    centre = [v.x + v.width / 2, v.y + v.height / 2]
+    u, row, _ = viewport_camera(scene_view, v.width, v.height).project(np.asarray(point, dtype=np.float64))
+    return [v.x + float(u), v.y + float(row)]
+
+
+def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene_file, model_file):
+    scene = load_scene(scene_file)
+    light = screen_position(scene.light.position)
+    target = [light[0] - 120, light[1] + 40]
+    # The centre of the red block's front face (voxel (8, 5, 11), its +z side) as placed in the world.
+    front = apply_transform(object_to_world(scene.object), voxel_centers_at(np.array([[8, 5, 11]]), 16) + [0, 0, 0.5 / 16])[0]
+    middle = [PANELS.viewport.x + PANELS.viewport.width / 2, PANELS.viewport.y + PANELS.viewport.height / 2]
     run_editor(display, tmp_path, scene_file, [
-        {"action": "mouse_move", "pos": centre},
+        {"action": "mouse_move", "pos": light},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_move", "pos": [light[0] - 60, light[1] + 20]},
+        {"action": "mouse_move", "pos": target},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "light.json")},
+        {"action": "tool", "name": "paint"},
+        {"action": "mouse_move", "pos": screen_position(front)},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "painted.json")},
+        {"action": "mouse_move", "pos": middle},
         {"action": "key", "key": "g"},
         {"action": "key", "key": "x"},
-        {"action": "mouse_move", "pos": [centre[0] + 80, centre[1] + 40]},
+        {"action": "mouse_move", "pos": [middle[0] + 80, middle[1] + 40]},
         {"action": "mouse_down", "button": 0},
         {"action": "mouse_up", "button": 0},
         {"action": "save", "path": str(tmp_path / "grabbed.json")},
     ], "--model", str(model_file))
+    # The light followed the mouse on its own plane: the point under the mouse now is the light's centre.
+    moved = load_scene(tmp_path / "light.json").light.position
+    assert moved[1] == scene.light.position[1]
+    np.testing.assert_allclose(screen_position(moved), target, atol=1.5)
+    painted = load_scene(tmp_path / "painted.json").paint
+    assert len(painted) == 1 and painted[0].target == "region"
+    assert painted[0].seed[2] == 11 and 4 <= painted[0].seed[0] < 12 and painted[0].seed[1] < 10  # the red front face
     x, z = load_scene(tmp_path / "grabbed.json").object.translation
-    assert abs(x) > 0.05 and z == 0.0
+    assert abs(x) > 0.05 and z == 0.0  # X: along x only
 
 
 def test_export_equals_nvr_render(plain_run, tmp_path, scene_file, model_file):
@@ -247,13 +280,57 @@ def test_export_equals_nvr_render(plain_run, tmp_path, scene_file, model_file):
     np.testing.assert_array_equal(np.asarray(Image.open(mine)), np.asarray(Image.open(cli)))
 
 
-def test_unsaved_changes_are_offered_back_on_the_next_start(display, tmp_path, scene_file, model_file):
+def test_closing_asks_about_unsaved_changes_and_the_next_start_offers_them_back(display, tmp_path, scene_file,
+                                                                                model_file):
     state = tmp_path / "state"
-    run_editor(display, tmp_path, scene_file, [{"action": "move_object", "translation": [0.4, 0.1]}],
-               "--model", str(model_file), state=state)
-    assert (state / "nvr-studio" / "recovery" / "scene.json").is_file()
+    recovery = state / "nvr-studio" / "recovery" / "scene.json"
+    calm, asking = tmp_path / "calm.png", tmp_path / "asking.png"
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "move_object", "translation": [0.4, 0.1]},
+        {"action": "screenshot", "path": str(calm)},
+        {"action": "close"},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(asking)},
+        {"action": "answer", "choice": "Cancel"},  # stay; the run then ends with the changes unsaved
+    ], "--model", str(model_file), state=state)
+    tint = np.abs(pixels(asking, PANELS.viewport) - pixels(calm, PANELS.viewport)).mean()
+    assert tint > 0.05  # the question's modal window tints everything behind it
+    assert recovery.is_file()
     run_editor(display, tmp_path, scene_file, [
         {"action": "answer", "choice": "Restore"},
         {"action": "save", "path": str(tmp_path / "restored.json")},
+        {"action": "set_elevation", "deg": 12.0},
+        {"action": "close"},
+        {"action": "answer", "choice": "Discard"},
     ], "--model", str(model_file), state=state)
     assert load_scene(tmp_path / "restored.json").object.translation == (0.4, 0.1)
+    assert not recovery.exists()  # discarded on purpose: nothing to offer next time
+
+
+def test_meshes_and_photos_load_and_bad_files_leave_the_scene_alone(display, tmp_path, scene_file, model_file):
+    import trimesh
+
+    trimesh.creation.box(extents=(1.0, 2.0, 1.0)).export(tmp_path / "tall.obj")
+    (tmp_path / "broken.obj").write_text("not a mesh\n")
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "load_mesh", "path": str(tmp_path / "broken.obj")},
+        {"action": "load_photo", "photo": "assets/demo/photo.png", "camera": str(scene_file)},
+        {"action": "save", "path": str(tmp_path / "unchanged.json")},
+        {"action": "load_mesh", "path": str(tmp_path / "tall.obj")},
+        {"action": "save", "path": str(tmp_path / "tall.json")},
+        {"action": "load_photo", "photo": "assets/demo/photo.png", "camera": "assets/demo/photo_camera.json"},
+        {"action": "save", "path": str(tmp_path / "photo.json")},
+    ], "--model", str(model_file))
+    assert "broken.obj" in result.stderr and "scene.json: missing" in result.stderr  # shown, and echoed on stderr
+    unchanged, original = load_scene(tmp_path / "unchanged.json"), load_scene(scene_file)
+    assert unchanged.voxels_path().resolve() == original.voxels_path().resolve()  # saved elsewhere: relative path differs
+    assert replace(unchanged, object=original.object) == original
+    tall = load_scene(tmp_path / "tall.json")
+    assert tall.mesh_path().resolve() == (tmp_path / "tall.obj").resolve() and tall.object.voxels is None
+    occupied = object_voxels(tall)[..., 3] > 0.5
+    assert occupied[:, -1].any() and not occupied[:, :, 0].all()  # 1 x 2 x 1 box: the full height, half the depth
+    photo = load_scene(tmp_path / "photo.json")
+    assert photo.voxels_path() == (tmp_path / "photo.voxels.npz").resolve()  # copied beside the saved scene
+    colored = object_voxels(photo)
+    assert np.array_equal(colored[..., 3], object_voxels(tall)[..., 3])  # same shape, new colors
+    assert np.abs(colored[occupied][:, :3] - object_voxels(tall)[occupied][:, :3]).max() > 0.1

@@ -78,10 +78,9 @@ class FrameStats:
 class EditorApp:
     """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
 
-    def __init__(self, window: Window, document: Document, model_path: str | None = None, headless: bool = False):
+    def __init__(self, window: Window, document: Document, model_path: str | None = None):
         self.window = window
         self.doc = document
-        self.headless = headless
         self.voxels = VoxelCache()
         self.live = LiveRender(self.voxels, model_path)
         self.viewport = ViewportRenderer(window.ctx)
@@ -98,6 +97,7 @@ class EditorApp:
         self.prompt: Prompt | None = None
         self.stats = FrameStats()
         self.quit_requested = False
+        self.keep_recovery = True  # False once the user saved or discarded the changes on closing
         self._synced = -1  # document revision the viewport and render were last updated for
         self._shown_rgba = None
         self._autosaved = document.revision
@@ -205,7 +205,7 @@ class EditorApp:
                 return
             self.say(f"opened {path}")
 
-        if self.doc.dirty and not self.headless:
+        if self.doc.dirty:
             choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
             self.ask("Unsaved changes", "Save the current scene before opening another?", choices, go)
         else:
@@ -297,8 +297,8 @@ class EditorApp:
         return None
 
     def request_quit(self) -> None:
-        """Close the window, asking first about unsaved changes (never in headless runs)."""
-        if not self.doc.dirty or self.headless:
+        """Close the window, asking first about unsaved changes."""
+        if not self.doc.dirty:
             self.quit_requested = True
             return
 
@@ -306,8 +306,7 @@ class EditorApp:
             if choice == "Save" and not self.save():
                 return
             if choice in ("Save", "Discard"):
-                if choice == "Discard":
-                    state.clear_recovery()
+                self.keep_recovery = False
                 self.quit_requested = True
 
         choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
@@ -380,6 +379,9 @@ class EditorApp:
         self._screenshots.clear()
 
     def close(self) -> None:
-        """End the session: keep an autosave when changes are unsaved, else remove it."""
-        self.autosave_now()
+        """End the session: keep an autosave of unsaved changes unless the user chose to discard them."""
+        if self.keep_recovery:
+            self.autosave_now()
+        else:
+            state.clear_recovery()
         self.live.close()

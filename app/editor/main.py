@@ -20,9 +20,10 @@ from renderer.errors import InputError
 
 DEFAULT_SCENE = Path(__file__).resolve().parents[2] / "assets" / "demo" / "scene.json"
 WINDOW_SIZE = (1280, 800)
+# A headless run still busy after this long gives up (NVR_EDITOR_TIMEOUT overrides, in seconds).
 IDLE_TIMEOUT_SECONDS = float(os.environ.get("NVR_EDITOR_TIMEOUT", 300.0))
 IDLE_WAIT_SECONDS = 0.5  # with nothing going on, the loop sleeps until input arrives (at most this long)
-ACTIVE_AFTER_INPUT_SECONDS = 0.5  # keep drawing at full rate this long after the last input event  # a headless run that is still busy after this long gives up
+ACTIVE_AFTER_INPUT_SECONDS = 0.5  # keep drawing at full rate this long after the last input event
 EXIT_USER_ERROR = 2
 
 
@@ -72,7 +73,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
     from app.editor.panels import Interface
 
     headless = args.frames is not None
-    app = EditorApp(window, document, model_path=args.model, headless=headless)
+    app = EditorApp(window, document, model_path=args.model)
     interface = Interface(app)
     frame, started, finishing = 0, time.monotonic(), False
     try:

@@ -11,6 +11,7 @@ High-level actions call the same commands as the interface:
     {"action": "load_mesh", "path": ..., "up": "y"}           {"action": "load_photo", "photo": ..., "camera": ...}
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
+    {"action": "close"}                                       as the window's close button
 Raw input goes through the window backend's own event handlers, as real input does:
     {"action": "mouse_move", "pos": [x, y]}   window pixels
     {"action": "mouse_down", "button": 0} {"action": "mouse_up", "button": 0}   0 left, 1 right, 2 middle
@@ -199,6 +200,7 @@ ACTIONS = {
     "screenshot": lambda app, a: app.screenshot(a["path"]),
     "answer": lambda app, a: app.answer(a["choice"]),
     "tool": _set_tool,
+    "close": lambda app, a: glfw.set_window_should_close(app.window.handle, True),
     "wait": _wait,
     "mouse_move": _mouse_move,
     "mouse_down": _mouse_button(True),

@@ -24,6 +24,7 @@ LIGHT_ACTIVE_COLOR = (1.0, 0.6, 0.2)
 FRUSTUM_COLOR = (0.95, 0.55, 0.25)
 BOX_COLOR = (0.9, 0.9, 0.95)
 PICK_COLOR = (1.0, 1.0, 1.0)
+GROUND_OFFSET = -0.003  # the ground is drawn a hair below y = 0 so lines on the floor do not flicker into it
 FRUSTUM_DEPTH = 0.9  # depth of the drawn camera pyramid, world units
 
 _VOXEL_VS = """
@@ -126,8 +127,8 @@ class ViewportRenderer:
         self._voxels_vao = None
         self._instances = 0
         self._resolution = 1
-        h = FLOOR_HALF_SIZE
-        ground = np.array([[-h, 0, -h], [h, 0, -h], [h, 0, h], [-h, 0, -h], [h, 0, h], [-h, 0, h]], dtype=np.float32)
+        h, y = FLOOR_HALF_SIZE, GROUND_OFFSET
+        ground = np.array([[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, -h], [h, y, h], [-h, y, h]], dtype=np.float32)
         self._ground_vao = ctx.vertex_array(self._ground_program, [(ctx.buffer(ground.tobytes()), "3f", "position")])
         self._lines = ctx.buffer(reserve=4096)
         self._lines_vao = ctx.vertex_array(self._flat_program, [(self._lines, "3f", "position")])
