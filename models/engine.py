@@ -13,7 +13,7 @@ computed from, and reruns only when those change:
     background    camera elevation, floor color                           voxel-branch features of the ground alone
     gather        pool, placement, floor color                            grid inside the object's crop
     voxel_branch  as gather                                               latent (encode_voxels)
-    splat         paint, translation, rotation, scale, elevation, floor   splatted image (NVR+ only)
+    splat         paint, translation, rotation, scale, elevation, floor   splatted image (NVR+, and previews)
     splat_branch  as splat                                                splat features (encode_splat)
     light         all of the above and the light position                 image (render_from_latent)
 
@@ -27,7 +27,8 @@ Floor color is the scene's floor color after its floor paint strokes. Hence, per
     object scale                  pool (if the merge factors change), placement, gather, voxel_branch,
                                   splat, splat_branch, light
     camera elevation              placement, background, gather, voxel_branch, splat, splat_branch, light
-    new mesh, resolution or up    everything but background
+    new mesh or up                voxels, paint, pool, gather, voxel_branch, splat, splat_branch, light
+    new resolution                as a new mesh, and placement
     nothing                       none (the last image again)
 
 The voxel branch runs only around the object (models/cropped_encoder.py): the ground's
