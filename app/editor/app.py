@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from app.editor import edits, state
 from app.editor.document import Document
-from app.editor.jobs import BackgroundJob
+from app.editor.jobs import BackgroundJob, Progress
 from app.editor.orbit_view import HOME
 from app.editor.photo_capture import color_from_photo
 from app.editor.render_panel import LiveRender, RenderedFrame, export_render
@@ -50,7 +51,7 @@ class Prompt:
     title: str
     text: str
     choices: tuple[str, ...]
-    on_choice: object  # Callable[[str], None]
+    on_choice: Callable[[str], None]
 
 
 @dataclass
@@ -99,7 +100,7 @@ class EditorApp:
         self.quit_requested = False
         self.keep_recovery = True  # False once the user saved or discarded the changes on closing
         self._synced = -1  # document revision the viewport and render were last updated for
-        self._shown_rgba = None
+        self.shown_rgba = None  # the painted voxels the viewport shows (for picking)
         self._autosaved = document.revision
         self._autosave_time = time.monotonic()
         self._screenshots: list[Path] = []
@@ -113,7 +114,8 @@ class EditorApp:
         if error:
             print(f"nvr-editor: {text}", file=sys.stderr)
 
-    def ask(self, title: str, text: str, choices: tuple[str, ...], on_choice) -> None:
+    def ask(self, title: str, text: str, choices: tuple[str, ...], on_choice: Callable[[str], None]) -> None:
+        """Ask a question in a modal window; `on_choice` gets the chosen answer."""
         self.prompt = Prompt(title, text, choices, on_choice)
 
     def answer(self, choice: str) -> None:
@@ -147,7 +149,7 @@ class EditorApp:
     def scene(self) -> Scene:
         return self.doc.scene
 
-    def edit(self, make_scene, preview: bool = False) -> bool:
+    def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool:
         """Apply `make_scene(current scene)`: shown as a preview, or committed as one undo step."""
         try:
             scene = make_scene(self.doc.scene)
@@ -256,11 +258,9 @@ class EditorApp:
         """Recolor the object from a photo taken with a known camera (photo_camera.json format)."""
         scene = self.doc.history.current
 
-        def work(progress):
+        def work(_progress: Progress) -> Path:
             rgba, _ = self.voxels.painted(scene)
-            colored = color_from_photo(rgba, scene.object, photo, camera)
-            progress(0.9)
-            return state.save_capture(colored)
+            return state.save_capture(color_from_photo(rgba, scene.object, photo, camera))
 
         def done(capture: Path) -> None:
             def recolor(s: Scene) -> Scene:
@@ -271,7 +271,7 @@ class EditorApp:
 
         self._start_job(f"Coloring from {Path(photo).name}", work, done)
 
-    def _start_job(self, title: str, work, on_result) -> None:
+    def _start_job(self, title: str, work: Callable[[Progress], object], on_result: Callable[[object], None]) -> None:
         if self.job is not None and not self.job.done:
             self.say(f"busy: {self.job.title}", error=True)
             return
@@ -345,9 +345,9 @@ class EditorApp:
             self.say(str(exc), error=True)
             self._synced = self.doc.revision
             return
-        if rgba is not self._shown_rgba:
+        if rgba is not self.shown_rgba:
             self.viewport.set_voxels(rgba)
-            self._shown_rgba = rgba
+            self.shown_rgba = rgba
         self.live.submit(scene, preview=self.doc.previewing)
         self._synced = self.doc.revision
 

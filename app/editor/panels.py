@@ -48,7 +48,7 @@ class Interface:
         self.viewport_input = ViewportInput()
         self.underlay = None
         self._popup_title: str | None = None
-        self._dialogs = None  # a portable_file_dialogs dialog being shown, and what to do with its answer
+        self._file_dialog = None  # a portable_file_dialogs dialog being shown, and what to do with its answer
         self.has_file_dialogs = bool(shutil.which("zenity") or shutil.which("kdialog"))
 
     def draw(self) -> None:
@@ -256,20 +256,20 @@ class Interface:
         if not self.has_file_dialogs:
             return
         imgui.same_line()
-        if imgui.button(f"Browse##{key}") and self._dialogs is None:
+        if imgui.button(f"Browse##{key}") and self._file_dialog is None:
             from imgui_bundle import portable_file_dialogs as pfd
 
-            self._dialogs = (pfd.open_file(title, "", filters), field_name)
+            self._file_dialog = (pfd.open_file(title, "", filters), field_name)
 
     def _poll_file_dialog(self) -> None:
-        if self._dialogs is None:
+        if self._file_dialog is None:
             return
-        dialog, field_name = self._dialogs
+        dialog, field_name = self._file_dialog
         if dialog.ready(0):
             chosen = dialog.result()
             if chosen:
                 setattr(self.fields, field_name, chosen[0])
-            self._dialogs = None
+            self._file_dialog = None
 
     # --- status bar and questions -------------------------------------------------------
 

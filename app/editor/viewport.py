@@ -16,6 +16,7 @@ from app.editor.orbit_view import frustum_corners, view_projection
 from app.editor.voxel_faces import exposed_faces
 from renderer.camera import Camera
 from renderer.scene import FLOOR_HALF_SIZE, LIGHT_SIZE, OBJECT_SIZE, Scene
+from renderer.surface import grid_from_world
 from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
 
 BACKGROUND = (0.16, 0.17, 0.19)
@@ -122,10 +123,7 @@ class ViewportRenderer:
         self._ground_program = ctx.program(vertex_shader=_GROUND_VS, fragment_shader=_GROUND_FS)
         self._flat_program = ctx.program(vertex_shader=_FLAT_VS, fragment_shader=_FLAT_FS)
         self._corners = ctx.buffer(_QUAD_CORNERS.tobytes())
-        self._cells = ctx.buffer(reserve=16)
-        self._colors = ctx.buffer(reserve=12)
-        self._voxels_vao = None
-        self._instances = 0
+        self._face_groups: list[_FaceGroup] = []
         self._resolution = 1
         h, y = FLOOR_HALF_SIZE, GROUND_OFFSET
         ground = np.array([[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, -h], [h, y, h], [-h, y, h]], dtype=np.float32)
@@ -137,23 +135,19 @@ class ViewportRenderer:
         self._drawn = None  # what the framebuffer shows; an unchanged frame is not drawn again
 
     def set_voxels(self, rgba: np.ndarray) -> int:
-        """Upload the object's visible faces; returns how many quads there are."""
+        """Upload the object's visible faces, one group per face direction; returns how many quads there are."""
         cells, colors = exposed_faces(rgba)
         self._voxels_version += 1
         self._resolution = rgba.shape[0]
-        self._instances = len(cells)
-        if self._instances == 0:
-            return 0
-        self._cells.orphan(cells.nbytes)
-        self._cells.write(cells.tobytes())
-        self._colors.orphan(colors.nbytes)
-        self._colors.write(colors.tobytes())
-        self._voxels_vao = self.ctx.vertex_array(self._voxel_program, [
-            (self._corners, "2f", "corner"),
-            (self._cells, "4f/i", "cell"),
-            (self._colors, "3f/i", "color"),
-        ])
-        return self._instances
+        for group in self._face_groups:
+            group.release()
+        self._face_groups = []
+        for face in range(6):
+            mine = cells[:, 3] == face
+            if mine.any():
+                self._face_groups.append(_FaceGroup(self.ctx, self._voxel_program, self._corners, face,
+                                                    cells[mine], colors[mine]))
+        return len(cells)
 
     def draw(self, width: int, height: int, view: Camera, scene: Scene, floor_color, light_active: bool = False,
              picked_voxel: tuple[int, int, int] | None = None) -> moderngl.Framebuffer:
@@ -181,7 +175,7 @@ class ViewportRenderer:
         self._ground_program["light_position"].value = light
         self._ground_vao.render()
 
-        if self._voxels_vao is not None and self._instances:
+        if self._face_groups:
             placement = object_to_world(scene.object)
             p = self._voxel_program
             p["view_projection"].write(vp)
@@ -191,7 +185,10 @@ class ViewportRenderer:
             p["voxel_size"].value = OBJECT_SIZE / self._resolution
             p["box_min"].value = tuple(float(c) for c in OBJECT_BOX_MIN)
             p["light_position"].value = light
-            self._voxels_vao.render(moderngl.TRIANGLE_STRIP, instances=self._instances)
+            eye_grid = apply_transform(grid_from_world(placement, self._resolution), view.position)
+            for group in self._face_groups:
+                if group.may_face(eye_grid):
+                    group.vao.render(moderngl.TRIANGLE_STRIP, instances=group.count)
 
         self._flat_program["view_projection"].write(vp)
         self._draw_lines(_light_lines(scene), LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR)
@@ -232,6 +229,34 @@ class ViewportRenderer:
         self._lines.write(data.tobytes())
         self._flat_program["color"].value = tuple(0.5 * c + 0.5 for c in color)
         self._lines_vao.render(moderngl.TRIANGLES, vertices=6)
+
+
+class _FaceGroup:
+    """The exposed faces of one direction: their instance buffers, and the planes they lie on."""
+
+    def __init__(self, ctx: moderngl.Context, program: moderngl.Program, corners: moderngl.Buffer, face: int,
+                 cells: np.ndarray, colors: np.ndarray):
+        self.axis, self.positive = face // 2, face % 2 == 0
+        planes = cells[:, self.axis] + (1.0 if self.positive else 0.0)  # grid coordinate of each face's plane
+        self.bound = float(planes.min() if self.positive else planes.max())
+        self.count = len(cells)
+        self._buffers = (ctx.buffer(np.ascontiguousarray(cells).tobytes()), ctx.buffer(np.ascontiguousarray(colors).tobytes()))
+        self.vao = ctx.vertex_array(program, [(corners, "2f", "corner"), (self._buffers[0], "4f/i", "cell"),
+                                              (self._buffers[1], "3f/i", "color")])
+
+    def may_face(self, eye_grid: np.ndarray) -> bool:
+        """Whether any face of the group can turn its front to an eye at `eye_grid` (object grid coordinates).
+
+        A +x face on the plane x = c faces the eye only if the eye has x > c; so when the eye is
+        behind every plane of the group, none of its faces can be seen (about half of all faces).
+        """
+        e = float(eye_grid[self.axis])
+        return e > self.bound if self.positive else e < self.bound
+
+    def release(self) -> None:
+        self.vao.release()
+        for buffer in self._buffers:
+            buffer.release()
 
 
 def _gl_matrix(m: np.ndarray) -> bytes:

@@ -122,9 +122,9 @@ class ViewportInput:
     # --- picking --------------------------------------------------------------------------
 
     def _voxel_under(self, app, ray) -> tuple[int, int, int] | None:
-        if app.job is not None or app._shown_rgba is None:
+        if app.job is not None or app.shown_rgba is None:
             return None
-        return pick_voxel(occupancy(app._shown_rgba), app.scene.object, *ray)
+        return pick_voxel(occupancy(app.shown_rgba), app.scene.object, *ray)
 
     # --- the light ------------------------------------------------------------------------
 
