@@ -244,3 +244,18 @@ def test_captures_are_named_by_content_and_copied_beside_a_saved_scene(box_scene
     assert adopted.voxels_path() == (tmp_path / "out" / "mine.voxels.npz").resolve()
     np.testing.assert_array_equal(VoxelCache().object_rgba(adopted), rgba)
     assert state.adopt_capture(box_scene, tmp_path / "out" / "mine.json") is box_scene
+
+
+# --- the command line -----------------------------------------------------------------------------
+
+
+def test_bad_scene_or_replay_file_exits_2_with_one_line(tmp_path, capsys):
+    from app.editor.main import run
+
+    assert run([str(tmp_path / "missing.json"), "--frames", "1"]) == 2
+    assert capsys.readouterr().err.strip().endswith("missing.json: file not found")
+    replay = tmp_path / "replay.json"
+    replay.write_text('[{"action": "fly"}]')
+    assert run(["assets/demo/scene.json", "--frames", "1", "--replay", str(replay)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "unknown action 'fly'" in err and len(err.splitlines()) == 1

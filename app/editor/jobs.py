@@ -33,9 +33,6 @@ class BackgroundJob:
     def done(self) -> bool:
         return self._done.is_set()
 
-    def wait(self, timeout: float | None = None) -> bool:
-        return self._done.wait(timeout)
-
     def _report(self, fraction: float) -> None:
         self.progress = min(max(float(fraction), 0.0), 1.0)
 

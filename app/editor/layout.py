@@ -23,9 +23,6 @@ class Rect:
     width: int
     height: int
 
-    def contains(self, px: float, py: float) -> bool:
-        return self.x <= px < self.x + self.width and self.y <= py < self.y + self.height
-
 
 @dataclass(frozen=True)
 class Layout:

@@ -33,7 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default=None, help="NVR+ weights (.safetensors); default: the shipped model")
     p.add_argument("--frames", type=int, default=None, help="headless: draw at least N frames, then exit when idle")
     p.add_argument("--replay", default=None, help="JSON list of actions to perform (see app/editor/replay.py)")
-    p.add_argument("--screenshot", default=None, help="save the whole window as PNG before exiting")
+    p.add_argument("--screenshot", default=None, help="with --frames: save the whole window as PNG at the end")
     p.add_argument("--export", default=None, help="save the neural render as PNG before exiting")
     return p
 

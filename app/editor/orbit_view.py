@@ -7,7 +7,6 @@ the OpenGL clip transform for drawing.
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -77,7 +76,3 @@ def frustum_corners(camera: Camera, depth: float) -> np.ndarray:
     forward = -camera.camera_to_world()[:3, 2]
     along = directions @ forward  # cosine of each corner ray with the view axis
     return origin + directions * (depth / along)[:, None]
-
-
-def fov_y_deg(camera: Camera) -> float:
-    return math.degrees(2.0 * math.atan(0.5 * camera.height / camera.focal_px))

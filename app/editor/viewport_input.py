@@ -24,7 +24,7 @@ from renderer.scene import Scene
 from renderer.surface import occupancy
 
 LIGHT_HEIGHT_PER_PIXEL = 0.01
-ROTATE_KEYS = {imgui.Key.g: "grab", imgui.Key.r: "rotate", imgui.Key.s: "scale"}
+TRANSFORM_KEYS = {imgui.Key.g: "grab", imgui.Key.r: "rotate", imgui.Key.s: "scale"}
 AXIS_KEYS = {imgui.Key.x: 0, imgui.Key.y: 1, imgui.Key.z: 2}
 HINTS = {
     "grab": "Grab: move the mouse over the floor",
@@ -97,7 +97,7 @@ class ViewportInput:
                 self._start_light_drag(app, ray)
         io = imgui.get_io()
         if not io.want_text_input:
-            for key, kind in ROTATE_KEYS.items():
+            for key, kind in TRANSFORM_KEYS.items():
                 if imgui.is_key_pressed(key, False) and not io.key_ctrl:
                     self.transform = Transform(kind, app.doc.history.current, mouse)
 
