@@ -132,15 +132,6 @@ def share_of(region: np.ndarray, color: tuple[float, float, float]) -> float:
     return float(np.mean(close & (brightness[..., 0] > 0.2)))
 
 
-def downscale(region: np.ndarray, size: int) -> np.ndarray:
-    image = Image.fromarray((region * 255).round().astype(np.uint8)).resize((size, size), Image.Resampling.BOX)
-    return np.asarray(image, dtype=np.float64) / 255.0
-
-
-def load_png(path: Path) -> np.ndarray:
-    return np.asarray(Image.open(path).convert("RGB"), dtype=np.float64) / 255.0
-
-
 PANELS = layout_for(*WINDOW)
 
 
@@ -148,51 +139,45 @@ PANELS = layout_for(*WINDOW)
 
 
 @pytest.fixture(scope="module")
-def plain_run(display, tmp_path_factory, scene_file, model_file) -> tuple[Path, Path]:
-    """Screenshot and export of the editor opened on the box scene, untouched."""
-    tmp_path = tmp_path_factory.mktemp("plain")
-    shot, export = tmp_path / "window.png", tmp_path / "export.png"
-    run_editor(display, tmp_path, scene_file, None, "--model", str(model_file), "--screenshot", str(shot),
-               "--export", str(export))
-    return shot, export
-
-
-def test_window_shows_viewport_and_render_panel(plain_run):
-    shot, export = plain_run
-    viewport = pixels(shot, PANELS.viewport)
-    assert share_of(viewport, RED) > 0.005  # the box's red voxels, shaded
-    assert share_of(viewport, FloorSpec((0.5, 0.6, 0.7)).color) > 0.2  # the ground
-    shown = downscale(pixels(shot, PANELS.render_image), TINY.output_size)
-    assert np.abs(shown - load_png(export)).mean() < 0.03  # the panel shows the network's image
-
-
-def test_dragging_the_light_changes_the_render(display, tmp_path, scene_file, model_file):
-    before, after = tmp_path / "before.png", tmp_path / "after.png"
-    run_editor(display, tmp_path, scene_file, [
-        {"action": "screenshot", "path": str(before)},
+def edit_run(display, tmp_path_factory, scene_file, model_file) -> Path:
+    """One session on the box scene: drag the light, bucket-fill the red block green; screenshots between."""
+    out = tmp_path_factory.mktemp("edits")
+    run_editor(display, out, scene_file, [
+        {"action": "screenshot", "path": str(out / "start.png")},
         {"action": "drag_light", "to": [-1.5, 2.5, -1.0], "steps": 4},
-        {"action": "screenshot", "path": str(after)},
-        {"action": "save", "path": str(tmp_path / "moved.json")},
-    ], "--model", str(model_file))
-    assert load_scene(tmp_path / "moved.json").light.position == (-1.5, 2.5, -1.0)
+        {"action": "screenshot", "path": str(out / "lit.png")},
+        {"action": "save", "path": str(out / "lit.json")},
+        {"action": "paint", "voxel": [8, 5, 11], "color": list(GREEN), "tolerance": 0.05},
+        {"action": "screenshot", "path": str(out / "painted.png")},
+        {"action": "save", "path": str(out / "painted.json")},
+    ], "--model", str(model_file), "--screenshot", str(out / "final.png"), "--export", str(out / "export.png"))
+    return out
+
+
+def test_window_shows_viewport_and_render_panel(edit_run):
+    viewport = pixels(edit_run / "final.png", PANELS.viewport)
+    assert share_of(viewport, GREEN) > 0.005  # the box's painted voxels, shaded
+    assert share_of(viewport, FloorSpec((0.5, 0.6, 0.7)).color) > 0.2  # the ground
+    shown = pixels(edit_run / "final.png", PANELS.render_image)
+    export = Image.open(edit_run / "export.png").resize(shown.shape[1::-1], Image.Resampling.BILINEAR)  # as OpenGL magnifies
+    assert np.abs(shown - np.asarray(export) / 255.0).mean() < 0.005  # the panel shows the network's image
+
+
+def test_dragging_the_light_changes_the_render(edit_run):
+    assert load_scene(edit_run / "lit.json").light.position == (-1.5, 2.5, -1.0)
+    before, after = edit_run / "start.png", edit_run / "lit.png"
     change = np.abs(pixels(before, PANELS.render_image) - pixels(after, PANELS.render_image)).mean()
     assert change > 0.01
     viewport_change = np.abs(pixels(before, PANELS.viewport) - pixels(after, PANELS.viewport)).max(axis=-1)
     assert (viewport_change > 0.1).mean() > 0.002  # the light square moved
 
 
-def test_bucket_fill_changes_viewport_and_scene_file(display, tmp_path, scene_file, model_file):
-    before, after, saved = tmp_path / "before.png", tmp_path / "after.png", tmp_path / "painted.json"
-    run_editor(display, tmp_path, scene_file, [
-        {"action": "screenshot", "path": str(before)},
-        {"action": "paint", "voxel": [8, 5, 11], "color": list(GREEN), "tolerance": 0.05},
-        {"action": "screenshot", "path": str(after)},
-        {"action": "save", "path": str(saved)},
-    ], "--model", str(model_file))
-    assert share_of(pixels(before, PANELS.viewport), RED) > 0.005
-    assert share_of(pixels(after, PANELS.viewport), RED) < 0.0005
-    assert share_of(pixels(after, PANELS.viewport), GREEN) > 0.005
-    scene = load_scene(saved)
+def test_bucket_fill_changes_viewport_and_scene_file(edit_run, scene_file):
+    before, after = pixels(edit_run / "lit.png", PANELS.viewport), pixels(edit_run / "painted.png", PANELS.viewport)
+    assert share_of(before, RED) > 0.005
+    assert share_of(after, RED) < 0.0005
+    assert share_of(after, GREEN) > 0.005
+    scene = load_scene(edit_run / "painted.json")
     rgba, _ = painted_voxels(scene, object_voxels(scene))
     expected = load_voxels(scene_file.parent / "box.npz")  # the box as stored (colors rounded to 8 bits)
     expected[4:12, 0:10, 4:12, :3] = GREEN  # the red block is one connected region of one color
@@ -273,11 +258,11 @@ def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene
     assert abs(x) > 0.05 and z == 0.0  # X: along x only
 
 
-def test_export_equals_nvr_render(plain_run, tmp_path, scene_file, model_file):
-    mine, cli = plain_run[1], tmp_path / "cli.png"
-    subprocess.run([sys.executable, "-m", "app.cli", "render", str(scene_file), "--renderer", "nvr+", "--model",
-                    str(model_file), "-o", str(cli)], check=True, capture_output=True, timeout=120)
-    np.testing.assert_array_equal(np.asarray(Image.open(mine)), np.asarray(Image.open(cli)))
+def test_export_equals_nvr_render(edit_run, tmp_path, model_file):
+    cli = tmp_path / "cli.png"
+    subprocess.run([sys.executable, "-m", "app.cli", "render", str(edit_run / "painted.json"), "--renderer", "nvr+",
+                    "--model", str(model_file), "-o", str(cli)], check=True, capture_output=True, timeout=120)
+    np.testing.assert_array_equal(np.asarray(Image.open(edit_run / "export.png")), np.asarray(Image.open(cli)))
 
 
 def test_closing_asks_about_unsaved_changes_and_the_next_start_offers_them_back(display, tmp_path, scene_file,
