@@ -22,6 +22,7 @@ from PIL import Image
 
 from app.editor.layout import layout_for
 from app.editor.orbit_view import HOME, viewport_camera
+from app.editor.viewport_input import LIGHT_HEIGHT_PER_PIXEL
 from models.checkpoint import save_model
 from models.config import CompactConfig
 from models.nvr import build_model
@@ -234,6 +235,10 @@ def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene
         {"action": "mouse_move", "pos": target},
         {"action": "mouse_up", "button": 0},
         {"action": "save", "path": str(tmp_path / "light.json")},
+        {"action": "mouse_down", "button": 0, "mods": ["shift"]},  # Shift + drag: height only
+        {"action": "mouse_move", "pos": [target[0] + 30, target[1] - 20]},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "raised.json")},
         {"action": "tool", "name": "paint"},
         {"action": "mouse_move", "pos": screen_position(front)},
         {"action": "mouse_down", "button": 0},
@@ -251,6 +256,9 @@ def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene
     moved = load_scene(tmp_path / "light.json").light.position
     assert moved[1] == scene.light.position[1]
     np.testing.assert_allclose(screen_position(moved), target, atol=1.5)
+    raised = load_scene(tmp_path / "raised.json").light.position
+    assert raised[0] == moved[0] and raised[2] == moved[2]
+    assert raised[1] == pytest.approx(moved[1] + 20 * LIGHT_HEIGHT_PER_PIXEL)  # 20 pixels up
     painted = load_scene(tmp_path / "painted.json").paint
     assert len(painted) == 1 and painted[0].target == "region"
     assert painted[0].seed[2] == 11 and 4 <= painted[0].seed[0] < 12 and painted[0].seed[1] < 10  # the red front face

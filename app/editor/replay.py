@@ -12,9 +12,11 @@ High-level actions call the same commands as the interface:
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
     {"action": "close"}                                       as the window's close button
-Raw input goes through the window backend's own event handlers, as real input does:
+Raw input goes through the window backend's own event handlers, as real input does (mouse
+buttons and modifiers go to ImGui's input queue directly, see _mouse_button):
     {"action": "mouse_move", "pos": [x, y]}   window pixels
-    {"action": "mouse_down", "button": 0} {"action": "mouse_up", "button": 0}   0 left, 1 right, 2 middle
+    {"action": "mouse_down", "button": 0, "mods": ["shift"]} {"action": "mouse_up", "button": 0}
+                                              buttons 0 left, 1 right, 2 middle; mods held until mouse_up
     {"action": "scroll", "dy": 1}
     {"action": "key", "key": "g", "mods": ["ctrl", "shift"]}   press and release
 Before each action the replay waits until the editor is idle (jobs done, render up to date),
@@ -145,9 +147,21 @@ def _mouse_move(app, action) -> None:
 
 
 def _mouse_button(down: bool):
+    """A button event; mouse_down's "mods" (e.g. ["shift"]) are held until mouse_up.
+
+    ImGui's glfw backend reads modifiers from the real keyboard (glfwGetKey) on every button
+    event, which a replay cannot press; so buttons and modifiers go to ImGui's input queue
+    directly, modifiers first so both arrive in the same frame.
+    """
     def run(app, action) -> None:
-        imgui.backends.glfw_mouse_button_callback(_window(app), int(action.get("button", 0)),
-                                                  glfw.PRESS if down else glfw.RELEASE, 0)
+        io = imgui.get_io()
+        if down:
+            for m in action.get("mods", []):
+                io.add_key_event(MODIFIER_IMGUI[str(m).lower()], True)
+        io.add_mouse_button_event(int(action.get("button", 0)), down)
+        if not down:
+            for key in MODIFIER_IMGUI.values():
+                io.add_key_event(key, False)
     return run
 
 
@@ -156,11 +170,7 @@ def _scroll(app, action) -> None:
 
 
 def _key(app, action) -> Iterator[None]:
-    """Press the modifiers and the key in one frame, release them in the next.
-
-    ImGui's glfw backend reads the modifier state from glfwGetKey (the real keyboard) on every
-    key event, so the pressed modifiers are sent to ImGui after the key, directly.
-    """
+    """Press the modifiers and the key in one frame, release them in the next."""
     name = str(action["key"]).upper()
     key = getattr(glfw, f"KEY_{name}", None)
     if key is None:
@@ -171,7 +181,7 @@ def _key(app, action) -> Iterator[None]:
     for m in mods:
         imgui.backends.glfw_key_callback(window, MODIFIER_KEYS[m], 0, glfw.PRESS, bits)
     imgui.backends.glfw_key_callback(window, key, 0, glfw.PRESS, bits)
-    for m in mods:
+    for m in mods:  # the backend read the modifiers from the real keyboard: tell ImGui they are down
         imgui.get_io().add_key_event(MODIFIER_IMGUI[m], True)
     yield
     imgui.backends.glfw_key_callback(window, key, 0, glfw.RELEASE, bits)
