@@ -8,7 +8,9 @@ so a drag never queues up stale frames.
 
 from __future__ import annotations
 
+import os
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +27,7 @@ from renderer.scene import Scene
 from renderer.splat import splat_scene
 
 NO_MODEL_LABEL = "no trained model: showing splat"
+RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,38 @@ class SplatEngine:
         return self.render(scene, preview=True)
 
 
+class LowPriority:
+    """An engine whose renders run below the interface's CPU priority, so rendering never starves the UI.
+
+    The first render lowers the calling thread's priority (Linux: per-thread nice); the OpenMP
+    threads torch starts from that thread inherit it. Elsewhere this is a plain pass-through.
+    """
+
+    def __init__(self, engine):
+        self._engine = engine
+        self._lowered = False
+
+    @property
+    def last_report(self):
+        return self._engine.last_report
+
+    def render(self, scene: Scene) -> np.ndarray:
+        self._lower()
+        return self._engine.render(scene)
+
+    def preview(self, scene: Scene) -> np.ndarray:
+        self._lower()
+        return self._engine.preview(scene)
+
+    def _lower(self) -> None:
+        if not self._lowered:
+            self._lowered = True
+            try:
+                os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), RENDER_NICENESS)
+            except (AttributeError, OSError):
+                pass  # not Linux, or not allowed: render at normal priority
+
+
 class LiveRender:
     """Submits scenes to a worker thread and hands each newly finished frame to the UI once."""
 
@@ -69,7 +104,7 @@ class LiveRender:
             self.label = NO_MODEL_LABEL
             self.device = "cpu (splatting)"
             print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
-        self._renderer = AsyncRenderer(self.engine)
+        self._renderer = AsyncRenderer(LowPriority(self.engine))
         self._scenes: dict[int, Scene] = {}  # submitted and not yet handed out, by sequence number
         self._handed = 0
         self.error: str | None = None
