@@ -61,6 +61,7 @@ class FrameStats:
 
     wall: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
     work: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
+    renders: list[float] = field(default_factory=list)  # seconds each shown render took
 
     def add(self, wall_seconds: float, work_seconds: float, rendering: bool) -> None:
         self.wall[rendering].append(wall_seconds)
@@ -73,6 +74,9 @@ class FrameStats:
             if wall:
                 parts.append(f"{name}: {len(wall) / sum(wall):.1f} fps over {len(wall)} frames "
                              f"({1000.0 * sum(work) / len(work):.1f} ms of work per frame)")
+        if self.renders:
+            parts.append(f"render median {1000.0 * sorted(self.renders)[len(self.renders) // 2]:.0f} ms "
+                         f"over {len(self.renders)} renders")
         return "UI " + "; ".join(parts)
 
 
@@ -325,6 +329,7 @@ class EditorApp:
         frame = self.live.poll()
         if frame is not None:
             self.shown_frame = frame
+            self.stats.renders.append(frame.seconds)
             self.render_texture = upload_image(self.window.ctx, self.render_texture, frame.image)
         if self.live.error:
             self.say(self.live.error, error=True)
