@@ -126,6 +126,11 @@ class Interface:
         inputs.update(app, (mouse.x - origin.x, mouse.y - origin.y), (w, h), hovered)
         imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
         imgui.text_colored(GRAY, inputs.hint)
+        if inputs.hovered_voxel is not None:  # the bucket cursor: the color a click would pour
+            draw = imgui.get_window_draw_list()
+            color = imgui.get_color_u32(imgui.ImVec4(*app.paint_color, 1.0))
+            draw.add_circle_filled(imgui.ImVec2(mouse.x + 12, mouse.y + 12), 7.0, color)
+            draw.add_circle(imgui.ImVec2(mouse.x + 12, mouse.y + 12), 7.0, imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1)))
         if app.job is not None:
             imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + h - 34))
             imgui.progress_bar(app.job.progress, imgui.ImVec2(min(360, w - 16), 0), f"{app.job.title} {app.job.progress:.0%}")
