@@ -14,9 +14,14 @@ $(STAMP): setup.cfg pyproject.toml
 
 install: $(STAMP)
 
+# The editor on the demo scene; without a display, the same scene rendered by NVR+ to out/demo.png.
 run: $(STAMP)
-	mkdir -p out
-	$(VENV)/bin/nvr render assets/demo/scene.json -o out/demo.png --force
+	@if [ -n "$$DISPLAY" ] || [ -n "$$WAYLAND_DISPLAY" ]; then \
+		$(VENV)/bin/nvr-editor assets/demo/scene.json; \
+	else \
+		echo "no display: rendering the demo scene with NVR+ instead of opening the editor"; \
+		mkdir -p out && $(VENV)/bin/nvr render assets/demo/scene.json -o out/demo.png --renderer nvr+ --force; \
+	fi
 
 test: $(STAMP)
 	$(PY) -m pytest -q tests

