@@ -19,13 +19,7 @@ TINY_PAPER = PaperConfig(grid_size=16, output_size=32, voxel_channels=(4, 4, 4, 
                          light_channels=8, decoder_channels=(8, 8, 8), splat_channels=8, unet_channels=(8, 8, 16))
 
 
-@pytest.fixture(autouse=True)
-def single_thread():
-    """Tiny tensors: one thread avoids OpenMP barrier stalls when other processes share the CPU."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("single_thread")  # see tests/conftest.py
 
 
 def trained_looking(arch: str, config) -> NVR | NVRPlus:

@@ -22,13 +22,7 @@ CONFIGS = {"paper": TINY_PAPER, "compact": TINY_COMPACT}
 CASES = [(name, arch) for name in CONFIGS for arch in ("nvr", "nvr_plus")]
 
 
-@pytest.fixture(autouse=True)
-def single_thread():
-    """Tiny tensors: one thread avoids OpenMP barrier stalls when other processes share the CPU."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("single_thread")  # see tests/conftest.py
 
 
 def make_inputs(config: NVRConfig, batch: int = 2, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
