@@ -54,29 +54,30 @@ def _corners(dim: int) -> np.ndarray:
     return np.array(list(itertools.product((0, 1), repeat=dim)), dtype=np.int64)
 
 
-def value_noise(lattice: Lattice, points: np.ndarray) -> np.ndarray:
-    """Smoothly interpolated random values at the lattice cells, in [0, 1]."""
+def _blend_corners(points: np.ndarray, corner_value) -> np.ndarray:
+    """Sum over the lattice cell's corners of smooth weights times corner_value(corner, cell, frac)."""
     cell = np.floor(points).astype(np.int64)
     frac = points - cell
     w = _fade(frac)
     total = np.zeros(points.shape[0])
     for corner in _corners(points.shape[1]):
         weight = np.prod(np.where(corner == 1, w, 1.0 - w), axis=1)
-        total += weight * lattice.values[lattice.hash(cell + corner)]
+        total += weight * corner_value(corner, cell, frac)
     return total
+
+
+def value_noise(lattice: Lattice, points: np.ndarray) -> np.ndarray:
+    """Smoothly interpolated random values at the lattice cells, in [0, 1]."""
+    return _blend_corners(points, lambda corner, cell, frac: lattice.values[lattice.hash(cell + corner)])
 
 
 def gradient_noise(lattice: Lattice, points: np.ndarray) -> np.ndarray:
     """Perlin-style noise: random gradients at lattice cells, blended; mapped to [0, 1] around 0.5."""
-    cell = np.floor(points).astype(np.int64)
-    frac = points - cell
-    w = _fade(frac)
-    total = np.zeros(points.shape[0])
-    for corner in _corners(points.shape[1]):
-        weight = np.prod(np.where(corner == 1, w, 1.0 - w), axis=1)
-        grad = lattice.gradients[lattice.hash(cell + corner)]
-        total += weight * np.sum(grad * (frac - corner), axis=1)
-    return np.clip(0.5 + total, 0.0, 1.0)
+
+    def corner_value(corner, cell, frac):
+        return np.sum(lattice.gradients[lattice.hash(cell + corner)] * (frac - corner), axis=1)
+
+    return np.clip(0.5 + _blend_corners(points, corner_value), 0.0, 1.0)
 
 
 def fractal(
