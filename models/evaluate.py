@@ -51,13 +51,14 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     """Compute MSE, DSSIM and perceptual per setting; write the report and figure; return the report path."""
     report = Path(report)
     model, config, extra = _load_renderer(model_path, renderer)
+    metrics = ImageMetrics()
     started = time.perf_counter()
-    scores, rows, count = _score(data, model, config, renderer, limit)
+    scores, rows, count = _score(data, model, config, renderer, metrics, limit)
     seconds = time.perf_counter() - started
     figure = report.with_suffix(".png")
     if rows:
         save_png(figure, torch.cat(rows, dim=1).permute(1, 2, 0).numpy())
-    _write_report(report, figure, renderer, model_path, extra, scores, ImageMetrics().perceptual.weights_name,
+    _write_report(report, figure, renderer, model_path, extra, scores, metrics.perceptual.weights_name,
                   count, seconds, data)
     return report
 
@@ -71,8 +72,9 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
              f"- model: {model_path or 'shipped'}; data: {', '.join(map(str, data))}",
              "- object voxels block-downsampled from the data set's resolution (renderer.voxels.downsample_voxels)",
              "", "| object voxels | samples | MSE (0-255) | DSSIM | perceptual |", "|---:|---:|---:|---:|---:|"]
+    metrics = ImageMetrics()
     for resolution in resolutions:
-        scores, _, count = _score(data, model, config, renderer, limit, object_resolution=resolution)
+        scores, _, count = _score(data, model, config, renderer, metrics, limit, object_resolution=resolution)
         values = [v for per_setting in scores.values() for v in per_setting]
         mean = {k: float(np.mean([v[k] for v in values])) for k in values[0]}
         lines.append(f"| {resolution}^3 | {count} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} |")
@@ -81,11 +83,11 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
     return report
 
 
-def _score(data: list[str], model, config, renderer: str, limit: int, object_resolution: int | None = None):
+def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics, limit: int,
+           object_resolution: int | None = None):
     """Per-setting metric lists, the first figure rows, and the sample count."""
     grid_size = 8 if config is None else config.grid_size  # the splat baseline reads no voxels
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution)
-    metrics = ImageMetrics()
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
     rows = []
