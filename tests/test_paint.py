@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from renderer.errors import InputError
-from renderer.paint import apply_paint, fill_object, fill_region
+from renderer.paint import apply_paint, fill_object, fill_region, occupied_voxels
 from renderer.scene import PaintOp
 
 GRAY, NEAR_GRAY, RED = (0.5, 0.5, 0.5), (0.55, 0.5, 0.5), (1.0, 0.0, 0.0)
@@ -83,3 +83,36 @@ def test_apply_paint_replays_in_order():
     np.testing.assert_array_equal(out[5:8, 6, 6, :3], np.tile(blue, (3, 1)))
     np.testing.assert_array_equal(out[0:2, 0:2, 0:3, :3].reshape(-1, 3), np.tile(RED, (12, 1)))
     assert apply_paint(rgba, (0.1, 0.2, 0.3), [])[1] == (0.1, 0.2, 0.3)
+
+
+def flood_fill(rgba: np.ndarray, seed: tuple[int, int, int], tolerance: float) -> set[tuple[int, ...]]:
+    """The region by a plain breadth-first walk over face neighbours (independent of renderer/paint.py)."""
+    reference = rgba[seed][:3]
+    region, frontier = {seed}, [seed]
+    while frontier:
+        voxel = frontier.pop()
+        for axis in range(3):
+            for step in (-1, 1):
+                near = list(voxel)
+                near[axis] += step
+                near = tuple(near)
+                if (near not in region and all(0 <= i < n for i, n in zip(near, rgba.shape))
+                        and rgba[near][3] >= 0.5 and np.abs(rgba[near][:3] - reference).max() <= tolerance + 1e-6):
+                    region.add(near)
+                    frontier.append(near)
+    return region
+
+
+@pytest.mark.parametrize("trial", range(20))
+def test_fill_equals_a_flood_fill_on_random_grids_with_and_without_kept_occupancy(trial):
+    rng = np.random.default_rng(trial)
+    rgba = np.zeros((7, 7, 7, 4), np.float32)
+    occupied = rng.random((7, 7, 7)) < rng.uniform(0.2, 0.8)
+    rgba[occupied, 3] = 1.0
+    rgba[occupied, :3] = rng.choice([0.0, 0.3, 0.32, 1.0], size=(occupied.sum(), 3))
+    seed = tuple(int(i) for i in np.argwhere(occupied)[rng.integers(occupied.sum())])
+    tolerance = float(rng.choice([0.0, 0.02, 0.5]))
+    expected = flood_fill(rgba, seed, tolerance)
+    assert painted(rgba, fill_region(rgba, seed, GRAY, tolerance)) == expected  # gray is none of the grid's colors
+    kept = occupied_voxels(rgba)
+    np.testing.assert_array_equal(fill_region(rgba, seed, RED, tolerance, kept), fill_region(rgba, seed, RED, tolerance))
