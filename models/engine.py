@@ -5,8 +5,9 @@ convolutions on oneDNN). Every stage keeps its last result with the exact scene 
 computed from, and reruns only when those change:
 
     stage         depends on                                              result
-    voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3
-    paint         voxels, object color, region/object paint strokes       painted object voxels
+    voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/paint_replay.py)
+    paint         voxels, object color, region/object paint strokes       painted object voxels (from the
+                                                                          longest stroke list painted before)
     pool          paint, merge factors (resolution, scale)                merged voxels
     placement     resolution, merge factors, translation, rotation,       grid row of every voxel, object's crop
                   scale, camera elevation
@@ -65,9 +66,10 @@ from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # 
 from models.inference import prepare_for_inference  # noqa: E402
 from models.nvr import NVR, NVRPlus, light_to_network  # noqa: E402
 from models.onednn import use_onednn_convolutions  # noqa: E402
+from models.paint_replay import PaintReplay  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
 from renderer.grid import gather, grid_index_to_world, pool_factors, pool_voxels, sample_indices, voxel_table  # noqa: E402
-from renderer.paint import apply_paint, fill_object  # noqa: E402
+from renderer.paint import apply_paint  # noqa: E402
 from renderer.pipeline import object_voxels  # noqa: E402
 from renderer.scene import MAX_ABS_POSITION, MIN_RESOLUTION, ObjectSpec, Scene  # noqa: E402
 from renderer.splat import splat_scene  # noqa: E402
@@ -187,10 +189,10 @@ class RenderEngine:
         """Painted object voxels, the floor color after floor strokes, and the paint stage's key."""
         source = _voxel_source(scene)
         plain = replace(scene, object=replace(scene.object, color=None))  # the base color is painted below
-        rgba = self._stage("voxels", source, lambda: object_voxels(plain))
+        replay = self._stage("voxels", source, lambda: PaintReplay(object_voxels(plain)))
         strokes = tuple(op for op in scene.paint if op.target != "floor")
         paint_key = (source, scene.object.color, strokes)
-        painted = self._stage("paint", paint_key, lambda: _paint_object(rgba, scene.object.color, strokes))
+        painted = self._stage("paint", paint_key, lambda: replay.painted(scene.object.color, strokes))
         _, floor = apply_paint(painted, scene.floor.color, [op for op in scene.paint if op.target == "floor"])
         return painted, tuple(floor), paint_key
 
@@ -308,12 +310,6 @@ def _file_stamp(path: Path) -> tuple:
     except OSError:
         return (str(path), None, None)  # the loader reports the missing file
     return (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
-
-
-def _paint_object(rgba: np.ndarray, color: tuple[float, float, float] | None, strokes: tuple) -> np.ndarray:
-    base = rgba if color is None else fill_object(rgba, color)
-    painted, _ = apply_paint(base, (0.0, 0.0, 0.0), strokes)
-    return painted
 
 
 def _grid_tensor(grid: np.ndarray) -> torch.Tensor:

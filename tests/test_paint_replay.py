@@ -1,0 +1,71 @@
+"""The engine's paint replay (models/paint_replay.py): painting from a kept stroke list equals painting from scratch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import models.paint_replay as paint_replay
+from models.paint_replay import PaintReplay
+from renderer.paint import apply_paint, fill_object
+from renderer.scene import PaintOp
+
+RED, GREEN, BLUE = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+
+
+def two_blobs() -> np.ndarray:
+    """A 6^3 grid: a gray 2x2x2 cube at the corner and a gray bar apart from it."""
+    rgba = np.zeros((6, 6, 6, 4), np.float32)
+    rgba[0:2, 0:2, 0:2] = (0.5, 0.5, 0.5, 1.0)
+    rgba[4, 1:5, 4] = (0.5, 0.5, 0.5, 1.0)
+    return rgba
+
+
+def from_scratch(rgba: np.ndarray, color, strokes) -> np.ndarray:
+    base = rgba if color is None else fill_object(rgba, color)
+    return apply_paint(base, (0.0, 0.0, 0.0), strokes)[0]
+
+
+@pytest.fixture
+def fills(monkeypatch) -> list:
+    """Records the strokes the replay paints."""
+    painted = []
+
+    def counting(rgba, floor, ops, occupied=None):
+        painted.extend(ops)
+        return apply_paint(rgba, floor, ops, occupied)
+
+    monkeypatch.setattr(paint_replay, "apply_paint", counting)
+    return painted
+
+
+def test_each_step_equals_a_replay_from_scratch_and_paints_at_most_one_stroke(fills):
+    rgba = two_blobs()
+    replay = PaintReplay(rgba)
+    corner = PaintOp("region", RED, seed=(0, 0, 0))
+    bar = PaintOp("region", GREEN, seed=(4, 2, 4))
+    recolored_bar = PaintOp("region", BLUE, seed=(4, 2, 4))
+    steps = [  # (object color, strokes, strokes the replay must paint)
+        (None, (corner,), [corner]),
+        (None, (corner, bar), [bar]),  # a new stroke
+        (None, (corner, recolored_bar), [recolored_bar]),  # the last stroke changed
+        (None, (corner,), []),  # undo
+        (None, (corner, bar), []),  # redo of a list still kept
+        ((0.2, 0.2, 0.2), (corner,), [corner]),  # a new base color repaints
+    ]
+    for color, strokes, expected in steps:
+        fills.clear()
+        out = replay.painted(color, strokes)
+        assert fills == expected
+        np.testing.assert_array_equal(out, from_scratch(rgba, color, strokes))
+    corner_after_bar = replay.painted(None, (corner, recolored_bar))
+    assert tuple(corner_after_bar[4, 2, 4, :3]) == BLUE and tuple(corner_after_bar[0, 0, 0, :3]) == RED
+    np.testing.assert_array_equal(rgba, two_blobs())  # the unpainted voxels are never changed
+
+
+def test_no_strokes_is_the_base_color_or_the_voxels_themselves():
+    rgba = two_blobs()
+    replay = PaintReplay(rgba)
+    assert replay.painted(None, ()) is rgba
+    red = replay.painted(RED, ())
+    assert tuple(red[4, 1, 4, :3]) == RED and not red[3, 3, 3].any()  # occupied voxels only
