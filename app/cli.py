@@ -93,6 +93,40 @@ def cmd_voxelize(args: argparse.Namespace) -> None:
     print(f"wrote {out} ({args.res}^3 voxels, {occupied} occupied, from {len(mesh.faces)} faces)")
 
 
+def cmd_capture(args: argparse.Namespace) -> None:
+    from renderer.capture.capture import capture_appearance, captured_scene
+    from renderer.capture.pose import load_pose, save_pose
+    from renderer.io import load_image
+    from renderer.mesh import load_mesh, normalise_mesh
+    from renderer.scene import save_scene
+    from renderer.voxels import save_voxels, voxelize
+
+    scene_out = _output_path(args.output, args.force)
+    stem = scene_out.with_suffix("")
+    voxels_out = _output_path(f"{stem}_colors.npz", args.force)
+    camera_out = _output_path(f"{stem}_camera.json", args.force)
+    mesh = normalise_mesh(load_mesh(args.mesh, up=args.up))
+    photo, alpha = load_image(args.photo)
+    pose = None if args.camera is None else load_pose(args.camera)
+    search = args.auto or pose is None
+    rgba = voxelize(mesh, resolution=args.res)
+    captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo)
+    save_voxels(voxels_out, captured.rgba)
+    save_pose(camera_out, captured.pose)
+    save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
+    p = captured.pose
+    how = "camera file" if captured.alignment is None else (
+        f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s")
+    print(f"pose ({how}): rotation {p.rotation_deg:.1f} deg, elevation {p.camera.elevation_deg:.1f} deg, "
+          f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}")
+    seen = int(captured.visible.sum())
+    occupied = int((captured.rgba[..., 3] > 0.5).sum())
+    mirror = "used" if captured.mirror_used else "not used"
+    print(f"colors: {seen} of {occupied} voxels seen in the photo; mirror copy {mirror} "
+          f"(symmetry IoU {captured.mirror_score:.2f})")
+    print(f"wrote {scene_out}, {voxels_out}, {camera_out}")
+
+
 def cmd_info(args: argparse.Namespace) -> None:
     from renderer.pipeline import object_voxels, painted_voxels, scene_grid_for
     from renderer.scene import load_scene, range_warnings
@@ -227,6 +261,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.set_defaults(func=cmd_voxelize)
+
+    p = sub.add_parser("capture", help="capture an object's appearance from a photo into a scene")
+    p.add_argument("mesh", help="the object's mesh (OBJ, PLY, STL, OFF, GLB or GLTF)")
+    p.add_argument("photo", help="a photo of the object (PNG or JPEG; alpha marks the object if present)")
+    p.add_argument("--camera", default=None, help="the photo's camera file (JSON); without --auto it is used as is")
+    p.add_argument("--auto", action="store_true",
+                   help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
+    p.add_argument("--res", type=int, default=100, help="object voxels per side (default 100)")
+    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")
+    p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
+    p.set_defaults(func=cmd_capture)
 
     data = sub.add_parser("data", help="make training and test sets").add_subparsers(dest="data_command", required=True)
     p = data.add_parser("generate", help="render objects and views after the paper's protocol")

@@ -67,7 +67,7 @@ class PathTracer:
     Mitsuba's AOV integrator doubled its cost.
     """
 
-    def __init__(self, scene: Scene, mesh: trimesh.Trimesh, size: int | None = None):
+    def __init__(self, scene: Scene, mesh: trimesh.Trimesh, size: int | None = None, floor: bool = True):
         if size is not None and not MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE:
             raise InputError(f"image size must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {size}")
         start = time.perf_counter()
@@ -75,7 +75,7 @@ class PathTracer:
         import mitsuba as mi
 
         self.camera = Camera.from_scene(scene, size)
-        self._scene = mi.load_dict(_scene_dict(scene, mesh, self.camera))
+        self._scene = mi.load_dict(_scene_dict(scene, mesh, self.camera, floor))
         self._guide_integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,normal:sh_normal"})
         self.setup_seconds = time.perf_counter() - start
 
@@ -120,9 +120,9 @@ class PathTracer:
 
 
 def render_pathtraced(scene: Scene, mesh: trimesh.Trimesh, size: int | None = None, spp: int = 64,
-                      seed: int = 0, denoise: bool = False) -> PathtraceResult:
+                      seed: int = 0, denoise: bool = False, floor: bool = True) -> PathtraceResult:
     """Path trace one image of `scene` with `mesh` (object coordinates) as its object."""
-    return PathTracer(scene, mesh, size).render(spp, seed, denoise)
+    return PathTracer(scene, mesh, size, floor).render(spp, seed, denoise)
 
 
 def sample_passes(spp: int, pixels: int, max_samples: int = MAX_SAMPLES_PER_PASS) -> list[int]:
@@ -147,16 +147,19 @@ def denoise_layers(layers: RenderLayers) -> np.ndarray:
 # --- the Mitsuba scene ----------------------------------------------------------------------
 
 
-def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera) -> dict:
-    return {
+def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera, floor: bool = True) -> dict:
+    """The Mitsuba scene; without `floor` the object floats in the ambient light (a studio photo's plain backdrop)."""
+    parts = {
         "type": "scene",
         "integrator": _path_integrator(),
         "sensor": _sensor(camera),
         "ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [AMBIENT_RADIANCE] * 3}},
         "light": _light(scene.light.position),
-        "floor": _floor(scene.floor.color),
         **object_shapes(scene, mesh),
     }
+    if floor:
+        parts["floor"] = _floor(scene.floor.color)
+    return parts
 
 
 def _path_integrator() -> dict:

@@ -1,0 +1,231 @@
+"""Find the pose of a photo: the object rotation, camera elevation, floor position and scale whose
+rendered silhouette best overlaps the object's mask in the photo (intersection over union).
+
+1. Coarse: every rotation and elevation on a grid (or a window around a given pose), each
+   silhouette compared with the photo's mask after matching their centroids and sizes, so the
+   grid need not cover position and scale.
+2. The best few distinct candidates get a position and scale that put their silhouette's
+   centroid and area where the photo's are (a few Gauss-Newton steps).
+3. Local refinement of all five numbers by compass search on the IoU: try a step up and
+   down in each, keep what improves, halve the steps when nothing does.
+All of it at a reduced photo size; the result is the pose at the photo's own size.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from renderer.camera import Camera
+from renderer.capture.pose import PhotoPose
+from renderer.capture.silhouette import SilhouetteRenderer
+
+COARSE_SIDE = 64  # long side of the masks compared in the coarse search, pixels
+REFINE_SIDE = 160  # ... and in the refinement
+CANONICAL_SIDE = 48  # side of the centroid-and-size normalised frame of the coarse comparison
+CANONICAL_REACH = 3.0  # the normalised frame spans +-3 square roots of the mask's area
+FULL_ROTATIONS = np.arange(-180.0, 180.0, 10.0)
+FULL_ELEVATIONS = np.arange(0.0, 81.0, 5.0)
+WINDOW_ROTATION_DEG = 40.0  # coarse window around a given pose
+WINDOW_ELEVATION_DEG = 30.0
+WINDOW_STEP_DEG = 5.0
+MAX_ELEVATION_DEG = 85.0
+CANDIDATES = 6  # distinct coarse poses refined
+FINALISTS = 2  # candidates refined to the end
+DISTINCT_ROTATION_DEG = 25.0
+DISTINCT_ELEVATION_DEG = 15.0
+# Parameters: rotation (deg), elevation (deg), translation x, z (object units), log of the scale factor.
+INITIAL_STEPS = np.array([6.0, 4.0, 0.03, 0.05, 0.05])
+FINAL_STEPS = np.array([0.25, 0.25, 0.002, 0.003, 0.003])
+EARLY_HALVINGS = 2  # compass halvings every candidate gets before the finalists are chosen
+
+
+@dataclass(frozen=True)
+class Alignment:
+    pose: PhotoPose  # at the photo's size
+    iou: float  # silhouette overlap at the refinement size
+    rays: int  # silhouette rays cast
+    seconds: float
+
+
+def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial: PhotoPose | None = None,
+               camera: Camera | None = None) -> Alignment:
+    """The pose whose silhouette best overlaps `photo_mask` ((H, W) bool).
+
+    `initial`: a rough pose to start from (searches a window around it); None searches all
+    rotations and elevations. `camera`: the photo's camera model (distance, focal length) when
+    there is no initial pose; the scene camera by default.
+    """
+    start = time.perf_counter()
+    rays_before = silhouettes.rays_cast
+    h, w = photo_mask.shape
+    base = initial if initial is not None else PhotoPose(camera or Camera(elevation_deg=0.0, width=w, height=h))
+    base = base.at_size(w, h)
+    coarse = _Problem(silhouettes, _resize_mask(photo_mask, COARSE_SIDE), base)
+    fine = _Problem(silhouettes, _resize_mask(photo_mask, REFINE_SIDE), base)
+
+    candidates = _coarse_candidates(coarse, initial)
+    refined = []
+    for params in candidates:
+        params = fine.place(params)
+        refined.append(fine.compass(params, INITIAL_STEPS, INITIAL_STEPS / 2**EARLY_HALVINGS))
+    refined.sort(key=lambda item: -item[1])
+    finals = [fine.compass(params, INITIAL_STEPS / 2**EARLY_HALVINGS, FINAL_STEPS) for params, _ in refined[:FINALISTS]]
+    best_params, best_iou = max(finals, key=lambda item: item[1])
+    pose = fine.pose(best_params).at_size(w, h)
+    return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start)
+
+
+def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
+    """Intersection over union of two boolean masks (1 when both are empty)."""
+    union = np.count_nonzero(a | b)
+    return 1.0 if union == 0 else np.count_nonzero(a & b) / union
+
+
+def rotation_error_deg(a: float, b: float) -> float:
+    """Smallest angle between two rotations about the vertical axis, in [0, 180]."""
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+class _Problem:
+    """The photo's mask at one size and the silhouettes to compare with it, as a function of 5 numbers."""
+
+    def __init__(self, silhouettes: SilhouetteRenderer, target: np.ndarray, base: PhotoPose):
+        self.silhouettes = silhouettes
+        self.target = target
+        h, w = target.shape
+        self.base = base.at_size(w, h)
+        self.target_moments = _moments(target)
+
+    def pose(self, params: np.ndarray) -> PhotoPose:
+        rotation, elevation, tx, tz, log_scale = params
+        factor = math.exp(log_scale)
+        return replace(self.base, camera=replace(self.base.camera, elevation_deg=float(elevation)),
+                       rotation_deg=float(rotation), translation=(float(tx), float(tz)),
+                       scale=tuple(float(s * factor) for s in self.base.scale))
+
+    def mask(self, params: np.ndarray) -> np.ndarray:
+        return self.silhouettes.mask(self.pose(params))
+
+    def iou(self, params: np.ndarray) -> float:
+        return silhouette_iou(self.mask(params), self.target)
+
+    def place(self, params: np.ndarray, iterations: int = 3) -> np.ndarray:
+        """Translation and scale that put the silhouette's centroid and size on the photo's (Gauss-Newton)."""
+        params = np.array(params, dtype=np.float64)
+        deltas = np.array([0.02, 0.02, 0.02])
+        for _ in range(iterations):
+            current = _moments(self.mask(params))
+            if current is None or self.target_moments is None:
+                return params
+            jacobian = np.zeros((3, 3))
+            for j in range(3):
+                probe = params.copy()
+                probe[2 + j] += deltas[j]
+                moved = _moments(self.mask(probe))
+                if moved is None:
+                    return params
+                jacobian[:, j] = (np.array(moved) - np.array(current)) / deltas[j]
+            step, *_ = np.linalg.lstsq(jacobian, np.array(self.target_moments) - np.array(current), rcond=None)
+            params[2:] = _clip_placement(params[2:] + np.clip(step, -0.5, 0.5))
+        return params
+
+    def compass(self, params: np.ndarray, steps: np.ndarray, final_steps: np.ndarray) -> tuple[np.ndarray, float]:
+        """Compass search on the IoU from `params` until every step is below `final_steps`."""
+        params = np.array(params, dtype=np.float64)
+        best = self.iou(params)
+        steps = np.array(steps, dtype=np.float64)
+        while np.any(steps >= final_steps):
+            improved = False
+            for j in range(len(params)):
+                for sign in (1.0, -1.0):
+                    probe = params.copy()
+                    probe[j] += sign * steps[j]
+                    probe = _clip_params(probe)
+                    if np.array_equal(probe, params):
+                        continue
+                    value = self.iou(probe)
+                    if value > best:
+                        params, best, improved = probe, value, True
+                        break
+            if not improved:
+                steps = steps / 2.0
+        return params, best
+
+
+def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.ndarray]:
+    """The best distinct (rotation, elevation) of the coarse grid, as full parameter vectors."""
+    if initial is None:
+        rotations, elevations = FULL_ROTATIONS, FULL_ELEVATIONS
+        start_placement = np.zeros(3)
+    else:
+        offsets = np.arange(-WINDOW_ROTATION_DEG, WINDOW_ROTATION_DEG + 1e-9, WINDOW_STEP_DEG)
+        rotations = initial.rotation_deg + offsets
+        e = initial.camera.elevation_deg
+        elevations = np.arange(max(0.0, e - WINDOW_ELEVATION_DEG), min(MAX_ELEVATION_DEG, e + WINDOW_ELEVATION_DEG) + 1e-9,
+                               WINDOW_STEP_DEG)
+        start_placement = np.array([*initial.translation, 0.0])
+    target = _canonical(problem.target)
+    scored = []
+    for rotation in rotations:
+        for elevation in elevations:
+            params = np.array([rotation, elevation, *start_placement])
+            mask = problem.mask(params)
+            scored.append((silhouette_iou(_canonical(mask), target), params))
+    scored.sort(key=lambda item: -item[0])
+    chosen: list[np.ndarray] = []
+    for _, params in scored:
+        if all(rotation_error_deg(params[0], c[0]) >= DISTINCT_ROTATION_DEG or
+               abs(params[1] - c[1]) >= DISTINCT_ELEVATION_DEG for c in chosen):
+            chosen.append(params)
+        if len(chosen) == CANDIDATES:
+            break
+    return chosen
+
+
+def _moments(mask: np.ndarray) -> tuple[float, float, float] | None:
+    """Centroid (u, v) and square root of the area of a mask, in pixels; None when empty."""
+    area = np.count_nonzero(mask)
+    if area == 0:
+        return None
+    v, u = np.nonzero(mask)
+    return float(u.mean()), float(v.mean()), math.sqrt(area)
+
+
+def _canonical(mask: np.ndarray) -> np.ndarray:
+    """The mask resampled into a frame centred on its centroid and scaled by the square root of its area."""
+    moments = _moments(mask)
+    if moments is None:
+        return np.zeros((CANONICAL_SIDE, CANONICAL_SIDE), dtype=bool)
+    cu, cv, size = moments
+    q = (np.arange(CANONICAL_SIDE) + 0.5) / CANONICAL_SIDE * 2.0 - 1.0
+    u = np.floor(cu + q * CANONICAL_REACH * size).astype(np.int64)
+    v = np.floor(cv + q * CANONICAL_REACH * size).astype(np.int64)
+    h, w = mask.shape
+    inside = (v[:, None] >= 0) & (v[:, None] < h) & (u[None, :] >= 0) & (u[None, :] < w)
+    return inside & mask[np.clip(v, 0, h - 1)[:, None], np.clip(u, 0, w - 1)[None, :]]
+
+
+def _resize_mask(mask: np.ndarray, long_side: int) -> np.ndarray:
+    """A boolean mask resized so its long side is `long_side` (area average, then majority)."""
+    from PIL import Image
+
+    h, w = mask.shape
+    factor = long_side / max(h, w)
+    size = (max(1, round(w * factor)), max(1, round(h * factor)))
+    image = Image.fromarray(np.asarray(mask, dtype=np.uint8) * 255)
+    return np.asarray(image.resize(size, Image.Resampling.BOX)) >= 128
+
+
+def _clip_placement(placement: np.ndarray) -> np.ndarray:
+    return np.clip(placement, [-5.0, -5.0, -1.5], [5.0, 5.0, 1.5])
+
+
+def _clip_params(params: np.ndarray) -> np.ndarray:
+    out = params.copy()
+    out[1] = np.clip(out[1], 0.0, MAX_ELEVATION_DEG)
+    out[2:] = _clip_placement(out[2:])
+    return out

@@ -1,0 +1,103 @@
+"""Capture an object's appearance from a photo: find (or read) the photo's pose, then color the
+object's voxels from the pixels they project to (renderer/photo.py).
+
+The pose comes from a camera file, from the automatic search (renderer/capture/align.py) on the
+object's mask in the photo (renderer/capture/segment.py), or from both: the file's pose refined
+by the search. Colors keep the photo's shading; the network is trained on such inputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from PIL import Image
+
+from renderer.capture.align import Alignment, align_pose
+from renderer.capture.pose import PhotoPose
+from renderer.capture.segment import object_mask
+from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.errors import InputError
+from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
+from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
+
+SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
+
+
+@dataclass(frozen=True)
+class Capture:
+    pose: PhotoPose  # at the photo's size
+    rgba: np.ndarray  # (N, N, N, 4) object voxels with the photo's colors
+    visible: np.ndarray  # (N, N, N) bool: voxels the photo shows
+    mirror_score: float  # IoU of the occupancy with its mirror across x = 0
+    mirror_used: bool  # hidden voxels copied their mirror voxel's color
+    alignment: Alignment | None  # the search's result; None when the camera file alone gave the pose
+
+
+def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
+              initial: PhotoPose | None = None, path: str | Path | None = None) -> Alignment:
+    """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough pose."""
+    h, w = photo_rgb.shape[:2]
+    small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
+    mask = object_mask(small_rgb, small_alpha, path)
+    sh, sw = mask.shape
+    start = None if initial is None else initial.at_size(sw, sh)
+    alignment = align_pose(SilhouetteRenderer(mesh), mask, start)
+    return Alignment(alignment.pose.at_size(w, h), alignment.iou, alignment.rays, alignment.seconds)
+
+
+def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh, photo_rgb: np.ndarray,
+                       alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
+                       path: str | Path | None = None) -> Capture:
+    """Color `object_rgba` (voxels of `mesh`) from the photo.
+
+    `pose` alone (search False) is used as given; with `search` it is the start of the search;
+    without a pose the search covers every rotation and elevation.
+    """
+    if pose is None and not search:
+        raise InputError("a photo needs a camera file or the automatic alignment", path)
+    h, w = photo_rgb.shape[:2]
+    alignment = None
+    if search:
+        alignment = find_pose(mesh, photo_rgb, alpha, pose, path)
+        pose = alignment.pose
+    pose = pose.at_size(w, h)
+    occupied = object_rgba[..., 3] > 0.5
+    score = mirror_symmetry_score(occupied)
+    mirror = is_mirror_symmetric(occupied)
+    try:
+        colors = color_voxels_from_photo(object_rgba, pose.object_to_world(), photo_rgb, pose.camera, mirror=mirror)
+    except InputError as exc:
+        raise InputError(exc.problem, path) from None
+    return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment)
+
+
+def _downscale(rgb: np.ndarray, alpha: np.ndarray | None, long_side: int) -> tuple[np.ndarray, np.ndarray | None]:
+    """The photo (and alpha) with its long side at most `long_side`, by area averaging."""
+    h, w = rgb.shape[:2]
+    if max(h, w) <= long_side:
+        return rgb, alpha
+    factor = long_side / max(h, w)
+    size = (max(1, round(w * factor)), max(1, round(h * factor)))
+
+    def resize(channel: np.ndarray) -> np.ndarray:
+        return np.asarray(Image.fromarray(np.asarray(channel, dtype=np.float32)).resize(size, Image.Resampling.BOX))
+
+    small = np.stack([resize(rgb[..., c]) for c in range(3)], axis=-1)
+    return small, None if alpha is None else resize(alpha)
+
+
+def captured_scene(mesh_path: str | Path, voxels_path: str | Path, pose: PhotoPose, up: str = "y",
+                   resolution: int = 100, image_size: int = 256) -> Scene:
+    """A scene that shows the object as the photo did: the pose's placement and elevation, the captured voxels.
+
+    Paths are taken relative to the working directory; save_scene rewrites them relative to the scene file.
+    """
+    obj = ObjectSpec(mesh=str(mesh_path), up=up, resolution=resolution, voxels=str(voxels_path),
+                     rotation_deg=pose.rotation_deg, translation=pose.translation, scale=pose.scale)
+    scene = Scene(object=obj, camera=CameraSpec(elevation_deg=pose.camera.elevation_deg), image_size=image_size,
+                  base_dir=Path.cwd())
+    validate(scene)
+    return scene
