@@ -14,7 +14,8 @@ computed from, and reruns only when those change:
     background    camera elevation, floor color                           voxel-branch features of the ground alone
     gather        pool, placement, floor color                            grid inside the object's crop
     voxel_branch  as gather                                               latent (encode_voxels)
-    splat         paint, translation, rotation, scale, elevation, floor   splatted image (NVR+, and previews)
+    splat_layout  voxels, translation, rotation, scale, camera elevation  the voxel each pixel shows, the floor
+    splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
     splat_branch  as splat                                                splat features (encode_splat)
     light         all of the above and the light position                 image (render_from_latent)
 
@@ -24,11 +25,13 @@ Floor color is the scene's floor color after its floor paint strokes. Hence, per
     light move                    light
     floor color / floor paint     background, gather, voxel_branch, splat, splat_branch, light
     paint stroke, object color    paint, pool, gather, voxel_branch, splat, splat_branch, light
-    object move or rotation       placement, gather, voxel_branch, splat, splat_branch, light
+    object move or rotation       placement, gather, voxel_branch, splat_layout, splat, splat_branch, light
     object scale                  pool (if the merge factors change), placement, gather, voxel_branch,
-                                  splat, splat_branch, light
-    camera elevation              placement, background, gather, voxel_branch, splat, splat_branch, light
-    new mesh or up                voxels, paint, pool, gather, voxel_branch, splat, splat_branch, light
+                                  splat_layout, splat, splat_branch, light
+    camera elevation              placement, background, gather, voxel_branch, splat_layout, splat,
+                                  splat_branch, light
+    new mesh or up                voxels, paint, pool, gather, voxel_branch, splat_layout, splat,
+                                  splat_branch, light
     new resolution                as a new mesh, and placement
     nothing                       none (the last image again)
 
@@ -67,12 +70,15 @@ from models.inference import prepare_for_inference  # noqa: E402
 from models.nvr import NVR, NVRPlus, light_to_network  # noqa: E402
 from models.onednn import use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
+from renderer.camera import Camera  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
 from renderer.grid import gather, grid_index_to_world, pool_factors, pool_voxels, sample_indices, voxel_table  # noqa: E402
 from renderer.paint import apply_paint  # noqa: E402
 from renderer.pipeline import object_voxels  # noqa: E402
 from renderer.scene import MAX_ABS_POSITION, MIN_RESOLUTION, ObjectSpec, Scene  # noqa: E402
-from renderer.splat import splat_scene  # noqa: E402
+from renderer.splat import color_splat, splat_layout  # noqa: E402
+from renderer.surface import occupancy  # noqa: E402
+from renderer.transform import object_to_world  # noqa: E402
 
 KINDS = {"nvr+": "nvr_plus", "nvr": "nvr"}  # renderer name -> network architecture
 # An object this far away lies outside every grid: sampling it leaves the ground alone.
@@ -101,6 +107,7 @@ class _Keys(NamedTuple):
     pool: tuple
     placement: tuple
     grid: tuple
+    layout: tuple
     splat: tuple
 
 
@@ -201,8 +208,9 @@ class RenderEngine:
         n = painted.shape[0]
         factors = pool_factors(n, o.scale, self.config.grid_size)
         placement = (n, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)  # paint never changes occupancy
         return _Keys(pool=(paint_key, factors), placement=placement, grid=(paint_key, placement, floor),
-                     splat=(paint_key, o.translation, o.rotation_deg, o.scale, elevation, floor))
+                     layout=layout, splat=(paint_key, layout, floor))
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         n, factors = keys.placement[:2]
@@ -234,7 +242,9 @@ class RenderEngine:
         return _Placement(indices, None if spans is None else self.encoder.plan(spans))
 
     def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
-        return self._stage("splat", keys.splat, lambda: splat_scene(scene, painted, floor, size=self.output_size))
+        layout = self._stage("splat_layout", keys.layout, lambda: splat_layout(
+            occupancy(painted), object_to_world(scene.object), Camera.from_scene(scene, self.output_size)))
+        return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
 
     # --- the memo and the report ------------------------------------------------------------
 

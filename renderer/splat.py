@@ -15,6 +15,7 @@ does too. Object pixels are therefore simply drawn over the ground.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -36,23 +37,18 @@ def background_color() -> np.ndarray:
     return np.full(3, linear_to_srgb(AMBIENT_RADIANCE), dtype=np.float32)
 
 
+@dataclass(frozen=True)
+class SplatLayout:
+    """Everything a splat shows that colors do not change, so a paint stroke or a new floor color reuses it."""
+
+    voxel: np.ndarray  # (H, W) int64: flat index of the object voxel seen at the pixel, -1 where none is
+    floor: np.ndarray  # (H, W) bool: the pixel's ray meets the floor square (floor_mask)
+
+
 def splat(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, floor_color, camera: Camera) -> np.ndarray:
     """The splatted image S, (H, W, 3) float32 sRGB in [0, 1], of the object voxels placed in the world."""
     rgba = check_object_voxels(object_rgba)
-    image = ground_and_background(camera, floor_color)
-    n = rgba.shape[0]
-    matrix = np.asarray(object_to_world_matrix, dtype=np.float64)
-    camera_grid = apply_transform(grid_from_world(matrix, n), camera.position)
-    flat = np.flatnonzero(facing_surface_mask(occupancy(rgba), camera_grid))
-    if flat.size == 0:
-        return image
-    centres = apply_transform(matrix, voxel_centers_at(np.stack(np.unravel_index(flat, (n, n, n)), axis=1), n))
-    edges = matrix[:3, :3] * (OBJECT_SIZE / n)  # columns: the voxel's edge vectors in the world
-    nearest = nearest_point_per_pixel(centres, edges, camera)
-    covered = nearest >= 0
-    colors = rgba.reshape(-1, 4)[flat[nearest[covered]], :3]
-    image[covered] = np.clip(colors, 0.0, 1.0)
-    return image
+    return color_splat(splat_layout(occupancy(rgba), object_to_world_matrix, camera), rgba, floor_color)
 
 
 def splat_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None) -> np.ndarray:
@@ -60,20 +56,44 @@ def splat_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     return splat(object_rgba, object_to_world(scene.object), floor_color, Camera.from_scene(scene, size))
 
 
-def ground_and_background(camera: Camera, floor_color) -> np.ndarray:
-    """(H, W, 3) float32 image of the empty scene: floor color on the floor square, background elsewhere."""
-    floor = np.asarray(floor_color, dtype=np.float64)
-    if floor.shape != (3,) or not np.all(np.isfinite(floor)):
+def splat_layout(occupied: np.ndarray, object_to_world_matrix: np.ndarray, camera: Camera) -> SplatLayout:
+    """Which voxel of an (N, N, N) occupancy grid placed in the world each pixel shows, and where the floor is."""
+    n = occupied.shape[0]
+    matrix = np.asarray(object_to_world_matrix, dtype=np.float64)
+    camera_grid = apply_transform(grid_from_world(matrix, n), camera.position)
+    flat = np.flatnonzero(facing_surface_mask(occupied, camera_grid))
+    voxel = np.full((camera.height, camera.width), -1, dtype=np.int64)
+    if flat.size:
+        centres = apply_transform(matrix, voxel_centers_at(np.stack(np.unravel_index(flat, (n, n, n)), axis=1), n))
+        edges = matrix[:3, :3] * (OBJECT_SIZE / n)  # columns: the voxel's edge vectors in the world
+        nearest = nearest_point_per_pixel(centres, edges, camera)
+        covered = nearest >= 0
+        voxel[covered] = flat[nearest[covered]]
+    return SplatLayout(voxel, _floor_mask(camera))
+
+
+def color_splat(layout: SplatLayout, object_rgba: np.ndarray, floor_color) -> np.ndarray:
+    """The splatted image of `layout` with the voxels' colors: floor color on the floor, background elsewhere."""
+    image = ground_and_background(layout.floor, floor_color)
+    covered = layout.voxel >= 0
+    image[covered] = np.clip(np.asarray(object_rgba).reshape(-1, 4)[layout.voxel[covered], :3], 0.0, 1.0)
+    return image
+
+
+def ground_and_background(floor: np.ndarray, floor_color) -> np.ndarray:
+    """(H, W, 3) float32 image of the empty scene: floor color where `floor` (floor_mask), background elsewhere."""
+    color = np.asarray(floor_color, dtype=np.float64)
+    if color.shape != (3,) or not np.all(np.isfinite(color)):
         raise InputError(f"floor color must be 3 finite sRGB values, got {floor_color!r}")
-    return _empty_scene_image(camera, tuple(np.clip(floor, 0.0, 1.0).tolist())).copy()
+    return np.where(floor[..., None], np.clip(color, 0.0, 1.0).astype(np.float32), background_color())
 
 
 @lru_cache(maxsize=8)
-def _empty_scene_image(camera: Camera, floor_color: tuple[float, float, float]) -> np.ndarray:
-    """Cached `ground_and_background`: the editor splats many frames with the same camera."""
-    image = np.where(floor_mask(camera)[..., None], np.array(floor_color, dtype=np.float32), background_color())
-    image.flags.writeable = False
-    return image
+def _floor_mask(camera: Camera) -> np.ndarray:
+    """Cached, read-only `floor_mask`: the editor splats many frames with the same camera."""
+    mask = floor_mask(camera)
+    mask.flags.writeable = False
+    return mask
 
 
 def floor_mask(camera: Camera) -> np.ndarray:

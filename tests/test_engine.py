@@ -75,7 +75,8 @@ def scene(tmp_path) -> Scene:
                  image_size=64, base_dir=tmp_path)
 
 
-VOXEL_BRANCH = ["gather", "voxel_branch", "splat", "splat_branch", "light"]
+VOXEL_BRANCH = ["gather", "voxel_branch", "splat", "splat_branch", "light"]  # edits that keep the splat layout
+PLACED = ["gather", "voxel_branch", "splat_layout", "splat", "splat_branch", "light"]  # edits that move pixels
 # edit -> the stages the module docstring of models/engine.py says it reruns
 EDITS = {
     "light": (lambda s: s.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), ["light"]),
@@ -85,11 +86,11 @@ EDITS = {
                      ["paint", "pool", *VOXEL_BRANCH]),
     "object color": (lambda s: s.with_changes(object=replace(s.object, color=(0.9, 0.9, 0.1))),
                      ["paint", "pool", *VOXEL_BRANCH]),
-    "move": (lambda s: s.with_changes(object=replace(s.object, translation=(0.3, -0.2))), ["placement", *VOXEL_BRANCH]),
-    "rotate": (lambda s: s.with_changes(object=replace(s.object, rotation_deg=-35.0)), ["placement", *VOXEL_BRANCH]),
+    "move": (lambda s: s.with_changes(object=replace(s.object, translation=(0.3, -0.2))), ["placement", *PLACED]),
+    "rotate": (lambda s: s.with_changes(object=replace(s.object, rotation_deg=-35.0)), ["placement", *PLACED]),
     # 0.8 -> 1.2 keeps the merge factors at 1 (a 0.0625 voxel stays wider than the 0.04 grid voxel): no re-pooling
-    "scale": (lambda s: s.with_changes(object=replace(s.object, scale=(1.2, 1.0, 0.9))), ["placement", *VOXEL_BRANCH]),
-    "camera": (lambda s: s.with_changes(camera=CameraSpec(45.0)), ["placement", "background", *VOXEL_BRANCH]),
+    "scale": (lambda s: s.with_changes(object=replace(s.object, scale=(1.2, 1.0, 0.9))), ["placement", *PLACED]),
+    "camera": (lambda s: s.with_changes(camera=CameraSpec(45.0)), ["placement", "background", *PLACED]),
 }
 
 
@@ -111,7 +112,7 @@ def test_same_scene_runs_nothing_and_first_render_runs_everything(model, scene):
     live = engine(model)
     first = live.render(scene)
     assert live.last_report.stages_run == ("voxels", "paint", "pool", "placement", "background", "gather",
-                                           "voxel_branch", "splat", "splat_branch", "light")
+                                           "voxel_branch", "splat_layout", "splat", "splat_branch", "light")
     again = live.render(scene)
     assert live.last_report.stages_run == ()
     np.testing.assert_array_equal(first, again)
@@ -122,7 +123,7 @@ def test_same_scene_runs_nothing_and_first_render_runs_everything(model, scene):
 def test_nvr_has_no_splat_stages(scene):
     live = engine(random_model(TINY_COMPACT, "nvr"))
     image = live.render(scene)
-    assert "splat" not in live.last_report.stages_run
+    assert not any(stage.startswith("splat") for stage in live.last_report.stages_run)
     np.testing.assert_allclose(image, engine(random_model(TINY_COMPACT, "nvr"), crop=False).render(scene), atol=1e-5)
 
 
@@ -166,7 +167,7 @@ def test_preview_is_the_splat_unless_only_the_light_changed(model, scene):
     assert live.last_report.stages_run == ()  # the preview already rendered it
     moved = scene.with_changes(object=replace(scene.object, translation=(0.2, 0.2)))
     preview = live.preview(moved)
-    assert live.last_report.preview and live.last_report.stages_run == ("splat",)
+    assert live.last_report.preview and live.last_report.stages_run == ("splat_layout", "splat")
     np.testing.assert_array_equal(preview, splat_scene(moved, load_voxels(scene.voxels_path()), (0.5, 0.6, 0.7), size=64))
     live.render(moved)
     assert "splat" not in live.last_report.stages_run  # the release reuses the preview's splat
