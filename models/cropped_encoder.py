@@ -10,6 +10,8 @@ depth-folding projection and the 2D blocks over the changed latent rows and colu
 The ground is the same in every grid column (the camera has no roll), so the background is
 computed from a ground grid only a few columns wide (`NarrowGround`): its outputs next to the
 two sides are those of the full grid's sides, and its middle column is every column between.
+The 3D stack reaches fewer columns than the 2D blocks after it, so it runs on the narrowest
+ground for itself (`narrow_volume`), and its output is widened for the 2D blocks (`narrow`).
 Both equal VoxelEncoder on the full grid up to float rounding (tests/test_engine.py).
 """
 
@@ -65,22 +67,28 @@ class CroppedVoxelEncoder:
         self.volume_chain = conv_chain(itertools.chain(encoder.stages.modules(), encoder.residual.modules()), 3)
         self.plane_chain = conv_chain(encoder.blocks.modules(), 2)
         self.volume_size = self.volume_chain.sizes((grid_size,) * 3)[-1]
-        columns = ConvChain([c.along(2) for c in self.volume_chain.convs] + [c.along(1) for c in self.plane_chain.convs], 1)
-        self.narrow = narrow_ground(columns, grid_size)
+        volume_columns = [c.along(2) for c in self.volume_chain.convs]
+        self.narrow_volume = narrow_ground(ConvChain(volume_columns, 1), grid_size)
+        self.narrow = narrow_ground(ConvChain(volume_columns + [c.along(1) for c in self.plane_chain.convs], 1), grid_size)
 
     def background(self, ground: torch.Tensor) -> Background:
         """Features of the ground-only grid (1, 4, D, H, W), run once per elevation and floor color.
 
-        W is the full grid size, or `self.narrow.width` for a ground that is the same in every column.
+        W is the full grid size, or `self.narrow_volume.width` for a ground that is the same in every column.
         """
-        if ground.shape[-1] != self.grid_size and (self.narrow is None or ground.shape[-1] != self.narrow.width):
-            raise ValueError(f"a ground grid {ground.shape[-1]} columns wide: expected {self.grid_size} or the narrow width")
+        width, narrow = ground.shape[-1], self.narrow_volume
+        if width != self.grid_size and (narrow is None or width != narrow.width):
+            raise ValueError(f"a ground grid {width} columns wide: expected {self.grid_size} or the narrow width")
         volume = self.encoder.residual(self.encoder.stages(ground))
-        latent = self.encoder.blocks(self._project(volume))
-        if ground.shape[-1] == self.grid_size:
-            return Background(volume, latent)
+        if width == self.grid_size:
+            return Background(volume, self.encoder.blocks(self._project(volume)))
         columns = self.volume_size[2]
-        return Background(_widen(volume, self.narrow.middle, columns), _widen(latent, self.narrow.middle, columns))
+        if self.narrow is None:  # the 2D blocks reach every column
+            return Background(_widen(volume, narrow.middle, columns),
+                              self.encoder.blocks(self._project(_widen(volume, narrow.middle, columns))))
+        plane_columns = self.narrow.width // self.volume_chain.total_stride[2]  # the 3D stack's output on `self.narrow`
+        latent = self.encoder.blocks(self._project(_widen(volume, narrow.middle, plane_columns)))
+        return Background(_widen(volume, narrow.middle, columns), _widen(latent, self.narrow.middle, columns))
 
     def plan(self, object_spans: tuple[Span, Span, Span]) -> CropPlan | None:
         """The crops for an object whose voxels lie in the grid spans `object_spans`; None if it changes nothing."""

@@ -72,17 +72,23 @@ from models.onednn import use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
 from renderer.camera import Camera  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
-from renderer.grid import gather, grid_index_to_world, pool_factors, pool_voxels, sample_indices, voxel_table  # noqa: E402
+from renderer.grid import (  # noqa: E402
+    gather,
+    grid_index_to_world,
+    ground_mask,
+    pool_factors,
+    pool_voxels,
+    sample_indices,
+    voxel_table,
+)
 from renderer.paint import apply_paint  # noqa: E402
 from renderer.pipeline import object_voxels  # noqa: E402
-from renderer.scene import MAX_ABS_POSITION, MIN_RESOLUTION, ObjectSpec, Scene  # noqa: E402
+from renderer.scene import Scene  # noqa: E402
 from renderer.splat import color_splat, splat_layout  # noqa: E402
 from renderer.surface import occupancy  # noqa: E402
 from renderer.transform import object_to_world  # noqa: E402
 
 KINDS = {"nvr+": "nvr_plus", "nvr": "nvr"}  # renderer name -> network architecture
-# An object this far away lies outside every grid: sampling it leaves the ground alone.
-_NO_OBJECT = ObjectSpec(translation=(MAX_ABS_POSITION, MAX_ABS_POSITION))
 
 
 @dataclass(frozen=True)
@@ -232,7 +238,7 @@ class RenderEngine:
 
     def _background(self, floor: tuple, elevation: float) -> Background:
         """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""
-        g, narrow = self.config.grid_size, self.encoder.narrow
+        g, narrow = self.config.grid_size, self.encoder.narrow_volume
         columns = narrow.width if narrow is not None and ground_is_column_invariant(elevation, g) else g
         return self.encoder.background(_grid_tensor(ground_grid(floor, elevation, g, columns)))
 
@@ -282,9 +288,10 @@ def default_threads() -> int:
 def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int,
                 columns: int | None = None) -> np.ndarray:
     """The scene grid (D, H, W, 4) of the ground alone, as renderer.grid samples it (no object); its first `columns` columns."""
-    n = MIN_RESOLUTION
-    indices = sample_indices(n, (1, 1, 1), _NO_OBJECT, elevation_deg, grid_size)[:, :, :columns]
-    return gather(voxel_table(np.zeros((n, n, n, 4), np.float32), floor_color), indices)
+    ground = ground_mask(elevation_deg, grid_size, columns)
+    grid = np.zeros((*ground.shape, 4), dtype=np.float32)
+    grid[ground] = (*floor_color, 1.0)  # the floor row of renderer.grid.voxel_table
+    return grid
 
 
 def ground_is_column_invariant(elevation_deg: float, grid_size: int) -> bool:

@@ -156,13 +156,18 @@ def _affine_over_grid(kd: float, kr: float, kc: float, k0: float, d: np.ndarray,
     return plane[:, :, None] + (kc * c).astype(dtype)[None, None, :]
 
 
-def _floor_mask(grid_to_world: np.ndarray, grid_size: int) -> np.ndarray:
+def ground_mask(elevation_deg: float, grid_size: int = GRID_SIZE, columns: int | None = None) -> np.ndarray:
+    """Grid voxels (D, H, W) of the ground slab, as sample_indices marks them; only the first `columns` columns if given."""
+    return _floor_mask(grid_index_to_world(elevation_deg, grid_size), grid_size, columns)
+
+
+def _floor_mask(grid_to_world: np.ndarray, grid_size: int, columns: int | None = None) -> np.ndarray:
     """Grid voxels whose centre lies in the ground slab: world y in [-FLOOR_VOXELS voxels, 0).
 
     float32 is ample for a slab several voxels thick and four times faster on the full grid.
     """
     centres = np.arange(grid_size, dtype=np.float64) + 0.5
-    y = _affine_over_grid(*grid_to_world[1], centres, centres, centres, dtype=np.float32)
+    y = _affine_over_grid(*grid_to_world[1], centres, centres, centres[:columns], dtype=np.float32)
     return (y >= np.float32(-FLOOR_VOXELS * GRID_EXTENT / grid_size)) & (y < 0.0)
 
 

@@ -19,6 +19,7 @@ from models.inference import prepare_for_inference
 from models.nvr import build_model
 from models.receptive import conv_chain
 from renderer.errors import InputError
+from renderer.grid import scene_grid
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene
 from renderer.splat import splat_scene
 from renderer.voxels import load_voxels, save_voxels
@@ -147,6 +148,9 @@ def test_object_outside_the_grid_renders_the_ground(model, scene):
 
 def test_ground_grid_is_the_scene_grid_without_object():
     grid = ground_grid((0.25, 0.5, 0.75), 30.0, 32)
+    away = ObjectSpec(translation=(40.0, 40.0))  # outside the grid
+    np.testing.assert_array_equal(grid, scene_grid(np.ones((16, 16, 16, 4), np.float32), away, (0.25, 0.5, 0.75), 30.0, 32))
+    np.testing.assert_array_equal(ground_grid((0.25, 0.5, 0.75), 30.0, 32, columns=5), grid[:, :, :5])
     occupied = grid[..., 3] == 1.0
     assert occupied.any() and not occupied.all()
     np.testing.assert_array_equal(grid[occupied, :3], np.tile([0.25, 0.5, 0.75], (occupied.sum(), 1)))
@@ -214,21 +218,32 @@ def test_cropped_encoder_equals_full_encoder(config, box):
     torch.testing.assert_close(latent, full, rtol=0, atol=1e-5)
 
 
-def test_narrow_ground_gives_the_full_background():
-    model = prepare_for_inference(random_model(TINY_COMPACT, "nvr"))
-    cropped = CroppedVoxelEncoder(model.voxel_encoder, 64)
+# Eight latent blocks reach all 16 latent columns of a 64-grid: only the 3D stack runs on a narrow ground.
+DEEP_LATENT = replace(TINY_COMPACT, pre_light_blocks=8)
+
+
+@pytest.mark.parametrize("config, narrow, narrow_volume", [
     # Hand count: volume column o reads input columns [4(o - 1), 4(o + 2)), so only the first and last reach the
-    # padding; the four 3x3 convolutions of the two latent blocks reach 4 columns further. Latent columns 0-4 and
-    # the last 5 touch the sides: 5 + 1 + 5 latent columns (44 input columns), the middle one at index 5.
-    assert cropped.narrow == NarrowGround(44, 5)
+    # padding: 3 volume columns (12 input columns), the middle one at index 1. The four 3x3 convolutions of the
+    # two latent blocks reach 4 columns further: 5 + 1 + 5 latent columns (44 input columns), the middle at 5.
+    (TINY_COMPACT, NarrowGround(44, 5), NarrowGround(12, 1)),
+    (DEEP_LATENT, None, NarrowGround(12, 1)),
+], ids=["compact", "deep latent"])
+def test_narrow_ground_gives_the_full_background(config, narrow, narrow_volume):
+    model = prepare_for_inference(random_model(config, "nvr"))
+    cropped = CroppedVoxelEncoder(model.voxel_encoder, 64)
+    assert (cropped.narrow, cropped.narrow_volume) == (narrow, narrow_volume)
     ground = ground_grid((0.3, 0.6, 0.9), 25.0, 64)
     assert (ground == ground[:, :, :1]).all()  # the ground is the same in every column
     with torch.no_grad():
         full = cropped.background(torch.from_numpy(ground).permute(3, 0, 1, 2)[None])
-        narrow = cropped.background(torch.from_numpy(ground[:, :, :44].copy()).permute(3, 0, 1, 2)[None])
+        narrow = cropped.background(torch.from_numpy(ground[:, :, :12].copy()).permute(3, 0, 1, 2)[None])
     torch.testing.assert_close(narrow.volume, full.volume, rtol=0, atol=1e-6)
     torch.testing.assert_close(narrow.latent, full.latent, rtol=0, atol=1e-6)
-    assert CroppedVoxelEncoder(prepare_for_inference(random_model(TINY_PAPER, "nvr")).voxel_encoder, 64).narrow is None
+
+
+def test_no_narrow_ground_when_it_would_not_be_narrower():
+    assert CroppedVoxelEncoder(prepare_for_inference(random_model(TINY_PAPER, "nvr")).voxel_encoder, 64).narrow_volume is None
 
 
 # --- loading -------------------------------------------------------------------------------------------
