@@ -24,7 +24,8 @@ from renderer.capture.pose import PhotoPose
 from renderer.capture.silhouette import SilhouetteRenderer
 
 COARSE_SIDE = 64  # long side of the masks compared in the coarse search, pixels
-REFINE_SIDE = 160  # ... and in the refinement
+EARLY_SIDE = 96  # ... in the first refinement of every candidate
+REFINE_SIDE = 160  # ... and in the final refinement
 CANONICAL_SIDE = 48  # side of the centroid-and-size normalised frame of the coarse comparison
 CANONICAL_REACH = 3.0  # the normalised frame spans +-3 square roots of the mask's area
 FULL_ROTATIONS = np.arange(-180.0, 180.0, 10.0)
@@ -64,14 +65,14 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
     h, w = photo_mask.shape
     base = initial if initial is not None else PhotoPose(camera or Camera(elevation_deg=0.0, width=w, height=h))
     base = base.at_size(w, h)
-    coarse = _Problem(silhouettes, _resize_mask(photo_mask, COARSE_SIDE), base)
-    fine = _Problem(silhouettes, _resize_mask(photo_mask, REFINE_SIDE), base)
+    coarse, early, fine = (_Problem(silhouettes, _resize_mask(photo_mask, min(side, max(h, w))), base)
+                           for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
 
     candidates = _coarse_candidates(coarse, initial)
     refined = []
     for params in candidates:
-        params = fine.place(params)
-        refined.append(fine.compass(params, INITIAL_STEPS, INITIAL_STEPS / 2**EARLY_HALVINGS))
+        params = early.place(params)
+        refined.append(early.compass(params, INITIAL_STEPS, INITIAL_STEPS / 2**EARLY_HALVINGS))
     refined.sort(key=lambda item: -item[1])
     finals = [fine.compass(params, INITIAL_STEPS / 2**EARLY_HALVINGS, FINAL_STEPS) for params, _ in refined[:FINALISTS]]
     best_params, best_iou = max(finals, key=lambda item: item[1])
@@ -214,6 +215,8 @@ def _resize_mask(mask: np.ndarray, long_side: int) -> np.ndarray:
     from PIL import Image
 
     h, w = mask.shape
+    if long_side == max(h, w):
+        return np.asarray(mask, dtype=bool)
     factor = long_side / max(h, w)
     size = (max(1, round(w * factor)), max(1, round(h * factor)))
     image = Image.fromarray(np.asarray(mask, dtype=np.uint8) * 255)

@@ -18,7 +18,8 @@ from scipy import ndimage
 from renderer.errors import InputError
 
 BORDER_FRACTION = 0.04  # width of the border band, as a fraction of the shorter side
-MIN_BORDER_EXPLAINED = 0.6  # share of the border the background field must explain
+MIN_BORDER_EXPLAINED = 0.75  # share of the border the background field must explain (an object may touch the rest)
+START_TOLERANCE = 0.25  # sRGB distance from the border's median color that may still be background (shading)
 MIN_CONTRAST = 0.1  # smallest sRGB distance from the background that counts as object
 NOISE_SIGMAS = 6.0  # ... or this many robust standard deviations of the border's residual
 MIN_OBJECT_FRACTION = 0.002  # of the image: less than this is nothing
@@ -52,17 +53,19 @@ def _differs_from_background(rgb: np.ndarray, path: str | Path | None) -> np.nda
     border = np.zeros((h, w), dtype=bool)
     border[:band], border[-band:], border[:, :band], border[:, -band:] = True, True, True, True
     design = _quadratic_design(h, w)
-    keep = border.copy()
+    # Start from the border's median color, which an object covering less than half the border cannot move.
+    median_residual = np.linalg.norm(rgb - np.median(rgb[border], axis=0), axis=2)
+    keep = border & (median_residual < START_TOLERANCE)
     for _ in range(4):
+        if keep.sum() < MIN_BORDER_EXPLAINED * border.sum():
+            raise InputError("cannot tell the object from the background: the photo's border is not a plain "
+                             "background; give the photo an alpha channel or a camera file", path)
         coefficients, *_ = np.linalg.lstsq(design[keep.ravel()], rgb[keep], rcond=None)
         residual = np.linalg.norm(rgb - (design @ coefficients).reshape(h, w, 3), axis=2)
         sigma = 1.4826 * np.median(residual[keep]) + 1e-4
         threshold = max(MIN_CONTRAST, NOISE_SIGMAS * sigma)
         keep = border & (residual < threshold)
-        if keep.sum() < MIN_BORDER_EXPLAINED * border.sum():
-            raise InputError("cannot tell the object from the background: the photo's border is not a plain "
-                             "background; give the photo an alpha channel or a camera file", path)
-    mask = ndimage.binary_opening(residual >= threshold)
+    mask = residual >= threshold
     labels, count = ndimage.label(mask)
     if count == 0:
         return mask

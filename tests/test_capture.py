@@ -1,0 +1,269 @@
+"""Appearance capture: camera files, silhouettes against geometry, segmentation, the pose search
+on rendered photos, symmetry detection, and the bad photos a user may give."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+from scipy.spatial import ConvexHull
+
+from renderer.camera import Camera
+from renderer.capture.align import align_pose, rotation_error_deg, silhouette_iou
+from renderer.capture.capture import capture_appearance, find_pose
+from renderer.capture.pose import PhotoPose, load_pose, pose_from_dict, save_pose
+from renderer.capture.segment import object_mask
+from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.errors import InputError
+from renderer.io import load_image
+from renderer.objects import generate_object
+from renderer.pathtrace import render_pathtraced
+from renderer.photo import is_mirror_symmetric
+from renderer.scene import CameraSpec, LightSpec, Scene
+from renderer.voxels import voxelize
+
+
+@pytest.fixture(scope="module")
+def chair():
+    return generate_object("chair", 8).mesh  # a back and open arms: its rotation shows in its silhouette
+
+
+def box_mesh(lo=(-0.3, 0.0, -0.2), hi=(0.3, 0.8, 0.2)) -> trimesh.Trimesh:
+    lo, hi = np.array(lo), np.array(hi)
+    box = trimesh.creation.box(extents=hi - lo)
+    box.apply_translation((lo + hi) / 2)
+    return box
+
+
+# --- camera files --------------------------------------------------------------------------
+
+
+def test_camera_file_round_trip(tmp_path):
+    pose = PhotoPose(Camera(23.5, 320, 240, principal_offset=(4.0, -2.0)), rotation_deg=-71.0,
+                     translation=(0.2, -0.1), scale=(1.1, 0.9, 1.0))
+    save_pose(tmp_path / "cam.json", pose)
+    assert load_pose(tmp_path / "cam.json") == pose
+
+
+def test_camera_file_without_placement_takes_the_scene_placement():
+    from renderer.scene import ObjectSpec
+
+    spec = ObjectSpec(rotation_deg=12.0, translation=(0.1, 0.2), scale=(2.0, 2.0, 2.0))
+    pose = pose_from_dict({"elevation_deg": 10, "width": 64, "height": 64}, spec)
+    assert (pose.rotation_deg, pose.translation, pose.scale) == (12.0, (0.1, 0.2), (2.0, 2.0, 2.0))
+
+
+@pytest.mark.parametrize("data, problem", [
+    ({"width": 64, "height": 64}, "missing elevation_deg"),
+    ({"elevation_deg": 95, "width": 64, "height": 64}, "elevation_deg must be in"),
+    ({"elevation_deg": 10, "width": 64.5, "height": 64}, "whole numbers"),
+    ({"elevation_deg": 10, "width": 64, "height": 64, "scale": [1, 0, 1]}, "scale must be positive"),
+    ({"elevation_deg": 10, "width": 64, "height": 64, "focal_mm": float("nan")}, "finite"),
+    ([1, 2], "JSON object"),
+])
+def test_broken_camera_files_name_the_problem(data, problem):
+    with pytest.raises(InputError, match=problem) as info:
+        pose_from_dict(data, path="cam.json")
+    assert "cam.json" in str(info.value)
+
+
+def test_resized_pose_projects_to_the_same_relative_place():
+    pose = PhotoPose(Camera(30.0, 200, 100, principal_offset=(10.0, 6.0)), rotation_deg=40.0)
+    point = np.array([0.3, 0.7, -0.2])
+    u, v, _ = pose.camera.project(point)
+    u2, v2, _ = pose.at_size(100, 50).camera.project(point)
+    assert u2 == pytest.approx(u / 2) and v2 == pytest.approx(v / 2)
+
+
+# --- silhouettes -------------------------------------------------------------------------------
+
+
+def test_box_silhouette_is_the_hull_of_its_projected_corners():
+    box = box_mesh()
+    pose = PhotoPose(Camera(35.0, 96, 96), rotation_deg=30.0, translation=(0.2, -0.1), scale=(1.2, 1.0, 0.8))
+    mask = SilhouetteRenderer(box).mask(pose)
+    corners = np.array(box.vertices)
+    world = corners @ pose.object_to_world()[:3, :3].T + pose.object_to_world()[:3, 3]
+    u, v, _ = pose.camera.project(world)
+    hull = ConvexHull(np.stack([u, v], axis=1))
+    vv, uu = np.mgrid[0:96, 0:96] + 0.5
+    points = np.stack([uu.ravel(), vv.ravel(), np.ones(uu.size)], axis=1)
+    expected = (points @ hull.equations.T <= 0).all(axis=1).reshape(96, 96)
+    assert expected.sum() > 500
+    assert silhouette_iou(mask, expected) > 0.99
+
+
+# --- segmentation --------------------------------------------------------------------------
+
+
+def disc_photo(h=120, w=160, centre=(60, 80), radius=30, object_color=(0.8, 0.2, 0.1)):
+    y, x = np.mgrid[0:h, 0:w]
+    vignette = 0.7 - 0.15 * (((x - w / 2) / w) ** 2 + ((y - h / 2) / h) ** 2)  # a darkening backdrop
+    rgb = np.repeat(vignette[..., None], 3, axis=2)
+    disc = (y - centre[0]) ** 2 + (x - centre[1]) ** 2 <= radius**2
+    rgb[disc] = object_color
+    return rgb, disc
+
+
+def striped_object_filling_the_frame():
+    rgb, _ = disc_photo(radius=200)
+    for column in range(4):
+        rgb[:, column::8] = (0.1, 0.5, 0.1)
+    return rgb
+
+
+def test_alpha_channel_is_the_mask():
+    rgb, disc = disc_photo()
+    alpha = np.where(disc, 0.9, 0.1)
+    assert np.array_equal(object_mask(rgb, alpha), disc)
+
+
+def test_object_on_a_shaded_plain_backdrop_is_found():
+    rgb, disc = disc_photo()
+    assert silhouette_iou(object_mask(rgb, np.ones(disc.shape)), disc) > 0.98  # an all-opaque alpha says nothing
+
+
+def test_object_touching_the_border_is_found():
+    rgb, disc = disc_photo(centre=(60, 150), radius=35)
+    assert silhouette_iou(object_mask(rgb), disc) > 0.97
+
+
+@pytest.mark.parametrize("make, problem", [
+    (lambda: disc_photo(radius=0)[0], "found no object"),
+    (lambda: disc_photo(radius=200)[0], "found no object"),  # a frame of one color is a plain backdrop
+    (lambda: striped_object_filling_the_frame(), "border is not a plain background"),
+    (lambda: np.random.default_rng(0).uniform(size=(80, 80, 3)), "border is not a plain background"),
+    (lambda: disc_photo()[0], None),
+])
+def test_photos_without_a_separable_object_say_so(make, problem):
+    if problem is None:
+        object_mask(make(), path="p.png")
+        return
+    with pytest.raises(InputError, match=problem) as info:
+        object_mask(make(), path="p.png")
+    assert "p.png" in str(info.value)
+
+
+def test_transparent_photo_says_so():
+    with pytest.raises(InputError, match="fully transparent"):
+        object_mask(np.zeros((10, 10, 3)), np.zeros((10, 10)))
+
+
+# --- the pose search ---------------------------------------------------------------------------
+
+
+def test_search_finds_the_pose_of_a_silhouette_from_no_pose(chair):
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(27.0, 128, 128), rotation_deg=-115.0, translation=(0.25, -0.3), scale=(1.15,) * 3)
+    found = align_pose(silhouettes, silhouettes.mask(truth))
+    assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
+    assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
+    assert found.iou > 0.9
+
+
+def test_search_refines_a_perturbed_pose(chair):
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(40.0, 128, 128), rotation_deg=60.0, translation=(-0.2, 0.1), scale=(0.9,) * 3)
+    start = replace(truth, rotation_deg=85.0, camera=replace(truth.camera, elevation_deg=20.0),
+                    translation=(-0.12, 0.18), scale=(0.99,) * 3)
+    found = align_pose(silhouettes, silhouettes.mask(truth), initial=start)
+    assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
+    assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
+    assert silhouette_iou(silhouettes.mask(found.pose), silhouettes.mask(truth)) > 0.9
+
+
+def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):
+    colored = chair.copy()
+    colored.visual.vertex_colors = np.tile([200, 40, 30, 255], (len(chair.vertices), 1)).astype(np.uint8)
+    truth = PhotoPose(Camera(22.0, 96, 96), rotation_deg=35.0)
+    scene = Scene(object=truth.placed(Scene().object), light=LightSpec((0.5, 3.0, 1.5)),
+                  camera=CameraSpec(truth.camera.elevation_deg), image_size=96)
+    photo = render_pathtraced(scene, colored, spp=4, seed=1, denoise=True, floor=False).image
+    rgba = voxelize(colored, 24)
+    captured = capture_appearance(rgba, colored, photo, None, None, search=True)
+    assert rotation_error_deg(captured.pose.rotation_deg, truth.rotation_deg) < 5.0
+    assert abs(captured.pose.camera.elevation_deg - truth.camera.elevation_deg) < 5.0
+    seen = captured.rgba[captured.visible, :3]
+    assert len(seen) > 100
+    assert np.median(seen[:, 0]) > np.median(seen[:, 1]) + 0.2  # red object, red colors (with its shading)
+
+
+def test_capture_needs_a_pose_or_the_search(chair):
+    with pytest.raises(InputError, match="camera file"):
+        capture_appearance(voxelize(chair, 8), chair, np.zeros((8, 8, 3)), None, None, search=False)
+
+
+# --- symmetry ------------------------------------------------------------------------------
+
+
+def test_symmetry_is_detected_for_a_symmetric_chair_and_not_for_a_lopsided_one(chair):
+    assert is_mirror_symmetric(voxelize(chair, 48)[..., 3] > 0.5)
+    lopsided = trimesh.util.concatenate([chair, box_mesh((0.3, 0.0, -0.45), (0.5, 0.9, 0.45))])
+    assert not is_mirror_symmetric(voxelize(lopsided, 48)[..., 3] > 0.5)
+
+
+# --- bad photos ------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def studio_photo(chair):
+    truth = PhotoPose(Camera(30.0, 120, 100), rotation_deg=20.0)
+    mask = SilhouetteRenderer(chair).mask(truth)
+    rgb = np.where(mask[..., None], np.array([0.2, 0.4, 0.9]), 0.75)
+    return rgb, mask
+
+
+def save_variant(path, rgb, variant):
+    pixels = (rgb * 255).round().astype(np.uint8)
+    if variant == "gray":
+        Image.fromarray(pixels.mean(axis=2).astype(np.uint8)).save(path)
+    elif variant == "gray16":
+        Image.fromarray((pixels.mean(axis=2) * 257).astype(np.uint16)).save(path)
+    elif variant == "palette":
+        Image.fromarray(pixels).convert("P", palette=Image.Palette.ADAPTIVE, colors=16).save(path)
+    elif variant == "rgba":
+        Image.fromarray(np.dstack([pixels, np.full(pixels.shape[:2], 255, np.uint8)])).save(path)
+    elif variant == "exif":
+        image = Image.fromarray(np.ascontiguousarray(np.rot90(pixels, 1)))  # stored turned; EXIF 6 turns it back
+        exif = Image.Exif()
+        exif[0x0112] = 6
+        image.save(path, exif=exif)
+    elif variant == "huge":
+        Image.fromarray(pixels).resize((120 * 36, 100 * 36), Image.Resampling.NEAREST).save(path)  # over 4096
+    return path
+
+
+@pytest.mark.parametrize("variant", ["gray", "gray16", "palette", "rgba", "exif"])
+def test_every_kind_of_photo_segments_like_the_plain_one(tmp_path, studio_photo, variant):
+    rgb, truth = studio_photo
+    photo, alpha = load_image(save_variant(tmp_path / "photo.png", rgb, variant))
+    assert silhouette_iou(object_mask(photo, alpha), truth) > 0.95
+
+
+def test_huge_photo_is_captured_within_bounded_memory(tmp_path, studio_photo, chair):
+    path = save_variant(tmp_path / "photo.png", studio_photo[0], "huge")
+    photo, alpha = load_image(path)
+    assert max(photo.shape) <= 4096
+    found = find_pose(chair, photo, alpha, initial=PhotoPose(Camera(35.0, 120, 100), rotation_deg=10.0))
+    assert found.pose.camera.width == photo.shape[1]
+    assert rotation_error_deg(found.pose.rotation_deg, 20.0) < 5.0
+
+
+def test_capture_command_writes_a_scene_that_reproduces_the_pose(tmp_path, chair, studio_photo):
+    import json
+
+    from app.cli import run
+
+    chair.export(tmp_path / "chair.obj")
+    Image.fromarray((studio_photo[0] * 255).astype(np.uint8)).save(tmp_path / "photo.png")
+    save_pose(tmp_path / "rough.json", PhotoPose(Camera(40.0, 120, 100), rotation_deg=0.0))
+    out = tmp_path / "scene.json"
+    code = run(["capture", str(tmp_path / "chair.obj"), str(tmp_path / "photo.png"), "--camera",
+                str(tmp_path / "rough.json"), "--auto", "--res", "24", "-o", str(out)])
+    assert code == 0
+    scene = json.loads(out.read_text())
+    assert rotation_error_deg(scene["object"]["rotation_deg"], 20.0) < 3.0
+    assert abs(scene["camera"]["elevation_deg"] - 30.0) < 3.0
+    assert (tmp_path / "scene_colors.npz").exists() and (tmp_path / "scene_camera.json").exists()
+    assert run(["capture", str(tmp_path / "chair.obj"), str(tmp_path / "photo.png"), "-o", str(out)]) == 2  # exists
