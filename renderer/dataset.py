@@ -228,6 +228,7 @@ def prepare_folder(out: Path, config: DataConfig) -> None:
 def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[str, Any]:
     """Make every file of one object and return its record (written by the caller, last)."""
     from renderer.camera import Camera
+    from renderer.capture.pose import PhotoPose
     from renderer.objects import apply_appearance, generate_object, split_seeds
     from renderer.pathtrace import render_pathtraced
     from renderer.photo import color_voxels_from_photo, is_mirror_symmetric
@@ -263,12 +264,8 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         ).rgba
     save_voxels(out / voxel_file, rgba)
     save_png(out / f"objects/{name}_source.png", source.image)
-    save_json(out / f"objects/{name}_source_camera.json", {
-        "elevation_deg": source_view.elevation_deg, "rotation_deg": source_view.rotation_deg,
-        "translation": list(source_view.translation), "light": list(source_view.light),
-        "width": config.size, "height": config.size, "distance": source_camera.distance,
-        "focal_mm": source_camera.focal_mm, "sensor_mm": source_camera.sensor_mm,
-    })
+    source_pose = PhotoPose(source_camera, source_view.rotation_deg, source_view.translation, source_view.scale)
+    save_json(out / f"objects/{name}_source_camera.json", {**source_pose.to_dict(), "light": list(source_view.light)})
 
     sampler = sample_train_views if config.split == "train" else sample_test_sequence
     samples = []

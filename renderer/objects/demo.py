@@ -56,6 +56,7 @@ def write_demo_photo(folder: Path = DEMO_DIR) -> Path:
     from dataclasses import replace
 
     from renderer.camera import Camera
+    from renderer.capture.pose import PhotoPose
     from renderer.pathtrace import render_pathtraced
     from renderer.pipeline import object_mesh
 
@@ -67,13 +68,8 @@ def write_demo_photo(folder: Path = DEMO_DIR) -> Path:
     )
     result = render_pathtraced(scene, object_mesh(scene), spp=PHOTO_SPP, seed=0, denoise=True)
     save_png(folder / "photo.png", result.image)
-    camera = Camera.from_scene(scene)
-    save_json(folder / "photo_camera.json", {
-        "elevation_deg": PHOTO_VIEW["elevation_deg"], "rotation_deg": PHOTO_VIEW["rotation_deg"],
-        "translation": [0.0, 0.0], "light": list(PHOTO_VIEW["light"]), "width": camera.width,
-        "height": camera.height, "distance": camera.distance, "focal_mm": camera.focal_mm,
-        "sensor_mm": camera.sensor_mm,
-    })
+    pose = PhotoPose(Camera.from_scene(scene), PHOTO_VIEW["rotation_deg"], scene.object.translation, scene.object.scale)
+    save_json(folder / "photo_camera.json", {**pose.to_dict(), "light": list(PHOTO_VIEW["light"])})
     return folder / "photo.png"
 
 
