@@ -12,14 +12,14 @@ from app.editor import edits, state
 from app.editor.document import Document
 from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
-from app.editor.photo_capture import color_from_photo, load_photo_camera
+from app.editor.photo_capture import color_from_photo
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
 from app.editor.voxel_cache import VoxelCache
 from app.editor.voxel_faces import exposed_faces
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.paint import apply_paint
-from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene, load_scene
+from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene
 from renderer.voxels import save_voxels
 
 
@@ -197,23 +197,12 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
 # --- photo camera ---------------------------------------------------------------------------------
 
 
-def test_photo_camera_file_gives_camera_and_placement(tmp_path):
-    demo = load_scene("assets/demo/scene.json")
-    camera, placed = load_photo_camera("assets/demo/photo_camera.json", demo.object)
-    assert (camera.elevation_deg, camera.width, camera.height) == (20.0, 256, 256)
-    assert placed.rotation_deg == -40.0 and placed.scale == demo.object.scale
-    bad = tmp_path / "camera.json"
-    bad.write_text('{"elevation_deg": 20, "width": 256}')
-    with pytest.raises(InputError, match="missing height"):
-        load_photo_camera(bad, demo.object)
-
-
 def test_a_photo_of_the_wrong_size_is_a_clear_error(box_scene, tmp_path):
     from renderer.io import save_png
 
-    save_png(tmp_path / "small.png", np.zeros((32, 32, 3)))
+    save_png(tmp_path / "small.png", np.zeros((32, 48, 3)))
     rgba = VoxelCache().object_rgba(box_scene)
-    with pytest.raises(InputError, match="small.png.*32x32 pixels but its camera is 256x256"):
+    with pytest.raises(InputError, match="small.png.*48x32 pixels but its camera is 256x256"):
         color_from_photo(rgba, box_scene.object, tmp_path / "small.png", "assets/demo/photo_camera.json")
 
 

@@ -1,71 +1,123 @@
-"""Appearance from a photo with a known camera: recolor the object's voxels from the pixels they project to.
+"""The Photo tab's model: a photo, the pose being aligned to it, and the mesh's silhouette drawn over it.
 
-The camera file is the data generator's photo_camera.json: the camera's `elevation_deg`,
-`width`, `height`, `distance`, `focal_mm`, `sensor_mm`, and the object's placement when the
-photo was taken (`rotation_deg`, `translation`); the object's scale is the scene's. Optional
-keys `azimuth_deg` and `principal_offset` place an off-centre photo.
+The user aligns by hand (drag on the photo to turn, Shift+drag to move, the wheel to scale, or
+the numeric fields), lets the search refine that pose or find one from nothing, then colors
+the object from the photo; optionally the scene takes the photo's view (placement and elevation).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
+import trimesh
 
 from renderer.camera import Camera
-from renderer.errors import InputError
-from renderer.io import load_image, load_json
-from renderer.photo import color_voxels_from_photo
-from renderer.scene import ObjectSpec
-from renderer.transform import object_to_world
+from renderer.capture.capture import capture_appearance
+from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
+from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.io import load_image
+from renderer.scene import ObjectSpec, Scene
 
-REQUIRED_KEYS = ("elevation_deg", "width", "height")
+OVERLAY_SIDE = 320  # long side of the photo shown in the Photo tab
+OUTLINE_COLOR = np.array([1.0, 0.2, 0.6])
+TURN_DEG_PER_PIXEL = 0.5
+SHIFT_PER_PIXEL = 0.004  # object units per pixel of the overlay
+SCALE_PER_WHEEL_STEP = 1.05
 
 
-def load_photo_camera(path: str | Path, spec: ObjectSpec) -> tuple[Camera, ObjectSpec]:
-    """The photo's camera and the object's placement in the photo (InputError on a bad file)."""
-    data = load_json(path)
-    if not isinstance(data, dict):
-        raise InputError("a photo camera file must hold a JSON object", path)
-    missing = [key for key in REQUIRED_KEYS if key not in data]
-    if missing:
-        raise InputError(f"missing {', '.join(missing)}", path)
-    camera = Camera(
-        elevation_deg=_number(data, "elevation_deg", path), width=int(_number(data, "width", path)),
-        height=int(_number(data, "height", path)), distance=_number(data, "distance", path, Camera.distance),
-        azimuth_deg=_number(data, "azimuth_deg", path, 0.0), focal_mm=_number(data, "focal_mm", path, Camera.focal_mm),
-        sensor_mm=_number(data, "sensor_mm", path, Camera.sensor_mm),
-        principal_offset=tuple(_numbers(data, "principal_offset", 2, path, (0.0, 0.0))),
-    )
-    placed = replace(spec, rotation_deg=_number(data, "rotation_deg", path, spec.rotation_deg),
-                     translation=tuple(_numbers(data, "translation", 2, path, spec.translation)))
-    if camera.width < 1 or camera.height < 1 or camera.distance <= 0 or camera.focal_mm <= 0 or camera.sensor_mm <= 0:
-        raise InputError("width, height, distance, focal_mm and sensor_mm must be positive", path)
-    return camera, placed
+class PhotoAlignment:
+    """A loaded photo and its current pose; `overlay()` shows how well the pose fits."""
+
+    def __init__(self, path: str | Path, scene: Scene, camera_path: str | Path | None = None):
+        self.path = Path(path)
+        self.rgb, self.alpha = load_image(path)
+        h, w = self.rgb.shape[:2]
+        if camera_path is not None:
+            self.pose = load_pose(camera_path, scene.object).at_size(w, h)
+        else:  # start from the scene's own view, which is what a user sets up to match the photo
+            self.pose = PhotoPose(Camera(scene.camera.elevation_deg, w, h), scene.object.rotation_deg,
+                                  scene.object.translation, scene.object.scale)
+        self._silhouettes: SilhouetteRenderer | None = None
+        self._mesh_key: object = None
+        self.revision = 0  # grows with every pose change, so the window knows when to redraw the overlay
+
+    def set_mesh(self, mesh: trimesh.Trimesh, key: object) -> None:
+        """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped."""
+        if key != self._mesh_key:
+            self._silhouettes = SilhouetteRenderer(mesh)
+            self._mesh_key = key
+            self.revision += 1
+
+    @property
+    def silhouettes(self) -> SilhouetteRenderer | None:
+        return self._silhouettes
+
+    def set_pose(self, pose: PhotoPose) -> None:
+        h, w = self.rgb.shape[:2]
+        elevation = float(np.clip(pose.camera.elevation_deg, 0.0, MAX_ELEVATION_DEG))
+        self.pose = replace(pose, camera=replace(pose.camera, elevation_deg=elevation)).at_size(w, h)
+        self.revision += 1
+
+    def turn(self, dx_pixels: float, dy_pixels: float) -> None:
+        """Mouse drag on the overlay: right turns the object, down raises the camera."""
+        p = self.pose
+        self.set_pose(replace(p, rotation_deg=_wrap(p.rotation_deg + TURN_DEG_PER_PIXEL * dx_pixels),
+                              camera=replace(p.camera, elevation_deg=p.camera.elevation_deg + TURN_DEG_PER_PIXEL * dy_pixels)))
+
+    def shift(self, dx_pixels: float, dy_pixels: float) -> None:
+        """Shift+drag: move the object on the floor, across the view (x) and towards the camera (z)."""
+        x, z = self.pose.translation
+        self.set_pose(replace(self.pose, translation=(x + SHIFT_PER_PIXEL * dx_pixels, z + SHIFT_PER_PIXEL * dy_pixels)))
+
+    def zoom(self, wheel_steps: float) -> None:
+        factor = SCALE_PER_WHEEL_STEP**wheel_steps
+        self.set_pose(replace(self.pose, scale=tuple(s * factor for s in self.pose.scale)))
+
+    def overlay(self, long_side: int = OVERLAY_SIDE) -> np.ndarray:
+        """The photo at display size with the silhouette's outline drawn over it ((H, W, 3) sRGB)."""
+        h, w = self.rgb.shape[:2]
+        factor = min(1.0, long_side / max(h, w))
+        size = (max(1, round(w * factor)), max(1, round(h * factor)))
+        from PIL import Image
+
+        shown = np.asarray(Image.fromarray((self.rgb * 255).astype(np.uint8)).resize(size, Image.Resampling.BOX),
+                           dtype=np.float32) / 255.0
+        if self._silhouettes is None:
+            return shown
+        mask = self._silhouettes.mask(self.pose.at_size(*size))
+        outline = mask & ~_eroded(mask)
+        shown = shown.copy()
+        shown[mask] = 0.75 * shown[mask] + 0.25 * OUTLINE_COLOR
+        shown[outline] = OUTLINE_COLOR
+        return shown
+
+
+def scene_with_photo_view(scene: Scene, pose: PhotoPose) -> Scene:
+    """The scene placed and seen as in the photo: the pose's rotation, translation, scale and elevation."""
+    return scene.with_changes(object=pose.placed(scene.object),
+                              camera=replace(scene.camera, elevation_deg=pose.camera.elevation_deg))
 
 
 def color_from_photo(object_rgba: np.ndarray, spec: ObjectSpec, photo_path: str | Path,
                      camera_path: str | Path) -> np.ndarray:
-    """The object voxels recolored from the photo (occupancy unchanged); InputError if photo and camera disagree."""
-    camera, placed = load_photo_camera(camera_path, spec)
-    photo, _ = load_image(photo_path)
-    try:
-        return color_voxels_from_photo(object_rgba, object_to_world(placed), photo, camera).rgba
-    except InputError as exc:
-        raise InputError(exc.problem, photo_path) from None
+    """The object voxels recolored from a photo with a known camera (occupancy unchanged)."""
+    photo, alpha = load_image(photo_path)
+    pose = load_pose(camera_path, spec)
+    return capture_appearance(object_rgba, None, photo, alpha, pose, search=False, path=photo_path).rgba
 
 
-def _number(data: dict[str, Any], key: str, path: str | Path, default: float | None = None) -> float:
-    value = data.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-        raise InputError(f"{key} must be a finite number", path)
-    return float(value)
+def _eroded(mask: np.ndarray) -> np.ndarray:
+    """Pixels whose 4 neighbours are all in the mask."""
+    inner = mask.copy()
+    inner[1:] &= mask[:-1]
+    inner[:-1] &= mask[1:]
+    inner[:, 1:] &= mask[:, :-1]
+    inner[:, :-1] &= mask[:, 1:]
+    return inner
 
 
-def _numbers(data: dict[str, Any], key: str, length: int, path: str | Path, default: tuple) -> list[float]:
-    value = data.get(key, list(default))
-    if not isinstance(value, (list, tuple)) or len(value) != length:
-        raise InputError(f"{key} must be a list of {length} numbers", path)
-    return [_number({key: v}, key, path) for v in value]
+def _wrap(angle_deg: float) -> float:
+    return math.remainder(angle_deg, 360.0)

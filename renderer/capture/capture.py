@@ -23,6 +23,7 @@ from renderer.errors import InputError
 from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
+ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
 
 
@@ -48,17 +49,20 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, alignment.rays, alignment.seconds)
 
 
-def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh, photo_rgb: np.ndarray,
+def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
                        path: str | Path | None = None) -> Capture:
-    """Color `object_rgba` (voxels of `mesh`) from the photo.
+    """Color `object_rgba` (voxels of `mesh`, which only the search needs) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
-    without a pose the search covers every rotation and elevation.
+    without a pose the search covers every rotation and elevation. A pose made for another size
+    of the same photo is scaled to it; another aspect ratio is an error.
     """
     if pose is None and not search:
         raise InputError("a photo needs a camera file or the automatic alignment", path)
     h, w = photo_rgb.shape[:2]
+    if pose is not None and abs(pose.camera.width * h - pose.camera.height * w) > ASPECT_TOLERANCE * pose.camera.width * h:
+        raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
     if search:
         alignment = find_pose(mesh, photo_rgb, alpha, pose, path)
