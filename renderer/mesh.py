@@ -178,9 +178,10 @@ def mesh_colors_at(mesh: trimesh.Trimesh, points: np.ndarray, face_ids: np.ndarr
 def _barycentric(mesh: trimesh.Trimesh, points: np.ndarray, face_ids: np.ndarray) -> np.ndarray:
     """Barycentric coordinates (M, 3) of points in their faces, clamped into the face and summing to 1."""
     triangles = np.asarray(mesh.vertices, dtype=np.float64)[mesh.faces[face_ids]]
-    with np.errstate(divide="ignore", invalid="ignore"):  # degenerate faces give NaN, replaced just below
-        bary = np.nan_to_num(trimesh.triangles.points_to_barycentric(triangles, points), nan=1.0 / 3.0)
-    bary = np.clip(bary, 0.0, None)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # degenerate faces: replaced just below
+        bary = trimesh.triangles.points_to_barycentric(triangles, points)
+    bary[~np.isfinite(bary).all(axis=1)] = 1.0 / 3.0  # NaN or infinite: the face's centre color
+    bary = np.clip(bary, 0.0, 1e6)  # slivers give huge finite weights; bounded, their sum cannot overflow
     total = bary.sum(axis=1, keepdims=True)
     return np.where(total > 0.0, bary / np.where(total > 0.0, total, 1.0), 1.0 / 3.0)
 

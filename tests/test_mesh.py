@@ -188,3 +188,17 @@ def test_open3d_reads_what_trimesh_cannot(tmp_path, monkeypatch):
     assert len(mesh.faces) == 12
     assert np.allclose(np.ptp(mesh.vertices, axis=0), (1.0, 2.0, 3.0))
     assert (mesh.visual.vertex_colors[:, :3] == (255, 0, 0)).all()
+
+
+@pytest.mark.filterwarnings("error")
+def test_colors_on_a_sliver_face_are_finite_blends_of_its_corners():
+    # A face of a generated sofa whose barycentric coordinates come out [-inf, inf, inf]: the two
+    # infinite weights used to overflow the normalising sum (a warning, and a black voxel).
+    sliver = [[0.462048606719899, 0.061920006046366466, -0.2825970340677612],
+              [0.4620486067210798, 0.06192000604636646, -0.29690392963797446],
+              [0.4620486067210798, 0.06192000604636646, -0.2819860096057233]]
+    corners = [[200, 40, 40, 255], [40, 200, 40, 255], [40, 40, 200, 255]]
+    mesh = trimesh.Trimesh(np.array(sliver), [[0, 1, 2]], vertex_colors=corners, process=False)
+    colors = mesh_colors_at(mesh, np.array([[0.465, 0.061919983848763585, -0.295]]), np.array([0]))
+    assert np.isfinite(colors).all()
+    assert colors.sum() == pytest.approx(280 / 255)  # a convex blend of corners each summing to 280
