@@ -1,10 +1,16 @@
-"""Convolutions that always run on oneDNN on the CPU, whatever their size.
+"""Convolutions that always run on oneDNN on the CPU, whatever their size, with the activation after them fused in.
 
 At batch 1, torch sends a convolution with kernels of at most 3 to a slow reference path
 (im2col) unless channels x (first two spatial sizes) exceeds 20480. The full 128^3 grid passes
 that test, but the crops of models/cropped_encoder.py often do not, and there the reference
 path was up to 6x slower than oneDNN on the same crop. `torch.ops.aten.mkldnn_convolution`
 is the oneDNN call torch itself makes for large inputs, so the numbers are the same kind.
+
+A convolution followed by ReLU or leaky ReLU applies it while writing its output (a oneDNN
+post-op, `torch.ops.mkldnn._convolution_pointwise`, the call torch's own compiler emits), and a
+residual block's last convolution adds the shortcut and applies the block's activation the same
+way (2D blocks: oneDNN fuses only ReLU after an add): each saves a pass or two over a feature map.
+The arithmetic is unchanged.
 """
 
 from __future__ import annotations
@@ -12,9 +18,13 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from models.layers import ResidualBlock2d
+
+NO_ACTIVATION = ("none", [])
+
 
 class OneDnnConv(nn.Module):
-    """A Conv2d or Conv3d (zero padding) that calls oneDNN directly; same weights, same output."""
+    """A Conv2d or Conv3d (zero padding) that calls oneDNN directly, then applies `activation`; same weights."""
 
     def __init__(self, conv: nn.Conv2d | nn.Conv3d):
         super().__init__()
@@ -24,14 +34,63 @@ class OneDnnConv(nn.Module):
         self.bias = conv.bias
         self.padding, self.stride = list(conv.padding), list(conv.stride)
         self.dilation, self.groups = list(conv.dilation), conv.groups
+        self.activation = NO_ACTIVATION  # oneDNN post-op name and its scalars (set by fuse_activations)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return torch.ops.aten.mkldnn_convolution(x, self.weight, self.bias, self.padding, self.stride,
-                                                 self.dilation, self.groups)
+        if self.activation == NO_ACTIVATION:
+            return torch.ops.aten.mkldnn_convolution(x, self.weight, self.bias, self.padding, self.stride,
+                                                     self.dilation, self.groups)
+        return torch.ops.mkldnn._convolution_pointwise(x, self.weight, self.bias, self.padding, self.stride,
+                                                       self.dilation, self.groups, *self.activation, "")
+
+    def add_then_activate(self, x: torch.Tensor, other: torch.Tensor, activation: tuple[str, list]) -> torch.Tensor:
+        """activation(conv(x) + other) in one oneDNN call."""
+        return torch.ops.mkldnn._convolution_pointwise.binary(x, other, self.weight, self.bias, self.padding, self.stride,
+                                                              self.dilation, self.groups, "add", None, *activation, "")
+
+
+class OneDnnConvTranspose(nn.Module):
+    """A ConvTranspose2d on oneDNN, then `activation`; same weights, same output."""
+
+    def __init__(self, conv: nn.ConvTranspose2d):
+        super().__init__()
+        if conv.padding_mode != "zeros":
+            raise ValueError("OneDnnConvTranspose needs zero padding")
+        self.weight = conv.weight
+        self.bias = conv.bias
+        self.padding, self.output_padding = list(conv.padding), list(conv.output_padding)
+        self.stride, self.dilation, self.groups = list(conv.stride), list(conv.dilation), conv.groups
+        self.activation = NO_ACTIVATION
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return torch.ops.mkldnn._convolution_transpose_pointwise(x, self.weight, self.bias, self.padding,
+                                                                 self.output_padding, self.stride, self.dilation,
+                                                                 self.groups, *self.activation, "")
+
+
+class FusedResidual(nn.Module):
+    """A ResidualBlock2d whose last convolution adds the shortcut and applies the block's ReLU.
+
+    (oneDNN fuses only ReLU after an add, so ResidualBlock3d, with leaky ReLU, stays as it is.)
+    """
+
+    def __init__(self, block: ResidualBlock2d):
+        super().__init__()
+        self.block = block
+        convs = [i for i, m in enumerate(block.body) if isinstance(m, OneDnnConv)]
+        if not convs or any(not isinstance(m, nn.Identity) for m in block.body[convs[-1] + 1:]):
+            raise ValueError("a residual block's body must end with a convolution (BatchNorm folded)")
+        self.last = convs[-1]
+        self.activation = _activation(block.act)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        body = self.block.body
+        return body[self.last].add_then_activate(body[:self.last](x), self.block.shortcut(x), self.activation)
 
 
 def use_onednn_convolutions(model: nn.Module) -> nn.Module:
-    """Replace (in place) every Conv2d and Conv3d of a float32 CPU model with OneDnnConv; returns the model.
+    """Replace (in place) every Conv2d, Conv3d and ConvTranspose2d of a float32 CPU model with its oneDNN
+    module and fuse the activations after them (`fuse_activations`); returns the model.
 
     Does nothing when torch was built without oneDNN.
     """
@@ -41,4 +100,37 @@ def use_onednn_convolutions(model: nn.Module) -> nn.Module:
         for name, child in parent.named_children():
             if type(child) in (nn.Conv2d, nn.Conv3d):
                 setattr(parent, name, OneDnnConv(child))
+            elif type(child) is nn.ConvTranspose2d:
+                setattr(parent, name, OneDnnConvTranspose(child))
+    return fuse_activations(model)
+
+
+def fuse_activations(model: nn.Module) -> nn.Module:
+    """In place: each ReLU / leaky ReLU that directly follows a oneDNN convolution in a Sequential (past folded
+    BatchNorms, now Identity) becomes that convolution's post-op, and 2D residual blocks become FusedResidual."""
+    for module in list(model.modules()):
+        if not isinstance(module, nn.Sequential):
+            continue
+        for i, conv in enumerate(module):
+            if not isinstance(conv, (OneDnnConv, OneDnnConvTranspose)):
+                continue
+            j = i + 1
+            while j < len(module) and isinstance(module[j], nn.Identity):
+                j += 1
+            if j < len(module) and isinstance(module[j], (nn.ReLU, nn.LeakyReLU)):
+                conv.activation = _activation(module[j])
+                module[j] = nn.Identity()
+    for parent in list(model.modules()):
+        for name, child in parent.named_children():
+            if isinstance(child, ResidualBlock2d):
+                setattr(parent, name, FusedResidual(child))
     return model
+
+
+def _activation(module: nn.Module) -> tuple[str, list]:
+    """The oneDNN post-op of a ReLU or leaky ReLU module."""
+    if isinstance(module, nn.ReLU):
+        return ("relu", [])
+    if isinstance(module, nn.LeakyReLU):
+        return ("leaky_relu", [module.negative_slope])
+    raise ValueError(f"no oneDNN post-op for {type(module).__name__}")
