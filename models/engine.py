@@ -1,7 +1,7 @@
 """The live renderer of NVR Studio: a scene in, an image out, redoing only the stages an edit touched.
 
 The model is loaded once and turned into an inference copy (BatchNorm folded, channels-last,
-convolutions on oneDNN). Every stage keeps its last result with the exact scene parts it was
+convolutions on oneDNN with their activations fused, the light merge split: models/light_merge.py). Every stage keeps its last result with the exact scene parts it was
 computed from, and reruns only when those change:
 
     stage         depends on                                              result
@@ -67,6 +67,7 @@ import torch  # noqa: E402
 
 from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # noqa: E402
 from models.inference import prepare_for_inference  # noqa: E402
+from models.light_merge import split_light_merge  # noqa: E402
 from models.nvr import NVR, NVRPlus, light_to_network  # noqa: E402
 from models.onednn import use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
@@ -132,7 +133,7 @@ class RenderEngine:
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
-        self.model = use_onednn_convolutions(prepare_for_inference(model))
+        self.model = split_light_merge(use_onednn_convolutions(prepare_for_inference(model)))
         self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
         self.last_report: RenderReport | None = None
         self._memo: dict[str, tuple[Any, Any]] = {}
