@@ -80,12 +80,15 @@ class FusedResidual(nn.Module):
         convs = [i for i, m in enumerate(block.body) if isinstance(m, OneDnnConv)]
         if not convs or any(not isinstance(m, nn.Identity) for m in block.body[convs[-1] + 1:]):
             raise ValueError("a residual block's body must end with a convolution (BatchNorm folded)")
-        self.last = convs[-1]
+        self._head = tuple(block.body[:convs[-1]])  # the body before its last convolution (a tuple: no new submodules)
+        self._last = convs[-1]
         self.activation = _activation(block.act)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        body = self.block.body
-        return body[self.last].add_then_activate(body[:self.last](x), self.block.shortcut(x), self.activation)
+        h = x
+        for module in self._head:
+            h = module(h)
+        return self.block.body[self._last].add_then_activate(h, self.block.shortcut(x), self.activation)
 
 
 def use_onednn_convolutions(model: nn.Module) -> nn.Module:
