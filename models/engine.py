@@ -305,9 +305,10 @@ def ground_is_column_invariant(elevation_deg: float, grid_size: int) -> bool:
 
 def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:
     """Bounding box of the True entries of a 3D mask as one (start, stop) span per axis; None if there are none."""
+    plane = mask.any(axis=2)  # one pass over the mask; the three projections come from this and its columns
     spans = []
-    for axis in range(3):
-        hits = np.flatnonzero(mask.any(axis=tuple(a for a in range(3) if a != axis)))
+    for projection in (plane.any(axis=1), plane.any(axis=0), mask.any(axis=(0, 1))):
+        hits = np.flatnonzero(projection)
         if hits.size == 0:
             return None
         spans.append((int(hits[0]), int(hits[-1]) + 1))

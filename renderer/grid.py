@@ -24,6 +24,7 @@ Caching: scene_grid is four pure stages, so an engine can keep each result until
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
@@ -125,7 +126,7 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     n_rows = int(np.prod(pooled_shape))
     grid_to_world = grid_index_to_world(elevation_deg, grid_size)
     indices = np.full((grid_size,) * 3, n_rows, dtype=np.int32)
-    indices[_floor_mask(grid_to_world, grid_size)] = n_rows + 1
+    indices[ground_mask(elevation_deg, grid_size)] = n_rows + 1
 
     grid_to_object = world_to_object(object_spec) @ grid_to_world
     box_hi = OBJECT_BOX_MIN + np.asarray(pooled_shape) * block
@@ -136,7 +137,8 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     inside = np.ones((len(d), len(r), len(c)), dtype=bool)
     flat = np.zeros(inside.shape, dtype=np.int32)
     for axis in range(3):
-        # Merged-voxel coordinate along this object axis: affine in (depth, row, column).
+        # Merged-voxel coordinate along this object axis: affine in (depth, row, column); one column's worth,
+        # broadcast, when it does not change along the columns (the up axis, for a camera without roll).
         m = grid_to_object[axis] / block[axis]
         cell = _affine_over_grid(m[0], m[1], m[2], m[3] - OBJECT_BOX_MIN[axis] / block[axis], d, r, c)
         np.floor(cell, out=cell)
@@ -151,14 +153,25 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
 
 def _affine_over_grid(kd: float, kr: float, kc: float, k0: float, d: np.ndarray, r: np.ndarray, c: np.ndarray,
                       dtype: type = np.float64) -> np.ndarray:
-    """kd d + kr r + kc c + k0 for every (d, r, c) of the given coordinate vectors, shape (len d, len r, len c)."""
+    """kd d + kr r + kc c + k0 for every (d, r, c) of the given coordinate vectors, shape (len d, len r, len c);
+    (len d, len r, 1) when kc is 0, the same values, to broadcast."""
     plane = ((kd * d)[:, None] + (kr * r + k0)[None, :]).astype(dtype)
+    if kc == 0.0:
+        return plane[:, :, None]
     return plane[:, :, None] + (kc * c).astype(dtype)[None, None, :]
 
 
+@lru_cache(maxsize=8)
 def ground_mask(elevation_deg: float, grid_size: int = GRID_SIZE, columns: int | None = None) -> np.ndarray:
-    """Grid voxels (D, H, W) of the ground slab, as sample_indices marks them; only the first `columns` columns if given."""
-    return _floor_mask(grid_index_to_world(elevation_deg, grid_size), grid_size, columns)
+    """Grid voxels (D, H, W) of the ground slab, as sample_indices marks them; only the first `columns` columns if given.
+
+    Cached (read-only): an object transform keeps the camera, so its ground is the same.
+    """
+    mask = np.ascontiguousarray(np.broadcast_to(
+        _floor_mask(grid_index_to_world(elevation_deg, grid_size), grid_size, columns),
+        (grid_size, grid_size, grid_size if columns is None else min(columns, grid_size))))
+    mask.flags.writeable = False
+    return mask
 
 
 def _floor_mask(grid_to_world: np.ndarray, grid_size: int, columns: int | None = None) -> np.ndarray:

@@ -163,6 +163,13 @@ def test_ground_grid_is_the_scene_grid_without_object():
     assert flat[:, 22:25, :].all()
 
 
+def test_occupied_spans_bound_the_true_entries():
+    mask = np.zeros((6, 7, 8), dtype=bool)
+    assert occupied_spans(mask) is None
+    mask[1, 5, 2] = mask[3, 2, 6] = True
+    assert occupied_spans(mask) == ((1, 4), (2, 6), (2, 7))
+
+
 def test_preview_is_the_splat_unless_only_the_light_changed(model, scene):
     live = engine(model)
     live.render(scene)
