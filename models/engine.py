@@ -14,7 +14,8 @@ computed from, and reruns only when those change:
     background    camera elevation, floor color                           voxel-branch features of the ground alone
     gather        pool, placement, floor color                            grid inside the object's crop
     voxel_branch  as gather                                               latent (encode_voxels)
-    splat_layout  voxels, translation, rotation, scale, camera elevation  the voxel each pixel shows, the floor
+    shell         voxels                                                  the voxels with an exposed face
+    splat_layout  shell, translation, rotation, scale, camera elevation   the voxel each pixel shows, the floor
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
     splat_branch  as splat                                                splat features (encode_splat)
     light         all of the above and the light position                 image (render_from_latent)
@@ -30,7 +31,7 @@ Floor color is the scene's floor color after its floor paint strokes. Hence, per
                                   splat_layout, splat, splat_branch, light
     camera elevation              placement, background, gather, voxel_branch, splat_layout, splat,
                                   splat_branch, light
-    new mesh or up                voxels, paint, pool, gather, voxel_branch, splat_layout, splat,
+    new mesh or up                voxels, paint, pool, gather, voxel_branch, shell, splat_layout, splat,
                                   splat_branch, light
     new resolution                as a new mesh, and placement
     nothing                       none (the last image again)
@@ -86,7 +87,7 @@ from renderer.paint import apply_paint  # noqa: E402
 from renderer.pipeline import object_voxels  # noqa: E402
 from renderer.scene import Scene  # noqa: E402
 from renderer.splat import color_splat, splat_layout  # noqa: E402
-from renderer.surface import occupancy  # noqa: E402
+from renderer.surface import Shell, occupancy  # noqa: E402
 from renderer.transform import object_to_world  # noqa: E402
 
 KINDS = {"nvr+": "nvr_plus", "nvr": "nvr"}  # renderer name -> network architecture
@@ -249,8 +250,9 @@ class RenderEngine:
         return _Placement(indices, None if spans is None else self.encoder.plan(spans))
 
     def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+        shell = self._stage("shell", keys.layout[0], lambda: Shell(occupancy(painted)))  # paint keeps occupancy
         layout = self._stage("splat_layout", keys.layout, lambda: splat_layout(
-            occupancy(painted), object_to_world(scene.object), Camera.from_scene(scene, self.output_size)))
+            shell, object_to_world(scene.object), Camera.from_scene(scene, self.output_size)))
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
 
     # --- the memo and the report ------------------------------------------------------------

@@ -24,7 +24,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb
 from renderer.errors import InputError
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_HALF_SIZE, OBJECT_SIZE, Scene
-from renderer.surface import check_object_voxels, facing_surface_mask, grid_from_world, occupancy, voxel_centers_at
+from renderer.surface import Shell, check_object_voxels, grid_from_world, occupancy, voxel_centers_at
 from renderer.transform import apply_transform, object_to_world
 
 NEAR_DEPTH = 1e-3  # voxels closer to the image plane than this (or behind it) are dropped
@@ -48,7 +48,7 @@ class SplatLayout:
 def splat(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, floor_color, camera: Camera) -> np.ndarray:
     """The splatted image S, (H, W, 3) float32 sRGB in [0, 1], of the object voxels placed in the world."""
     rgba = check_object_voxels(object_rgba)
-    return color_splat(splat_layout(occupancy(rgba), object_to_world_matrix, camera), rgba, floor_color)
+    return color_splat(splat_layout(Shell(occupancy(rgba)), object_to_world_matrix, camera), rgba, floor_color)
 
 
 def splat_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None) -> np.ndarray:
@@ -56,12 +56,11 @@ def splat_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     return splat(object_rgba, object_to_world(scene.object), floor_color, Camera.from_scene(scene, size))
 
 
-def splat_layout(occupied: np.ndarray, object_to_world_matrix: np.ndarray, camera: Camera) -> SplatLayout:
-    """Which voxel of an (N, N, N) occupancy grid placed in the world each pixel shows, and where the floor is."""
-    n = occupied.shape[0]
+def splat_layout(shell: Shell, object_to_world_matrix: np.ndarray, camera: Camera) -> SplatLayout:
+    """Which voxel of an (N, N, N) object grid (its Shell) placed in the world each pixel shows, and where the floor is."""
+    n = shell.shape[0]
     matrix = np.asarray(object_to_world_matrix, dtype=np.float64)
-    camera_grid = apply_transform(grid_from_world(matrix, n), camera.position)
-    flat = np.flatnonzero(facing_surface_mask(occupied, camera_grid))
+    flat = shell.facing(apply_transform(grid_from_world(matrix, n), camera.position))
     voxel = np.full((camera.height, camera.width), -1, dtype=np.int64)
     if flat.size:
         centres = apply_transform(matrix, voxel_centers_at(np.stack(np.unravel_index(flat, (n, n, n)), axis=1), n))

@@ -71,11 +71,33 @@ def facing_surface_mask(occupied: np.ndarray, viewpoint_grid: np.ndarray) -> np.
     Any ray from the viewpoint that meets the object enters its first voxel through such a face,
     so the other voxels are never the first one hit: renderers may skip them.
     """
-    result = np.zeros(np.shape(occupied), dtype=bool)
-    for axis in range(3):
-        for side in (-1, 1):
-            result |= facing_exposed(occupied, viewpoint_grid, axis, side)
-    return result
+    shell = Shell(occupied)
+    mask = np.zeros(shell.shape, dtype=bool)
+    mask.reshape(-1)[shell.facing(viewpoint_grid)] = True
+    return mask
+
+
+class Shell:
+    """The voxels of an occupancy grid with an exposed face (flat indices, ascending) and which of their six faces
+    are exposed: found once per grid, they let a splat from any viewpoint look at these voxels only."""
+
+    SIDES = tuple((axis, side) for axis in range(3) for side in (-1, 1))
+
+    def __init__(self, occupied: np.ndarray):
+        occupied = np.asarray(occupied, dtype=bool)
+        self.shape = occupied.shape
+        faces = [exposed(occupied, axis, side) for axis, side in self.SIDES]
+        self.voxels = np.flatnonzero(np.logical_or.reduce(faces))
+        self.coords = np.stack(np.unravel_index(self.voxels, self.shape), axis=1)  # (K, 3) integer indices
+        self.faces = np.stack([f.reshape(-1)[self.voxels] for f in faces], axis=1)  # (K, 6): exposed on SIDES[i]
+
+    def facing(self, viewpoint_grid: np.ndarray) -> np.ndarray:
+        """Flat indices (ascending) of the voxels with an exposed face whose outer side sees `viewpoint_grid`."""
+        seen = np.zeros(len(self.voxels), dtype=bool)
+        for i, (axis, side) in enumerate(self.SIDES):
+            face = self.coords[:, axis] + (side > 0)  # the face's coordinate, as facing_exposed computes it
+            seen |= self.faces[:, i] & ((viewpoint_grid[axis] - face) * side > 0)
+        return self.voxels[seen]
 
 
 def voxel_centers_at(indices: np.ndarray, resolution: int) -> np.ndarray:

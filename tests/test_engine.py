@@ -113,7 +113,7 @@ def test_same_scene_runs_nothing_and_first_render_runs_everything(model, scene):
     live = engine(model)
     first = live.render(scene)
     assert live.last_report.stages_run == ("voxels", "paint", "pool", "placement", "background", "gather",
-                                           "voxel_branch", "splat_layout", "splat", "splat_branch", "light")
+                                           "voxel_branch", "shell", "splat_layout", "splat", "splat_branch", "light")
     again = live.render(scene)
     assert live.last_report.stages_run == ()
     np.testing.assert_array_equal(first, again)

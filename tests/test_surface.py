@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from renderer.surface import exposed, facing_surface_mask, surface_mask, voxel_centers_at
+from renderer.surface import Shell, exposed, facing_exposed, facing_surface_mask, surface_mask, voxel_centers_at
 
 
 def cube(n=6, lo=1, hi=5):
@@ -32,3 +32,16 @@ def test_exposed_faces_and_facing_voxels():
 def test_voxel_centres_follow_the_object_box():
     centres = voxel_centers_at(np.array([[0, 0, 0], [3, 3, 3]]), 4)
     assert np.allclose(centres, [[-0.375, 0.125, -0.375], [0.375, 0.875, 0.375]])
+
+
+def test_shell_facing_is_the_union_of_facing_exposed_faces():
+    rng = np.random.default_rng(0)
+    occupied = rng.random((7, 8, 9)) < 0.4
+    shell = Shell(occupied)
+    for viewpoint in (np.array([3.5, 20.0, -4.0]), np.array([-30.0, 4.0, 4.5]), np.array([3.0, 4.0, 4.0])):
+        union = np.zeros(occupied.shape, dtype=bool)
+        for axis in range(3):
+            for side in (-1, 1):
+                union |= facing_exposed(occupied, viewpoint, axis, side)
+        assert union.any()
+        np.testing.assert_array_equal(shell.facing(viewpoint), np.flatnonzero(union))
