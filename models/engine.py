@@ -9,8 +9,8 @@ computed from, and reruns only when those change:
     paint         voxels, object color, region/object paint strokes       painted object voxels (from the
                                                                           longest stroke list painted before)
     pool          paint, merge factors (resolution, scale)                merged voxels
-    placement     resolution, merge factors, translation, rotation,       grid row of every voxel, object's crop
-                  scale, camera elevation
+    placement     voxels, resolution, merge factors, translation,         grid row of every voxel, object's crop
+                  rotation, scale, camera elevation                       (around its non-empty voxels)
     background    camera elevation, floor color                           voxel-branch features of the ground alone
     gather        pool, placement, floor color                            grid inside the object's crop
     voxel_branch  as gather                                               latent (encode_voxels)
@@ -31,9 +31,8 @@ Floor color is the scene's floor color after its floor paint strokes. Hence, per
                                   splat_layout, splat, splat_branch, light
     camera elevation              placement, background, gather, voxel_branch, splat_layout, splat,
                                   splat_branch, light
-    new mesh or up                voxels, paint, pool, gather, voxel_branch, shell, splat_layout, splat,
-                                  splat_branch, light
-    new resolution                as a new mesh, and placement
+    new mesh, up or resolution    voxels, paint, pool, placement, gather, voxel_branch, shell, splat_layout,
+                                  splat, splat_branch, light
     nothing                       none (the last image again)
 
 The voxel branch runs only around the object (models/cropped_encoder.py): the ground's
@@ -215,15 +214,16 @@ class RenderEngine:
         o, elevation = scene.object, scene.camera.elevation_deg
         n = painted.shape[0]
         factors = pool_factors(n, o.scale, self.config.grid_size)
-        placement = (n, factors, o.translation, o.rotation_deg, o.scale, elevation)
-        layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)  # paint never changes occupancy
+        # Placement reads which object rows are empty, and layout the occupancy: neither changes with paint.
+        placement = (paint_key[0], n, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
         return _Keys(pool=(paint_key, factors), placement=placement, grid=(paint_key, placement, floor),
                      layout=layout, splat=(paint_key, layout, floor))
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
-        n, factors = keys.placement[:2]
+        n, factors = keys.placement[1:3]
         pooled = self._stage("pool", keys.pool, lambda: pool_voxels(painted, factors))
-        placement = self._stage("placement", keys.placement, lambda: self._place(n, factors, scene))
+        placement = self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
         if not self.crop:
             grid = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices))
             self._recording.grid_fraction = 1.0
@@ -244,9 +244,10 @@ class RenderEngine:
         columns = narrow.width if narrow is not None and ground_is_column_invariant(elevation, g) else g
         return self.encoder.background(_grid_tensor(ground_grid(floor, elevation, g, columns)))
 
-    def _place(self, n: int, factors: tuple[int, int, int], scene: Scene) -> _Placement:
-        indices = sample_indices(n, factors, scene.object, scene.camera.elevation_deg, self.config.grid_size)
-        spans = occupied_spans(indices < np.prod([-(-n // f) for f in factors]))
+    def _place(self, n: int, factors: tuple[int, int, int], scene: Scene, pooled: np.ndarray) -> _Placement:
+        g, elevation = self.config.grid_size, scene.camera.elevation_deg
+        indices = sample_indices(n, factors, scene.object, elevation, g)
+        spans = changed_spans(indices, pooled, ground_mask(elevation, g))
         return _Placement(indices, None if spans is None else self.encoder.plan(spans))
 
     def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
@@ -303,6 +304,26 @@ def ground_is_column_invariant(elevation_deg: float, grid_size: int) -> bool:
     True for the project's camera (no roll): the column coefficient of world y is exactly 0.
     """
     return bool(grid_index_to_world(elevation_deg, grid_size)[1, 2] == 0.0)
+
+
+def changed_spans(indices: np.ndarray, pooled: np.ndarray, ground: np.ndarray) -> tuple[tuple[int, int], ...] | None:
+    """Bounding box (one span per axis) of the grid voxels that differ from the ground-only grid; None if none do.
+
+    `indices` come from renderer.grid.sample_indices with the P merged voxels `pooled` and `ground` is the
+    grid's ground_mask. A voxel differs where it takes a non-zero object row, or a ground voxel took an object
+    row. The object's box is mostly empty, and its all-zero rows equal the empty row, so they are left out:
+    the object's crop covered 14-21 % of the grid instead of 35-42 % on the bench objects.
+    """
+    rows = int(np.prod(pooled.shape[:-1]))
+    box = occupied_spans(indices < rows)  # voxels that take an object row, empty or not
+    if box is None:
+        return None
+    window = tuple(slice(*span) for span in box)
+    taken = indices[window]
+    bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(rows, 4).view(np.uint64)  # a row: two 8-byte words
+    non_zero = np.append((bits[:, 0] | bits[:, 1]) != 0, [False, False])  # (-0.0 counts as non-zero: a larger crop)
+    spans = occupied_spans(non_zero[taken] | (ground[window] & (taken != rows + 1)))
+    return None if spans is None else tuple((lo + s.start, hi + s.start) for (lo, hi), s in zip(spans, window))
 
 
 def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:

@@ -14,7 +14,7 @@ from models.async_render import AsyncRenderer
 from models.checkpoint import save_model
 from models.config import CompactConfig, PaperConfig
 from models.cropped_encoder import CroppedVoxelEncoder, NarrowGround
-from models.engine import RenderEngine, ground_grid, occupied_spans
+from models.engine import RenderEngine, changed_spans, ground_grid, occupied_spans
 from models.inference import prepare_for_inference
 from models.nvr import build_model
 from models.receptive import conv_chain
@@ -161,6 +161,33 @@ def test_ground_grid_is_the_scene_grid_without_object():
     flat = ground_grid((1.0, 1.0, 1.0), 0.0, 32)[..., 3] == 1.0
     assert np.flatnonzero(flat.any(axis=(0, 2))).tolist() == [22, 23, 24]
     assert flat[:, 22:25, :].all()
+
+
+def test_changed_spans_leave_out_empty_object_rows_but_not_replaced_ground():
+    pooled = np.zeros((2, 1, 1, 4), np.float32)  # P = 2 object rows: row 0 empty, row 1 occupied
+    pooled[1, 0, 0] = (0.5, 0.5, 0.5, 1.0)
+    ground = np.zeros((4, 5, 6), dtype=bool)
+    ground[:, 4, :] = True
+    indices = np.where(ground, 3, 2).astype(np.int32)  # the floor row P + 1, the empty row P
+    indices[0, 0, 0] = 0  # the empty object row equals the empty row: nothing changes
+    indices[1, 1, 2] = 1
+    assert changed_spans(indices, pooled, ground) == ((1, 2), (1, 2), (2, 3))
+    indices[3, 4, 5] = 0  # an object row, even an empty one, in place of a floor voxel removes it
+    assert changed_spans(indices, pooled, ground) == ((1, 4), (1, 5), (2, 6))
+    indices[indices < 2] = 2
+    assert changed_spans(indices, pooled, ground) is None
+
+
+def test_crop_around_a_small_part_of_the_object_box_equals_the_full_grid(model, scene):
+    """A blob in one corner of the object's box: the crop follows the blob, not the box, and stays exact."""
+    rgba = np.zeros((16, 16, 16, 4), np.float32)
+    rgba[1:4, 0:3, 11:15] = (0.9, 0.8, 0.1, 1.0)
+    save_voxels(scene.base_dir / "corner.npz", rgba)
+    corner = scene.with_changes(object=replace(scene.object, voxels="corner.npz", scale=(1.0, 1.0, 1.0)))
+    live = engine(model)
+    image = live.render(corner)
+    assert 0.0 < live.last_report.grid_fraction < 0.1
+    np.testing.assert_allclose(image, engine(model, crop=False).render(corner), rtol=0, atol=1e-5)
 
 
 def test_occupied_spans_bound_the_true_entries():
