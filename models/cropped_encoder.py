@@ -29,9 +29,11 @@ from models.receptive import ConvChain, Span, conv_chain
 
 @dataclass(frozen=True)
 class Background:
-    """Features of the ground-only grid: the 3D stack's output (1, C, d, h, w) and the latent (1, L, h, w)."""
+    """Features of the ground-only grid: the 3D stack's output (1, C, d, h, w), the projection unit's (1, L, h, w)
+    and the latent (1, L, h, w)."""
 
     volume: torch.Tensor
+    projected: torch.Tensor
     latent: torch.Tensor
 
 
@@ -81,14 +83,16 @@ class CroppedVoxelEncoder:
             raise ValueError(f"a ground grid {width} columns wide: expected {self.grid_size} or the narrow width")
         volume = self.encoder.residual(self.encoder.stages(ground))
         if width == self.grid_size:
-            return Background(volume, self.encoder.blocks(self._project(volume)))
+            projected = self._project(volume)
+            return Background(volume, projected, self.encoder.blocks(projected))
         columns = self.volume_size[2]
-        if self.narrow is None:  # the 2D blocks reach every column
-            return Background(_widen(volume, narrow.middle, columns),
-                              self.encoder.blocks(self._project(_widen(volume, narrow.middle, columns))))
-        plane_columns = self.narrow.width // self.volume_chain.total_stride[2]  # the 3D stack's output on `self.narrow`
-        latent = self.encoder.blocks(self._project(_widen(volume, narrow.middle, plane_columns)))
-        return Background(_widen(volume, narrow.middle, columns), _widen(latent, self.narrow.middle, columns))
+        # The 2D blocks run on the 3D stack's output as it is on `self.narrow` (on every column if there is none).
+        plane_columns = columns if self.narrow is None else self.narrow.width // self.volume_chain.total_stride[2]
+        projected = self._project(_widen(volume, narrow.middle, plane_columns))  # per column: widens like the volume
+        latent = self.encoder.blocks(projected)
+        if self.narrow is not None:
+            latent = _widen(latent, self.narrow.middle, columns)
+        return Background(_widen(volume, narrow.middle, columns), _widen(projected, narrow.middle, columns), latent)
 
     def plan(self, object_spans: tuple[Span, Span, Span]) -> CropPlan | None:
         """The crops for an object whose voxels lie in the grid spans `object_spans`; None if it changes nothing."""
@@ -107,10 +111,14 @@ class CroppedVoxelEncoder:
         """The latent of the whole scene from the background and the grid inside `plan.grid` (1, 4, d, h, w)."""
         crop_volume = self.encoder.residual(self.encoder.stages(grid_crop))
         offsets = [s.start // t for s, t in zip(plan.grid, self.volume_chain.total_stride)]
-        volume = background.volume.clone()
-        volume[(..., *_slices(plan.volume))] = crop_volume[(..., *_slices(plan.volume, offsets))]
+        # The projection is per latent pixel: only the changed rows and columns (every depth of them) are redone.
+        (d0, d1), (r0, r1), (c0, c1) = plan.volume
+        columns = background.volume[..., r0:r1, c0:c1].clone()
+        columns[..., d0:d1, :, :] = crop_volume[(..., *_slices(plan.volume, offsets))]
+        projected = background.projected.clone()
+        projected[..., r0:r1, c0:c1] = self._project(columns)
         (r0, r1), (c0, c1) = plan.plane_read
-        features = self.encoder.blocks(self._project(volume[..., r0:r1, c0:c1]))
+        features = self.encoder.blocks(projected[..., r0:r1, c0:c1])
         latent = background.latent.clone()
         latent[(..., *_slices(plan.plane))] = features[(..., *_slices(plan.plane, (r0, c0)))]
         return latent

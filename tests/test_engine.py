@@ -273,6 +273,7 @@ def test_narrow_ground_gives_the_full_background(config, narrow, narrow_volume):
         full = cropped.background(torch.from_numpy(ground).permute(3, 0, 1, 2)[None])
         narrow = cropped.background(torch.from_numpy(ground[:, :, :12].copy()).permute(3, 0, 1, 2)[None])
     torch.testing.assert_close(narrow.volume, full.volume, rtol=0, atol=1e-6)
+    torch.testing.assert_close(narrow.projected, full.projected, rtol=0, atol=1e-6)
     torch.testing.assert_close(narrow.latent, full.latent, rtol=0, atol=1e-6)
 
 
