@@ -319,10 +319,12 @@ def changed_spans(indices: np.ndarray, pooled: np.ndarray, ground: np.ndarray) -
     if box is None:
         return None
     window = tuple(slice(*span) for span in box)
-    taken = indices[window]
+    taken = np.ascontiguousarray(indices[window])
     bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(rows, 4).view(np.uint64)  # a row: two 8-byte words
     non_zero = np.append((bits[:, 0] | bits[:, 1]) != 0, [False, False])  # (-0.0 counts as non-zero: a larger crop)
-    spans = occupied_spans(non_zero[taken] | (ground[window] & (taken != rows + 1)))
+    changed = np.take(non_zero.view(np.uint8), taken).view(bool)  # np.take: twice as fast as fancy indexing
+    changed |= ground[window] & (taken != rows + 1)
+    spans = occupied_spans(changed)
     return None if spans is None else tuple((lo + s.start, hi + s.start) for (lo, hi), s in zip(spans, window))
 
 
