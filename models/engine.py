@@ -246,7 +246,7 @@ class RenderEngine:
 
     def _place(self, n: int, factors: tuple[int, int, int], scene: Scene, pooled: np.ndarray) -> _Placement:
         g, elevation = self.config.grid_size, scene.camera.elevation_deg
-        indices = sample_indices(n, factors, scene.object, elevation, g)
+        indices = sample_indices(n, factors, scene.object, elevation, g, within=occupied_spans(_non_zero(pooled)))
         spans = changed_spans(indices, pooled, ground_mask(elevation, g))
         return _Placement(indices, None if spans is None else self.encoder.plan(spans))
 
@@ -320,12 +320,17 @@ def changed_spans(indices: np.ndarray, pooled: np.ndarray, ground: np.ndarray) -
         return None
     window = tuple(slice(*span) for span in box)
     taken = np.ascontiguousarray(indices[window])
-    bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(rows, 4).view(np.uint64)  # a row: two 8-byte words
-    non_zero = np.append((bits[:, 0] | bits[:, 1]) != 0, [False, False])  # (-0.0 counts as non-zero: a larger crop)
+    non_zero = np.append(_non_zero(pooled).reshape(-1), [False, False])  # the empty and floor rows: no object
     changed = np.take(non_zero.view(np.uint8), taken).view(bool)  # np.take: twice as fast as fancy indexing
     changed |= ground[window] & (taken != rows + 1)
     spans = occupied_spans(changed)
     return None if spans is None else tuple((lo + s.start, hi + s.start) for (lo, hi), s in zip(spans, window))
+
+
+def _non_zero(pooled: np.ndarray) -> np.ndarray:
+    """Which merged voxels (D, H, W) of `pooled` (D, H, W, 4) are not all zero (-0.0 counts as non-zero: a larger crop)."""
+    bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4).view(np.uint64)  # a voxel: two 8-byte words
+    return ((bits[:, 0] | bits[:, 1]) != 0).reshape(pooled.shape[:-1])
 
 
 def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:

@@ -116,12 +116,17 @@ def grid_index_to_world(elevation_deg: float, grid_size: int = GRID_SIZE) -> np.
 
 
 def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec,
-                   elevation_deg: float, grid_size: int = GRID_SIZE) -> np.ndarray:
+                   elevation_deg: float, grid_size: int = GRID_SIZE,
+                   within: tuple[tuple[int, int], ...] | None = None) -> np.ndarray:
     """Table row (D, H, W) int32 for every grid voxel: a merged object voxel, empty (P) or floor (P + 1).
 
-    The P merged voxels are those pool_voxels makes from an N^3 object with `factors`.
+    The P merged voxels are those pool_voxels makes from an N^3 object with `factors`. `within`: a box
+    of merged voxels, (start, stop) per axis, outside which every merged voxel is empty (all zero), if
+    the caller knows one; grid voxels there take the empty row P instead, the same values, and only the
+    box is sampled. (The ground lies below every object box, so no ground voxel is affected.)
     """
     pooled_shape = tuple(-(-resolution // f) for f in factors)
+    first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
     block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)  # merged voxel sides, object units
     n_rows = int(np.prod(pooled_shape))
     grid_to_world = grid_index_to_world(elevation_deg, grid_size)
@@ -129,8 +134,7 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     indices[ground_mask(elevation_deg, grid_size)] = n_rows + 1
 
     grid_to_object = world_to_object(object_spec) @ grid_to_world
-    box_hi = OBJECT_BOX_MIN + np.asarray(pooled_shape) * block
-    ranges = _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN, box_hi, grid_size)
+    ranges = _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block, grid_size)
     if any(lo >= hi for lo, hi in ranges):
         return indices
     d, r, c = (np.arange(lo, hi) + 0.5 for lo, hi in ranges)
@@ -142,7 +146,7 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
         m = grid_to_object[axis] / block[axis]
         cell = _affine_over_grid(m[0], m[1], m[2], m[3] - OBJECT_BOX_MIN[axis] / block[axis], d, r, c)
         np.floor(cell, out=cell)
-        inside &= (cell >= 0) & (cell < pooled_shape[axis])
+        inside &= (cell >= first[axis]) & (cell < stop[axis])
         flat *= pooled_shape[axis]
         flat += np.clip(cell, 0, pooled_shape[axis] - 1, out=cell).astype(np.int32)
     (d0, d1), (r0, r1), (c0, c1) = ranges

@@ -165,3 +165,26 @@ def test_tiny_scale_gives_at_most_a_few_voxels():
     grid = scene_grid(sphere_voxels(), ObjectSpec(mesh="m", scale=(1e-3,) * 3), FLOOR, 30.0)
     assert np.isfinite(grid).all()
     assert object_part(grid).sum() <= 8
+
+
+@pytest.mark.parametrize("elevation, rotation, translation, scale", [
+    (30.0, 25.0, (0.2, -0.3), (1.0, 1.0, 1.0)),
+    (0.0, -140.0, (-0.9, 0.6), (0.5, 1.7, 1.2)),  # merged voxels (factors > 1) and the grid's side
+    (80.0, 90.0, (0.0, 0.0), (1.4, 0.6, 0.8)),
+])
+def test_sampling_within_the_non_empty_box_gives_the_same_grid(elevation, rotation, translation, scale):
+    """Two blobs inside a 20^3 object: sampling only their box leaves the object's empty voxels to the empty row."""
+    rgba = np.zeros((20, 20, 20, 4), dtype=np.float32)
+    rgba[4:7, 2:5, 11:15] = [0.9, 0.1, 0.2, 1.0]
+    rgba[9, 8:12, 12] = [0.1, 0.8, 0.3, 1.0]
+    spec = ObjectSpec(translation=translation, rotation_deg=rotation, scale=scale)
+    factors = pool_factors(20, scale)
+    pooled = pool_voxels(rgba, factors)
+    occupied = np.argwhere(pooled[..., 3] > 0)
+    within = tuple(zip(occupied.min(axis=0).tolist(), (occupied.max(axis=0) + 1).tolist()))
+    table = voxel_table(pooled, FLOOR)
+    full = sample_indices(20, factors, spec, elevation)
+    boxed = sample_indices(20, factors, spec, elevation, within=within)
+    assert np.any(boxed != full)  # the empty part of the object's box was not sampled
+    np.testing.assert_array_equal(gather(table, boxed), gather(table, full))
+    np.testing.assert_array_equal(gather(table, boxed), scene_grid(rgba, spec, FLOOR, elevation))
