@@ -1,4 +1,4 @@
-"""The visible faces of object voxels, as instances for the viewport: one quad per exposed voxel face.
+"""The visible faces of object voxels for the viewport: one quad per exposed voxel face.
 
 Only faces whose neighbour is empty (renderer/surface.py `exposed`) can ever be seen, so a
 100^3 object becomes a few tens of thousands of quads instead of a million cubes. Face ids:
@@ -13,7 +13,7 @@ from renderer.surface import exposed, occupancy
 
 
 def exposed_faces(rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Instances (F, 4) float32 of (i, j, k, face id) and their colors (F, 3) float32 sRGB."""
+    """Faces (F, 4) float32 as (i, j, k, face id) and their colors (F, 3) float32 sRGB."""
     occupied = occupancy(rgba)
     cells, colors = [], []
     for face in range(6):
