@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -327,3 +328,81 @@ def test_meshes_and_photos_load_and_bad_files_leave_the_scene_alone(display, tmp
     colored = object_voxels(photo)
     assert np.array_equal(colored[..., 3], object_voxels(tall)[..., 3])  # same shape, new colors
     assert np.abs(colored[occupied][:, :3] - object_voxels(tall)[occupied][:, :3]).max() > 0.1
+
+
+# --- drawing only what changed ---------------------------------------------------------------------
+
+
+def test_frame_summaries_read_whole_vertex_and_index_buffers(display, monkeypatch):
+    """The byte sizes the digest assumes: every index read points at one of the list's vertices, the last at the last."""
+    import ctypes
+
+    from imgui_bundle import imgui
+
+    from app.editor.frame_damage import INDEX_BYTES, VERTEX_BYTES, summarize
+    from app.editor.window import Window
+
+    monkeypatch.setenv("DISPLAY", display)
+    window = Window("summaries", 320, 200)
+    try:
+        digests = []
+        for text in ("one", "one", "one", "two", "two"):  # a new ImGui window settles in its first frames
+            window.begin_frame()
+            imgui.set_next_window_pos(imgui.ImVec2(10, 10))
+            imgui.set_next_window_size(imgui.ImVec2(200, 100))
+            imgui.begin("panel")
+            imgui.text(text)
+            imgui.end()
+            window.end_frame()  # uploads the font on the first frame
+            draw_data = imgui.get_draw_data()
+            for draw_list in draw_data.cmd_lists:
+                v, i = draw_list.vtx_buffer, draw_list.idx_buffer
+                indices = np.frombuffer(ctypes.string_at(i.data_address(), i.size() * INDEX_BYTES), f"u{INDEX_BYTES}")
+                assert indices.min() == 0 and indices.max() == v.size() - 1
+                xy = np.frombuffer(ctypes.string_at(v.data_address(), v.size() * VERTEX_BYTES), np.float32)
+                xy = xy.reshape(-1, VERTEX_BYTES // 4)[:, :2]
+                assert (xy >= 0).all() and (xy <= (320, 200)).all()  # positions in the window
+            digests.append(summarize(draw_data, window.size, ()).lists)
+            window.present()
+        assert digests[1] == digests[2] != digests[3] == digests[4]
+        assert [box for _, box in digests[-1]] == [(10, 10, 211, 111)]  # the panel's rectangle, rounded outwards
+    finally:
+        window.close()
+
+
+def test_the_screen_shows_the_full_frame_after_partial_updates(display, tmp_path, scene_file, model_file):
+    """What the X server shows after frames drawn in parts (light drag, object move) equals the whole frame drawn at once."""
+    from PIL import ImageGrab, features
+
+    if not features.check("xcb"):
+        pytest.skip("Pillow was built without XCB: cannot read the screen")
+    marker = tmp_path / "ba.json"
+    replay = tmp_path / "replay.json"
+    replay.write_text(json.dumps([
+        # Saving shows a message, and a message with letters not seen before makes ImGui add them to its font
+        # texture, which redraws the whole frame. The same letters now mean the frame after the last save
+        # (the marker) is drawn only where it changed.
+        {"action": "save", "path": str(tmp_path / "ab.json")},
+        {"action": "drag_light", "to": [-1.5, 2.5, -1.0], "steps": 12},
+        {"action": "move_object", "translation": [0.3, -0.2]},
+        {"action": "drag_light", "to": [1.5, 3.0, 0.0], "steps": 12},
+        {"action": "save", "path": str(marker)},
+        {"action": "wait", "frames": 600},
+    ]))
+    env = dict(os.environ, DISPLAY=display, XDG_STATE_HOME=str(tmp_path / "state"), NVR_EDITOR_TIMEOUT="120")
+    editor = subprocess.Popen([*EDITOR, str(scene_file), "--frames", "3", "--replay", str(replay), "--model", str(model_file),
+                               "--screenshot", str(tmp_path / "whole.png")], env=env, cwd=Path(__file__).resolve().parents[1],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 200
+    while not marker.exists() and editor.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)  # the editor is idle since the marker: nothing but the frame rate in the status bar changes
+    screen = np.asarray(ImageGrab.grab(xdisplay=display), dtype=np.float64)[:WINDOW[1], :WINDOW[0]] / 255.0
+    out, err = editor.communicate(timeout=200)
+    assert editor.returncode == 0, err
+    drawn = [int(n) for n in re.findall(r"(\d+) drawn", out)]
+    frames = int(re.search(r"(\d+) frames;", out).group(1))
+    assert sum(drawn) < frames - 300  # the waiting frames looked the same and were not drawn again
+    whole = np.asarray(Image.open(tmp_path / "whole.png"), dtype=np.float64) / 255.0
+    above_status = PANELS.status.y
+    np.testing.assert_array_equal(screen[:above_status], whole[:above_status])

@@ -10,6 +10,7 @@ import pytest
 
 from app.editor import edits, state
 from app.editor.document import Document
+from app.editor.frame_damage import FrameSummary, changed_boxes, merge
 from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
 from app.editor.photo_capture import color_from_photo
@@ -248,3 +249,40 @@ def test_bad_scene_or_replay_file_exits_2_with_one_line(tmp_path, capsys):
     assert run(["assets/demo/scene.json", "--frames", "1", "--replay", str(replay)]) == 2
     err = capsys.readouterr().err.strip()
     assert "unknown action 'fly'" in err and len(err.splitlines()) == 1
+
+
+# --- which parts of the window a frame changes ------------------------------------------------------
+
+
+def _frame(lists=((b"menu", (0, 0, 100, 20)), (b"tools", (60, 20, 100, 80))), viewport=1, render=1, size=(100, 80)):
+    return FrameSummary(size, tuple(lists), (((0, 20, 60, 80), viewport), ((70, 30, 90, 50), render)))
+
+
+def test_a_frame_that_looks_the_same_changes_nothing_and_an_unknown_screen_changes_everything():
+    assert changed_boxes(_frame(), _frame()) == []
+    assert changed_boxes(None, _frame()) is None
+    assert changed_boxes(_frame(size=(100, 90)), _frame(size=(100, 80))) is None  # resized
+    assert changed_boxes(_frame(), _frame(lists=[(b"menu", (0, 0, 100, 20))])) is None  # a window closed
+
+
+def test_changed_images_and_draw_lists_mark_their_boxes():
+    assert changed_boxes(_frame(), _frame(viewport=2)) == [(0, 20, 60, 80)]
+    assert changed_boxes(_frame(), _frame(render=2)) == [(70, 30, 90, 50)]
+    # The viewport and the render both changed: two separate boxes (the render lies inside the tools).
+    assert sorted(changed_boxes(_frame(), _frame(viewport=2, render=2))) == [(0, 20, 60, 80), (70, 30, 90, 50)]
+    # The menu's text changed and its drop-down grew from 20 to 50 pixels: the old and the new box, merged.
+    grown = [(b"menu 2", (0, 0, 40, 50)), (b"tools", (60, 20, 100, 80))]
+    assert changed_boxes(_frame(), _frame(lists=grown)) == [(0, 0, 100, 50)]
+    # A changed list whose box reaches outside the window counts only inside it.
+    wide = [(b"menu", (0, 0, 100, 20)), (b"tools 2", (60, 20, 8192, 8192))]
+    assert changed_boxes(_frame(), _frame(lists=wide)) == [(60, 20, 100, 80)]
+
+
+def test_overlapping_boxes_merge_into_the_box_around_them_and_too_many_mean_everything():
+    assert merge([(0, 0, 10, 10), (5, 5, 20, 20), (30, 30, 40, 40)]) == [(0, 0, 20, 20), (30, 30, 40, 40)]
+    # (0..10) and (20..30) do not touch until (8..22) joins them.
+    assert merge([(0, 0, 10, 10), (20, 0, 30, 10), (8, 0, 22, 10)]) == [(0, 0, 30, 10)]
+    assert merge([(0, 0, 10, 10), (10, 0, 20, 10)]) == [(0, 0, 10, 10), (10, 0, 20, 10)]  # touching edges do not overlap
+    many = [(bytes([i]), (10 * i, 0, 10 * i + 5, 5)) for i in range(6)]
+    changed = [(bytes([i + 100]), box) for i, (_, box) in enumerate(many)]
+    assert changed_boxes(_frame(lists=many), _frame(lists=changed)) is None

@@ -61,19 +61,23 @@ class FrameStats:
 
     wall: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
     work: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
+    drawn_work: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})  # frames that changed
     renders: list[float] = field(default_factory=list)  # seconds each shown render took
 
-    def add(self, wall_seconds: float, work_seconds: float, rendering: bool) -> None:
+    def add(self, wall_seconds: float, work_seconds: float, rendering: bool, drawn: bool) -> None:
         self.wall[rendering].append(wall_seconds)
         self.work[rendering].append(work_seconds)
+        if drawn:
+            self.drawn_work[rendering].append(work_seconds)
 
     def summary(self) -> str:
         parts = []
         for rendering, name in ((True, "while rendering"), (False, "idle")):
-            wall, work = self.wall[rendering], self.work[rendering]
+            wall, work, drawn = self.wall[rendering], self.work[rendering], self.drawn_work[rendering]
             if wall:
                 parts.append(f"{name}: {len(wall) / sum(wall):.1f} fps over {len(wall)} frames "
-                             f"({1000.0 * sum(work) / len(work):.1f} ms of work per frame)")
+                             f"({1000.0 * sum(work) / len(work):.1f} ms of work per frame; {len(drawn)} drawn"
+                             + (f", {1000.0 * sum(drawn) / len(drawn):.1f} ms each" if drawn else "") + ")")
         if self.renders:
             parts.append(f"render median {1000.0 * sorted(self.renders)[len(self.renders) // 2]:.0f} ms "
                          f"over {len(self.renders)} renders")
@@ -92,6 +96,7 @@ class EditorApp:
         self.view = HOME
         self.render_texture = None
         self.shown_frame: RenderedFrame | None = None
+        self.render_uploads = 0  # counts the images written to render_texture, so the window knows when it changed
         self.floor_color = document.scene.floor.color
         self.tool = "select"  # or "paint"
         self.paint_color: tuple[float, float, float] = PALETTE[0]
@@ -331,6 +336,7 @@ class EditorApp:
             self.shown_frame = frame
             self.stats.renders.append(frame.seconds)
             self.render_texture = upload_image(self.window.ctx, self.render_texture, frame.image)
+            self.render_uploads += 1
         if self.live.error:
             self.say(self.live.error, error=True)
             self.live.error = None
@@ -373,6 +379,11 @@ class EditorApp:
             self.say(f"autosave failed: {exc}", error=True)
         self._autosaved = self.doc.revision
         self._autosave_time = time.monotonic()
+
+    @property
+    def screenshot_due(self) -> bool:
+        """A screenshot waits for this frame, which must then be drawn even if it looks like the last one."""
+        return bool(self._screenshots)
 
     def take_screenshots(self) -> None:
         """Save the screenshots asked for this frame (the frame is drawn but not yet shown)."""

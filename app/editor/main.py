@@ -86,7 +86,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
             work_start = time.perf_counter()
             app.update()
             interface.draw()
-            window.end_frame(interface.underlay)
+            drawn = window.end_frame(interface.underlay, interface.images, force=app.screenshot_due)
             app.take_screenshots()
             window.present()
             frame += 1
@@ -105,7 +105,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
             work = time.perf_counter() - work_start
             time.sleep(max(0.0, FRAME_SECONDS - (time.perf_counter() - frame_start)))
             if wait == 0.0:
-                app.stats.add(time.perf_counter() - frame_start, work, rendering=not app.live.idle)
+                app.stats.add(time.perf_counter() - frame_start, work, rendering=not app.live.idle, drawn=drawn)
         if args.export and not app.export(args.export):
             return EXIT_USER_ERROR
     finally:

@@ -14,6 +14,7 @@ from imgui_bundle import imgui
 
 from app.editor import edits
 from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
+from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import viewport_camera
 from app.editor.viewport_input import ViewportInput
@@ -24,6 +25,7 @@ RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
 AMBER = imgui.ImVec4(1.0, 0.75, 0.3, 1.0)
 GREEN = imgui.ImVec4(0.5, 0.85, 0.5, 1.0)
 GRAY = imgui.ImVec4(0.65, 0.65, 0.68, 1.0)
+RATE_REFRESH_SECONDS = 0.5  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
 
 
 @dataclass
@@ -47,12 +49,15 @@ class Interface:
         self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(app.doc.path or "scene.json"))
         self.viewport_input = ViewportInput()
         self.underlay = None
+        self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
         self._popup_title: str | None = None
         self._file_dialog = None  # a portable_file_dialogs dialog being shown, and what to do with its answer
         self.has_file_dialogs = bool(shutil.which("zenity") or shutil.which("kdialog"))
+        self._rate_text, self._rate_time = "", 0.0
 
     def draw(self) -> None:
-        width, height = self.app.window.size
+        app = self.app
+        width, height = app.window.size
         panels = layout_for(width, height)
         self._menu()
         self._viewport(panels.viewport)
@@ -62,6 +67,9 @@ class Interface:
         self._prompt()
         self._shortcuts()
         self._poll_file_dialog()
+        framebuffer, x, y = self.underlay
+        self.images = ((_box(Rect(x, y, *framebuffer.size)), app.viewport.version),
+                       (_box(panels.render_image), app.render_uploads))
 
     # --- menu and shortcuts --------------------------------------------------------------
 
@@ -284,16 +292,22 @@ class Interface:
         imgui.push_style_var(imgui.StyleVar_.window_padding, imgui.ImVec2(8, 4))
         imgui.begin("Status", None, FIXED | imgui.WindowFlags_.no_title_bar | imgui.WindowFlags_.no_scrollbar)
         imgui.pop_style_var()
-        io = imgui.get_io()
         frame = app.shown_frame
         render_ms = f"{frame.seconds * 1000:.0f} ms/render" if frame else "-"
         imgui.text_colored(GRAY, f"model: {app.live.label}  |  device: {app.live.device}  |  "
-                                 f"UI {1000.0 / max(io.framerate, 1e-3):.1f} ms/frame ({io.framerate:.0f} fps)  |  {render_ms}")
+                                 f"{self._frame_rate_text()}  |  {render_ms}")
         message = app.message
         if message is not None and (message.error or time.monotonic() - message.shown_at < MESSAGE_SECONDS):
             imgui.same_line()
             imgui.text_colored(RED if message.error else GREEN, f"  {message.text}")
         imgui.end()
+
+    def _frame_rate_text(self) -> str:
+        now = time.monotonic()
+        if now - self._rate_time >= RATE_REFRESH_SECONDS:
+            rate = imgui.get_io().framerate
+            self._rate_text, self._rate_time = f"UI {1000.0 / max(rate, 1e-3):.1f} ms/frame ({rate:.0f} fps)", now
+        return self._rate_text
 
     def _prompt(self) -> None:
         prompt = self.app.prompt
@@ -323,6 +337,10 @@ class Interface:
                 imgui.close_current_popup()
                 imgui.end_popup()
         self._popup_title = None
+
+
+def _box(rect: Rect) -> Box:
+    return rect.x, rect.y, rect.x + rect.width, rect.y + rect.height
 
 
 def _place(rect: Rect) -> None:

@@ -2,12 +2,18 @@
 
 The glfw package uses imgui_bundle's glfw library (see app/editor/__init__.py), so the window
 handle made here is the one ImGui's native glfw backend reads.
+
+A frame that looks like the one on screen is neither drawn nor shown. With Mesa's software
+OpenGL (GLX_MESA_copy_sub_buffer), the back buffer is never swapped, so it keeps the last
+frame: only the boxes that changed are drawn again and copied to the screen
+(app/editor/frame_damage.py). Otherwise every new frame is drawn whole and swapped in.
 """
 
 from __future__ import annotations
 
 import ctypes
 import time
+from collections.abc import Callable, Hashable, Sequence
 from pathlib import Path
 
 import glfw
@@ -15,6 +21,8 @@ import imgui_bundle
 import moderngl
 import numpy as np
 from imgui_bundle import imgui
+
+from app.editor.frame_damage import Box, FrameSummary, changed_boxes, intersection, summarize
 
 _GL_READ_FRAMEBUFFER, _GL_DRAW_FRAMEBUFFER = 0x8CA8, 0x8CA9
 _GL_COLOR_BUFFER_BIT, _GL_NEAREST = 0x4000, 0x2600
@@ -45,6 +53,9 @@ class Window:
         glfw.swap_interval(0)
         self.last_input = time.monotonic()
         self._watch_input()
+        self._on_screen: FrameSummary | None = None  # the frame the screen shows, None when unknown
+        self._to_show: list[Box] | None = []  # what `present` must show: [] nothing, None the whole back buffer
+        glfw.set_window_refresh_callback(self.handle, self._forget_screen)  # uncovered or resized: draw it all
         self.ctx = moderngl.create_context()
         imgui.create_context()
         io = imgui.get_io()
@@ -59,6 +70,7 @@ class Window:
         imgui.backends.opengl3_init(GLSL_VERSION)
         self._bind_framebuffer = _gl_function("glBindFramebuffer", ctypes.c_uint, ctypes.c_uint)
         self._blit_framebuffer = _gl_function("glBlitFramebuffer", *[ctypes.c_int] * 8, ctypes.c_uint, ctypes.c_uint)
+        self._copy_sub_buffer = _copy_sub_buffer(self.handle)  # None: not Mesa, every frame is drawn whole and swapped
 
     @property
     def size(self) -> tuple[int, int]:
@@ -91,26 +103,50 @@ class Window:
         imgui.backends.glfw_new_frame()
         imgui.new_frame()
 
-    def end_frame(self, underlay: tuple[moderngl.Framebuffer, int, int] | None = None) -> None:
-        """Draw the interface into the back buffer (`screenshot` reads it, `present` shows it).
+    def _forget_screen(self, *_args) -> None:
+        self._on_screen = None
+
+    def end_frame(self, underlay: tuple[moderngl.Framebuffer, int, int] | None = None,
+                  images: Sequence[tuple[Box, Hashable]] = (), force: bool = False) -> bool:
+        """Draw the interface into the back buffer (`screenshot` reads it, `present` shows it); returns whether it drew.
 
         `underlay` (framebuffer, x, y) is copied to window pixel (x, y) first, under the interface:
         with software OpenGL a copy costs a third of drawing the same image as a textured quad.
+        `images` are the boxes where images appear (the underlay, textures in the interface) with
+        a version that changes with their pixels. `force` draws the whole frame, for a screenshot.
         """
         imgui.render()
+        draw_data = imgui.get_draw_data()
+        uploads_due = any(t.status != imgui.ImTextureStatus.ok for t in draw_data.textures)
+        frame = None if uploads_due else summarize(draw_data, self.size, images)
+        boxes = None if force or frame is None else changed_boxes(self._on_screen, frame)
+        if boxes == []:
+            return False  # looks like the frame on screen
+        if self._copy_sub_buffer is None:
+            boxes = None  # a swap shows the whole back buffer
+        self._on_screen = frame
         self.ctx.screen.use()
         width, height = self.size
         self.ctx.viewport = (0, 0, width, height)  # the panels cover the whole window: no clear needed
-        if underlay is not None:
-            self._copy(*underlay)
-        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        for box in [(0, 0, width, height)] if boxes is None else boxes:
+            if underlay is not None:
+                self._copy(*underlay, box)
+            _render_inside(draw_data, box)
+        self._to_show = boxes if self._to_show == [] or boxes is None else None
+        return True
 
-    def _copy(self, framebuffer: moderngl.Framebuffer, x: int, y: int) -> None:
+    def _copy(self, framebuffer: moderngl.Framebuffer, x: int, y: int, box: Box) -> None:
+        """Copy the part of `framebuffer` that falls inside `box` when its corner is put at window pixel (x, y)."""
         w, h = framebuffer.size
-        bottom = self.size[1] - y - h  # OpenGL rows count from the bottom
+        inside = intersection((x, y, x + w, y + h), box)
+        if inside is None:
+            return
+        x0, y0, x1, y1 = inside
+        rows = self.size[1]  # OpenGL rows count from the bottom, in the window and in the framebuffer
         self._bind_framebuffer(_GL_READ_FRAMEBUFFER, framebuffer.glo)
         self._bind_framebuffer(_GL_DRAW_FRAMEBUFFER, 0)
-        self._blit_framebuffer(0, 0, w, h, x, bottom, x + w, bottom + h, _GL_COLOR_BUFFER_BIT, _GL_NEAREST)
+        self._blit_framebuffer(x0 - x, y + h - y1, x1 - x, y + h - y0, x0, rows - y1, x1, rows - y0,
+                               _GL_COLOR_BUFFER_BIT, _GL_NEAREST)
         self._bind_framebuffer(_GL_READ_FRAMEBUFFER, 0)
 
     def screenshot(self) -> np.ndarray:
@@ -120,7 +156,16 @@ class Window:
         return np.frombuffer(data, dtype=np.uint8).reshape(height, width, 3)[::-1]
 
     def present(self) -> None:
-        glfw.swap_buffers(self.handle)
+        """Show what `end_frame` drew since the last call (nothing when it drew nothing)."""
+        boxes, self._to_show = self._to_show, []
+        if boxes == []:
+            return
+        if self._copy_sub_buffer is None:
+            glfw.swap_buffers(self.handle)
+            return
+        width, height = self.size
+        for x0, y0, x1, y1 in [(0, 0, width, height)] if boxes is None else boxes:
+            self._copy_sub_buffer(x0, height - y1, x1 - x0, y1 - y0)  # GLX counts rows from the bottom
 
     def close(self) -> None:
         imgui.backends.opengl3_shutdown()
@@ -128,6 +173,33 @@ class Window:
         imgui.destroy_context()
         glfw.destroy_window(self.handle)
         glfw.terminate()
+
+
+def _render_inside(draw_data: imgui.ImDrawData, box: Box) -> None:
+    """Draw the ImGui frame, only inside `box`: each command's clip rectangle is cut to it for the call."""
+    clips = []
+    for draw_list in draw_data.cmd_lists:
+        commands = draw_list.cmd_buffer
+        for command in (commands[i] for i in range(commands.size())):  # indexing gives the command itself, iterating a copy
+            clip = command.clip_rect  # a view of the command's field
+            clips.append((command, (clip.x, clip.y, clip.z, clip.w)))
+            x0, y0, x1, y1 = max(clip.x, box[0]), max(clip.y, box[1]), min(clip.z, box[2]), min(clip.w, box[3])
+            command.clip_rect = imgui.ImVec4(x0, y0, max(x0, x1), max(y0, y1))  # empty: the backend skips it
+    imgui.backends.opengl3_render_draw_data(draw_data)
+    for command, clip in clips:
+        command.clip_rect = imgui.ImVec4(*clip)
+
+
+def _copy_sub_buffer(handle) -> Callable[[int, int, int, int], None] | None:
+    """glXCopySubBufferMESA bound to this window (x, y from the bottom left, width, height), or None where it is missing."""
+    if glfw.get_platform() != glfw.PLATFORM_X11 or not glfw.extension_supported("GLX_MESA_copy_sub_buffer"):
+        return None
+    address = glfw.get_proc_address("glXCopySubBufferMESA")
+    if not address:
+        return None
+    copy = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_ulong, *[ctypes.c_int] * 4)(address)
+    display, drawable = glfw.get_x11_display(), glfw.get_glx_window(handle)
+    return lambda x, y, w, h: copy(display, drawable, x, y, w, h)
 
 
 def _gl_function(name: str, *argtypes):
