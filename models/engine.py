@@ -8,7 +8,8 @@ computed from, and reruns only when those change:
     voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/paint_replay.py)
     paint         voxels, object color, region/object paint strokes       painted object voxels (from the
                                                                           longest stroke list painted before)
-    pool          paint, merge factors (resolution, scale)                merged voxels
+    pool          paint, merge factors (resolution, scale)                merged voxels (after a paint edit:
+                                                                          only the blocks it touched)
     placement     voxels, resolution, merge factors, translation,         grid row of every voxel, object's crop
                   rotation, scale, camera elevation                       (around its non-empty voxels)
     background    camera elevation, floor color                           voxel-branch features of the ground alone
@@ -79,6 +80,7 @@ from renderer.grid import (  # noqa: E402
     ground_mask,
     pool_factors,
     pool_voxels,
+    repool_voxels,
     sample_indices,
     voxel_table,
 )
@@ -106,6 +108,12 @@ class RenderReport:
 class _Placement(NamedTuple):
     indices: np.ndarray  # (D, H, W) table row per grid voxel (renderer.grid.sample_indices)
     plan: CropPlan | None  # where the object changes the voxel branch; None if it is outside the grid
+
+
+class _Pooled(NamedTuple):
+    voxels: np.ndarray  # merged voxels (renderer.grid.pool_voxels)
+    painted: np.ndarray  # the painted voxels they were merged from
+    key: tuple  # the pool stage's key: (paint key, merge factors)
 
 
 class _Keys(NamedTuple):
@@ -222,7 +230,7 @@ class RenderEngine:
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         n, factors = keys.placement[1:3]
-        pooled = self._stage("pool", keys.pool, lambda: pool_voxels(painted, factors))
+        pooled = self._stage("pool", keys.pool, lambda: self._pool(painted, keys.pool)).voxels
         placement = self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
         if not self.crop:
             grid = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices))
@@ -237,6 +245,13 @@ class RenderEngine:
         crop = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices[plan.grid]))
         self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", keys.grid, lambda: self.encoder.encode(background, plan, _grid_tensor(crop)))
+
+    def _pool(self, painted: np.ndarray, key: tuple) -> _Pooled:
+        """Merged voxels; after a paint change on the same object and merge factors, only the blocks it touched."""
+        factors, last = key[1], self._memo.get("pool", (None, None))[1]
+        if last is not None and last.key[0][0] == key[0][0] and last.key[1] == factors:  # same source and factors
+            return _Pooled(repool_voxels(last.voxels, last.painted, painted, factors), painted, key)
+        return _Pooled(pool_voxels(painted, factors), painted, key)
 
     def _background(self, floor: tuple, elevation: float) -> Background:
         """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""

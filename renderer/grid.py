@@ -74,6 +74,33 @@ def pool_voxels(rgba: np.ndarray, factors: tuple[int, int, int]) -> np.ndarray:
     return np.stack([planes[0] / mean, planes[1] / mean, planes[2] / mean, (count > 0).astype(np.float32)], axis=-1)
 
 
+def repool_voxels(pooled: np.ndarray, before: np.ndarray, after: np.ndarray, factors: tuple[int, int, int]) -> np.ndarray:
+    """pool_voxels(after, factors), given pooled = pool_voxels(before, factors) for a grid of the same shape: only the
+    blocks with a voxel that differs are merged again (a paint stroke touches a few), by pool_voxels itself."""
+    if tuple(factors) == (1, 1, 1):
+        return np.asarray(after, dtype=np.float32)
+    words = [np.ascontiguousarray(v, dtype=np.float32).view(np.uint64).reshape(-1) for v in (before, after)]
+    differs = np.flatnonzero(words[0] != words[1]) // 2  # two 8-byte words per voxel: its flat index
+    out = np.array(pooled, dtype=np.float32, copy=True)
+    if differs.size == 0:
+        return out
+    shape, f = np.asarray(after.shape[:3]), np.asarray(factors)
+    block_grid = tuple(-(-shape // f))
+    touched = np.unique(np.ravel_multi_index(tuple(np.stack(np.unravel_index(differs, tuple(shape))) // f[:, None]), block_grid))
+    if len(touched) * 4 > np.prod(block_grid):  # most blocks changed (a new base color): merge them all
+        return pool_voxels(after, factors)
+    blocks = np.stack(np.unravel_index(touched, block_grid), axis=1)  # (K, 3)
+    # Each block's members (K, f0, f1, f2), zero past the grid's end: pool_voxels adds nothing for them.
+    offsets = np.stack(np.meshgrid(*(np.arange(k) for k in factors), indexing="ij"), axis=-1)
+    members = blocks[:, None, None, None, :] * f + offsets
+    inside = (members < shape).all(axis=-1)
+    values = np.asarray(after, dtype=np.float32)[tuple(np.minimum(members, shape - 1).transpose(4, 0, 1, 2, 3))]
+    values[~inside] = 0.0
+    merged = pool_voxels(values.reshape(-1, *values.shape[2:]), factors)  # (K, 1, 1, 4): blocks stacked along axis 0
+    out[tuple(blocks.T)] = merged.reshape(-1, 4)
+    return out
+
+
 def _sum_blocks(values: np.ndarray, f: int, axis: int) -> np.ndarray:
     """Sums of consecutive runs of f entries along `axis` (the last run may be shorter)."""
     if f == 1:

@@ -13,6 +13,7 @@ from renderer.grid import (
     grid_index_to_world,
     pool_factors,
     pool_voxels,
+    repool_voxels,
     sample_indices,
     scene_grid,
     voxel_table,
@@ -188,3 +189,20 @@ def test_sampling_within_the_non_empty_box_gives_the_same_grid(elevation, rotati
     assert np.any(boxed != full)  # the empty part of the object's box was not sampled
     np.testing.assert_array_equal(gather(table, boxed), gather(table, full))
     np.testing.assert_array_equal(gather(table, boxed), scene_grid(rgba, spec, FLOOR, elevation))
+
+
+@pytest.mark.parametrize("factors", [(2, 2, 2), (3, 1, 2), (1, 1, 1)])
+def test_repooling_after_a_change_equals_pooling_from_scratch(factors):
+    """Exactly (bit for bit), with partial blocks at the far sides (11 is not a multiple of 2 or 3)."""
+    rng = np.random.default_rng(sum(factors))
+    before = np.zeros((11, 11, 11, 4), dtype=np.float32)
+    occupied = rng.random((11, 11, 11)) < 0.4
+    before[occupied] = np.concatenate([rng.random((occupied.sum(), 3)), np.ones((occupied.sum(), 1))], axis=1)
+    after = before.copy()
+    after[8:11, 0:3, 9:11, :3] = (0.2, 0.9, 0.4)  # a stroke in a far corner
+    after[0, 5, 5] = (0.7, 0.7, 0.7, 1.0)  # a voxel that was empty
+    pooled = pool_voxels(before, factors)
+    repooled = repool_voxels(pooled, before, after, factors)
+    np.testing.assert_array_equal(repooled, pool_voxels(after, factors))
+    np.testing.assert_array_equal(pooled, pool_voxels(before, factors))  # the old result is left alone
+    np.testing.assert_array_equal(repool_voxels(pooled, before, before, factors), pooled)
