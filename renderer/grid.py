@@ -156,12 +156,11 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
     block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)  # merged voxel sides, object units
     n_rows = int(np.prod(pooled_shape))
-    grid_to_world = grid_index_to_world(elevation_deg, grid_size)
     indices = np.full((grid_size,) * 3, n_rows, dtype=np.int32)
     indices[ground_mask(elevation_deg, grid_size)] = n_rows + 1
 
-    grid_to_object = world_to_object(object_spec) @ grid_to_world
-    ranges = _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block, grid_size)
+    grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
+    ranges = object_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
     if any(lo >= hi for lo, hi in ranges):
         return indices
     d, r, c = (np.arange(lo, hi) + 0.5 for lo, hi in ranges)
@@ -180,6 +179,17 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     window = indices[d0:d1, r0:r1, c0:c1]  # a view: writing it writes `indices`
     window[inside] = flat[inside]
     return indices
+
+
+def object_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
+                  grid_size: int = GRID_SIZE, within: tuple[tuple[int, int], ...] | None = None) -> list[tuple[int, int]]:
+    """The grid ranges, (start, stop) per axis, that sample_indices samples the object in: every grid voxel it
+    gives a merged voxel lies inside them (they may be empty)."""
+    pooled_shape = tuple(-(-resolution // f) for f in factors)
+    first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
+    block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)
+    grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
+    return _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block, grid_size)
 
 
 def _affine_over_grid(kd: float, kr: float, kc: float, k0: float, d: np.ndarray, r: np.ndarray, c: np.ndarray,

@@ -11,6 +11,7 @@ from renderer.camera import Camera, camera_to_grid_index, grid_centers_camera
 from renderer.grid import (
     gather,
     grid_index_to_world,
+    object_window,
     pool_factors,
     pool_voxels,
     repool_voxels,
@@ -189,6 +190,10 @@ def test_sampling_within_the_non_empty_box_gives_the_same_grid(elevation, rotati
     assert np.any(boxed != full)  # the empty part of the object's box was not sampled
     np.testing.assert_array_equal(gather(table, boxed), gather(table, full))
     np.testing.assert_array_equal(gather(table, boxed), scene_grid(rgba, spec, FLOOR, elevation))
+    for indices, box in ((full, None), (boxed, within)):  # object_window holds every voxel given an object row
+        window = object_window(20, factors, spec, elevation, within=box)
+        taken = np.argwhere(indices < pooled[..., 0].size)
+        assert all(lo <= taken[:, axis].min() and taken[:, axis].max() < hi for axis, (lo, hi) in enumerate(window))
 
 
 @pytest.mark.parametrize("factors", [(2, 2, 2), (3, 1, 2), (1, 1, 1)])
