@@ -15,7 +15,7 @@ import numpy as np
 from renderer.paint import Color, apply_paint, fill_object, occupied_voxels
 from renderer.scene import PaintOp
 
-KEPT = 3  # painted lists remembered: the current one, the one before its last stroke, and one more
+KEPT = 2  # painted lists remembered (each N^3 x 16 bytes): the current one and the one before its last stroke
 
 
 class PaintReplay:

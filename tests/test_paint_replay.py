@@ -50,7 +50,8 @@ def test_each_step_equals_a_replay_from_scratch_and_paints_at_most_one_stroke(fi
         (None, (corner, bar), [bar]),  # a new stroke
         (None, (corner, recolored_bar), [recolored_bar]),  # the last stroke changed
         (None, (corner,), []),  # undo
-        (None, (corner, bar), []),  # redo of a list still kept
+        (None, (corner, bar), [bar]),  # the first bar again: no longer kept, one fill
+        (None, (corner,), []),  # undo once more
         ((0.2, 0.2, 0.2), (corner,), [corner]),  # a new base color repaints
     ]
     for color, strokes, expected in steps:
