@@ -38,6 +38,7 @@ RED, BLUE, GREEN = (0.8, 0.3, 0.2), (0.2, 0.3, 0.8), (0.1, 0.8, 0.2)
 TINY = CompactConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16, light_channels=8,
                      decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
 EDITOR = [sys.executable, "-m", "app.editor.main"]
+REPOSITORY = Path(__file__).resolve().parents[1]
 
 
 # --- fixtures: a display, a scene, a model ------------------------------------------------------
@@ -106,15 +107,14 @@ def scene_file(tmp_path_factory) -> Path:
 
 
 def run_editor(display: str, tmp_path: Path, scene: Path, actions: list | None = None, *args: str,
-               state: Path | None = None) -> subprocess.CompletedProcess:
+               state: Path | None = None, cwd: Path = REPOSITORY) -> subprocess.CompletedProcess:
     env = dict(os.environ, DISPLAY=display, XDG_STATE_HOME=str(state or tmp_path / "state"), NVR_EDITOR_TIMEOUT="120")
     command = [*EDITOR, str(scene), "--frames", "3", *args]
     if actions is not None:
         replay = tmp_path / f"replay{time.monotonic_ns()}.json"
         replay.write_text(json.dumps(actions))
         command += ["--replay", str(replay)]
-    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=240,
-                            cwd=Path(__file__).resolve().parents[1])
+    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=240, cwd=cwd)
     assert result.returncode == 0, result.stderr
     return result
 
@@ -152,7 +152,8 @@ def edit_run(display, tmp_path_factory, scene_file, model_file) -> Path:
         {"action": "paint", "voxel": [8, 5, 11], "color": list(GREEN), "tolerance": 0.05},
         {"action": "screenshot", "path": str(out / "painted.png")},
         {"action": "save", "path": str(out / "painted.json")},
-    ], "--model", str(model_file), "--screenshot", str(out / "final.png"), "--export", str(out / "export.png"))
+    ], "--model", str(model_file), "--screenshot", str(out / "final.png"), "--export", str(out / "export.png"),
+        "--export-side-by-side", str(out / "side.png"))
     return out
 
 
@@ -406,3 +407,61 @@ def test_the_screen_shows_the_full_frame_after_partial_updates(display, tmp_path
     whole = np.asarray(Image.open(tmp_path / "whole.png"), dtype=np.float64) / 255.0
     above_status = PANELS.status.y
     np.testing.assert_array_equal(screen[:above_status], whole[:above_status])
+
+
+# --- side-by-side export -----------------------------------------------------------------------------
+
+
+def test_side_by_side_export_puts_the_viewport_beside_the_exact_render(edit_run):
+    side = np.asarray(Image.open(edit_run / "side.png").convert("RGB"))
+    render = np.asarray(Image.open(edit_run / "export.png").convert("RGB"))
+    scale = -(-512 // TINY.output_size)  # the 64^2 render, each pixel repeated to reach 512 rows
+    assert side.shape == (64 * scale, 2 * 64 * scale, 3)
+    right = side[:, 64 * scale:]
+    np.testing.assert_array_equal(right[::scale, ::scale], render)  # the render's own pixels
+    np.testing.assert_array_equal(right, np.repeat(np.repeat(render, scale, axis=0), scale, axis=1))
+    left = side[:, :64 * scale] / 255.0
+    assert share_of(left, GREEN) > 0.005  # the painted block, shaded
+    assert share_of(left, BLUE) > 0.002  # the blue top
+    assert share_of(left, RED) < 0.0005  # nothing red is left after the fill
+    assert share_of(left, FloorSpec((0.5, 0.6, 0.7)).color) > 0.2  # the ground
+
+
+def test_headless_exports_refuse_to_overwrite_without_force(display, tmp_path, scene_file, model_file):
+    env = dict(os.environ, DISPLAY=display, XDG_STATE_HOME=str(tmp_path / "state"))
+    for flag in ("--export-side-by-side", "--export", "--screenshot"):
+        existing = tmp_path / f"existing{flag}.png"
+        existing.write_bytes(b"keep me")
+        command = [*EDITOR, str(scene_file), "--frames", "2", "--model", str(model_file), flag, str(existing)]
+        refused = subprocess.run(command, env=env, capture_output=True, text=True, timeout=240)
+        assert refused.returncode == 2 and "file exists (pass --force to overwrite)" in refused.stderr
+        assert existing.read_bytes() == b"keep me"
+    forced = subprocess.run([*command, "--force"], env=env, capture_output=True, text=True, timeout=240)
+    assert forced.returncode == 0, forced.stderr
+    assert Image.open(existing).size == WINDOW  # the screenshot replaced the file
+
+
+def test_the_window_asks_before_replacing_an_export_and_the_file_menu_exports_side_by_side(display, tmp_path, scene_file,
+                                                                                          model_file):
+    target = tmp_path / "side.png"
+    target.write_bytes(b"keep me")
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "export_side_by_side", "path": str(target)},
+        {"action": "answer", "choice": "Cancel"},
+    ], "--model", str(model_file))
+    assert target.read_bytes() == b"keep me"
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "export_side_by_side", "path": str(target)},
+        {"action": "answer", "choice": "Replace"},
+    ], "--model", str(model_file))
+    assert Image.open(target).size == (1024, 512)
+    # The File menu's item, clicked with the mouse, writes to the File tab's default path (in the working folder).
+    # The menu's items (Save, Export render, Export viewport and render, Quit) are 19 pixels apart, the first at y = 36.
+    item = [60, 36 + 2 * 19]
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "mouse_move", "pos": [18, 11]}, {"action": "wait", "frames": 2},
+        {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
+        {"action": "mouse_move", "pos": item}, {"action": "wait", "frames": 2},
+        {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
+    ], "--model", str(model_file), cwd=tmp_path)
+    assert Image.open(tmp_path / "viewport_and_render.png").size == (1024, 512)

@@ -15,6 +15,7 @@ from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
 from app.editor.photo_capture import color_from_photo
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
+from app.editor.side_by_side import compose, scale_for
 from app.editor.voxel_cache import VoxelCache
 from app.editor.voxel_faces import exposed_faces
 from renderer.camera import Camera
@@ -286,3 +287,18 @@ def test_overlapping_boxes_merge_into_the_box_around_them_and_too_many_mean_ever
     many = [(bytes([i]), (10 * i, 0, 10 * i + 5, 5)) for i in range(6)]
     changed = [(bytes([i + 100]), box) for i, (_, box) in enumerate(many)]
     assert changed_boxes(_frame(lists=many), _frame(lists=changed)) is None
+
+
+# --- side-by-side export ------------------------------------------------------------------------------
+
+
+def test_side_by_side_enlarges_the_render_by_a_whole_factor_beside_the_viewport():
+    assert [scale_for(n) for n in (64, 100, 256, 512, 600)] == [8, 6, 2, 1, 1]  # ceil(512 / n), at least 1
+    render = np.arange(2 * 2 * 3, dtype=np.uint8).reshape(2, 2, 3)
+    viewport = np.full((6, 5, 3), 200, np.uint8)
+    image = compose(viewport, render)
+    assert image.shape == (6, 11, 3)
+    assert (image[:, :5] == 200).all()
+    assert (image[0:3, 5:8] == render[0, 0]).all() and (image[3:6, 8:11] == render[1, 1]).all()
+    with pytest.raises(ValueError):
+        compose(np.zeros((7, 5, 3), np.uint8), render)  # 7 rows are not a whole number of render rows

@@ -14,15 +14,16 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from app.editor import edits, state
+from app.editor import edits, side_by_side, state
 from app.editor.document import Document
 from app.editor.jobs import BackgroundJob, Progress
-from app.editor.orbit_view import HOME
+from app.editor.orbit_view import HOME, viewport_camera
 from app.editor.photo_capture import color_from_photo
-from app.editor.render_panel import LiveRender, RenderedFrame, export_render
+from app.editor.render_panel import LiveRender, RenderedFrame, export_render, final_render
 from app.editor.viewport import ViewportRenderer
 from app.editor.voxel_cache import VoxelCache
 from app.editor.window import Window, upload_image
+from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import PaintOp, Scene, save_scene
@@ -239,14 +240,40 @@ class EditorApp:
         self.say(f"saved {target}")
         return True
 
-    def export(self, path: str | Path) -> bool:
+    def export(self, path: str | Path, overwrite: bool = False) -> bool:
         """Write the neural render of the committed scene as `nvr render --renderer nvr+` would."""
+        def write() -> str:
+            return f"exported {path} ({export_render(self.doc.history.current, path, self.live.model_path)})"
+
+        return self._write_file(path, overwrite, write)
+
+    def export_side_by_side(self, path: str | Path, overwrite: bool = False) -> bool:
+        """Write the viewport (as the user sees it, square) and the neural render of the committed scene side by side."""
+        def write() -> str:
+            if self.job is not None or self._synced != self.doc.revision:
+                raise InputError("the viewport is not up to date yet: export again when the work in progress is done")
+            scene = self.doc.history.current
+            render, used = final_render(scene, self.live.model_path)
+            height = render.shape[0] * side_by_side.scale_for(render.shape[0])
+            viewport = self.viewport.image(height, height, viewport_camera(self.view, height, height), scene,
+                                           self.floor_color)
+            save_png(path, side_by_side.compose(viewport, to_uint8(render)))
+            return f"exported the viewport and the render side by side to {path} ({used})"
+
+        return self._write_file(path, overwrite, write)
+
+    def _write_file(self, path: str | Path, overwrite: bool, write: Callable[[], str]) -> bool:
+        """Run `write` (it returns the message to show), asking first whether to replace `path` if it exists."""
+        if Path(path).exists() and not overwrite:
+            self.ask("Replace the file?", f"{path} exists. Replace it?", ("Replace", "Cancel"),
+                     lambda choice: choice == "Replace" and self._write_file(path, True, write))
+            return False
         try:
-            used = export_render(self.doc.history.current, path, self.live.model_path)
+            message = write()
         except InputError as exc:
             self.say(str(exc), error=True)
             return False
-        self.say(f"exported {path} ({used})")
+        self.say(message)
         return True
 
     def screenshot(self, path: str | Path) -> None:

@@ -1,11 +1,12 @@
 """`nvr-editor`: open the editor on a scene, or run it headless for tests and screenshots.
 
     nvr-editor [SCENE.json] [--model WEIGHTS] [--screenshot OUT.png] [--export OUT.png]
-               [--frames N] [--replay ACTIONS.json]
+               [--export-side-by-side OUT.png] [--force] [--frames N] [--replay ACTIONS.json]
 
 With --frames the window draws at least N frames, plays the replay file, waits until every
-job and render has finished, saves the screenshot and export, prints the UI frame rate and
-exits 0 (2 on a user error such as a missing scene file).
+job and render has finished, saves the screenshot and exports, prints the UI frame rate and
+exits 0 (2 on a user error such as a missing scene file, or an output file that exists
+without --force).
 """
 
 from __future__ import annotations
@@ -35,6 +36,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--replay", default=None, help="JSON list of actions to perform (see app/editor/replay.py)")
     p.add_argument("--screenshot", default=None, help="with --frames: save the whole window as PNG at the end")
     p.add_argument("--export", default=None, help="save the neural render as PNG before exiting")
+    p.add_argument("--export-side-by-side", default=None, metavar="OUT.png",
+                   help="save the viewport and the neural render side by side as PNG before exiting")
+    p.add_argument("--force", action="store_true", help="overwrite output files that exist")
     return p
 
 
@@ -61,9 +65,13 @@ def run(argv: list[str] | None = None) -> int:
 def _load_inputs(args: argparse.Namespace):
     from app.editor.document import Document
     from app.editor.replay import Replay, load_replay
+    from renderer.io import check_writable
 
     if args.frames is not None and args.frames < 1:
         raise InputError(f"--frames must be at least 1, got {args.frames}")
+    for output in (args.screenshot, args.export, args.export_side_by_side):
+        if output:
+            check_writable(output, overwrite=args.force)
     replay = Replay(load_replay(args.replay)) if args.replay else None
     return Document.open(args.scene), replay
 
@@ -106,7 +114,9 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
             time.sleep(max(0.0, FRAME_SECONDS - (time.perf_counter() - frame_start)))
             if wait == 0.0:
                 app.stats.add(time.perf_counter() - frame_start, work, rendering=not app.live.idle, drawn=drawn)
-        if args.export and not app.export(args.export):
+        if args.export and not app.export(args.export, overwrite=True):  # checked up front, with --force
+            return EXIT_USER_ERROR
+        if args.export_side_by_side and not app.export_side_by_side(args.export_side_by_side, overwrite=True):
             return EXIT_USER_ERROR
     finally:
         app.close()

@@ -35,6 +35,7 @@ class Fields:
     scene_path: str = ""
     save_path: str = ""
     export_path: str = "render.png"
+    side_by_side_path: str = "viewport_and_render.png"
     mesh_path: str = ""
     mesh_up: int = 0  # 0: y up, 1: z up
     photo_path: str = ""
@@ -82,6 +83,8 @@ class Interface:
                 app.save()
             if imgui.menu_item_simple("Export render", "Ctrl+E"):
                 app.export(self.fields.export_path)
+            if imgui.menu_item_simple("Export viewport and render"):
+                app.export_side_by_side(self.fields.side_by_side_path)
             if imgui.menu_item_simple("Quit", "Ctrl+Q"):
                 app.request_quit()
             imgui.end_menu()
@@ -263,6 +266,10 @@ class Interface:
         imgui.same_line()
         if imgui.button("Export PNG") and f.export_path:
             app.export(f.export_path)
+        _, f.side_by_side_path = imgui.input_text("##side by side", f.side_by_side_path)
+        imgui.same_line()
+        if imgui.button("Export viewport + render") and f.side_by_side_path:
+            app.export_side_by_side(f.side_by_side_path)
 
     def _browse(self, key: str, title: str, filters: list[str], field_name: str) -> None:
         """A 'Browse' button opening the system file dialog, when the system has one (zenity or kdialog)."""

@@ -136,18 +136,23 @@ class LiveRender:
         self._renderer.close()
 
 
-def export_render(scene: Scene, path: str | Path, model_path: str | None = None) -> str:
-    """Write the image `nvr render SCENE --renderer nvr+` makes (the splat when no model loads); returns what was used."""
+def final_render(scene: Scene, model_path: str | None = None) -> tuple[np.ndarray, str]:
+    """The image `nvr render SCENE --renderer nvr+` makes (the splat when no model loads), and what made it."""
     try:
         engine = RenderEngine.load(model_path, kind="nvr+")
     except InputError:
         if model_path is not None:
             raise
         rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-        save_png(path, splat_scene(scene, rgba, floor_color))
-        return "splat, no trained model"
+        return splat_scene(scene, rgba, floor_color), "splat, no trained model"
     if scene.image_size != engine.output_size:
         raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; "
                          f"the scene's image_size {scene.image_size} is not supported")
-    save_png(path, engine.render(scene))
-    return f"nvr+ {engine.model_name}"
+    return engine.render(scene), f"nvr+ {engine.model_name}"
+
+
+def export_render(scene: Scene, path: str | Path, model_path: str | None = None) -> str:
+    """Write the image `nvr render SCENE --renderer nvr+` makes (the splat when no model loads); returns what was used."""
+    image, used = final_render(scene, model_path)
+    save_png(path, image)
+    return used

@@ -8,6 +8,7 @@ High-level actions call the same commands as the interface:
     {"action": "fill_object", "color": [...]}                 {"action": "fill_floor", "color": [...]}
     {"action": "undo"} {"action": "redo"}
     {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
+    {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
     {"action": "load_mesh", "path": ..., "up": "y"}           {"action": "load_photo", "photo": ..., "camera": ...}
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
@@ -205,6 +206,7 @@ ACTIONS = {
     "open": lambda app, a: app.open_scene(a["path"]),
     "save": lambda app, a: app.save(a.get("path")),
     "export": lambda app, a: app.export(a["path"]),
+    "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
     "load_mesh": lambda app, a: app.load_mesh(a["path"], up=a.get("up", "y")),
     "load_photo": lambda app, a: app.load_photo(a["photo"], a["camera"]),
     "screenshot": lambda app, a: app.screenshot(a["path"]),

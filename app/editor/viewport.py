@@ -165,6 +165,26 @@ class ViewportRenderer:
         self._drawn = drawn
         self.version += 1
         fbo = self._framebuffer(width, height)
+        self._render(fbo, view, scene, floor_color, light_active, picked_voxel)
+        return fbo
+
+    def image(self, width: int, height: int, view: Camera, scene: Scene, floor_color) -> np.ndarray:
+        """The viewport as an (H, W, 3) uint8 image, top row first, drawn in a framebuffer of its own (for exports)."""
+        size = (width, height)
+        attachments = (self.ctx.renderbuffer(size, 4), self.ctx.depth_renderbuffer(size))
+        fbo = self.ctx.framebuffer(*attachments)
+        try:
+            self._render(fbo, view, scene, floor_color)
+            pixels = fbo.read(components=3)
+        finally:
+            fbo.release()
+            for attachment in attachments:
+                attachment.release()
+        return np.frombuffer(pixels, dtype=np.uint8).reshape(height, width, 3)[::-1].copy()
+
+    def _render(self, fbo: moderngl.Framebuffer, view: Camera, scene: Scene, floor_color, light_active: bool = False,
+                picked_voxel: tuple[int, int, int] | None = None) -> None:
+        width, height = fbo.size
         fbo.use()
         ctx = self.ctx
         ctx.viewport = (0, 0, width, height)
@@ -206,7 +226,6 @@ class ViewportRenderer:
         self._flat_program["view_projection"].write(vp)
         self._draw_flat(shapes)
         ctx.disable(moderngl.DEPTH_TEST)
-        return fbo
 
     def _framebuffer(self, width: int, height: int) -> moderngl.Framebuffer:
         if self._fbo is None or self._fbo.size != (width, height):
