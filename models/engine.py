@@ -1,8 +1,9 @@
 """The live renderer of NVR Studio: a scene in, an image out, redoing only the stages an edit touched.
 
 The model is loaded once and turned into an inference copy (BatchNorm folded, channels-last,
-convolutions on oneDNN with their activations fused, the light merge split: models/light_merge.py). Every stage keeps its last result with the exact scene parts it was
-computed from, and reruns only when those change:
+convolutions on oneDNN with their activations fused, the light merge split: models/light_merge.py).
+Every stage keeps its last result with the exact scene parts it was computed from, and reruns only
+when those change:
 
     stage         depends on                                              result
     voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/paint_replay.py)
@@ -38,8 +39,8 @@ Floor color is the scene's floor color after its floor paint strokes. Hence, per
 
 The voxel branch runs only around the object (models/cropped_encoder.py): the ground's
 features come from the background stage (computed on a ground grid a few columns wide, since
-the ground is the same in every column), the object's from a crop of the grid, and the result
-equals the full-grid encode_voxels (`crop=False`). The engine is not thread-safe: one caller at
+the ground is the same in every column), the object's from a crop of the grid around the voxels
+that differ from the ground, and the result equals the full-grid encode_voxels (`crop=False`). The engine is not thread-safe: one caller at
 a time (models/async_render.py runs it on a worker thread).
 """
 
@@ -114,7 +115,8 @@ class _Placement(NamedTuple):
 class _Pooled(NamedTuple):
     voxels: np.ndarray  # merged voxels (renderer.grid.pool_voxels)
     painted: np.ndarray  # the painted voxels they were merged from
-    key: tuple  # the pool stage's key: (paint key, merge factors)
+    source: tuple  # where those voxels were read from (_voxel_source)
+    factors: tuple[int, int, int]
 
 
 class _Keys(NamedTuple):
@@ -231,7 +233,7 @@ class RenderEngine:
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         n, factors = keys.placement[1:3]
-        pooled = self._stage("pool", keys.pool, lambda: self._pool(painted, keys.pool)).voxels
+        pooled = self._stage("pool", keys.pool, lambda: self._pool(painted, keys.pool[0][0], factors)).voxels
         placement = self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
         if not self.crop:
             grid = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices))
@@ -247,12 +249,12 @@ class RenderEngine:
         self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", keys.grid, lambda: self.encoder.encode(background, plan, _grid_tensor(crop)))
 
-    def _pool(self, painted: np.ndarray, key: tuple) -> _Pooled:
-        """Merged voxels; after a paint change on the same object and merge factors, only the blocks it touched."""
-        factors, last = key[1], self._memo.get("pool", (None, None))[1]
-        if last is not None and last.key[0][0] == key[0][0] and last.key[1] == factors:  # same source and factors
-            return _Pooled(repool_voxels(last.voxels, last.painted, painted, factors), painted, key)
-        return _Pooled(pool_voxels(painted, factors), painted, key)
+    def _pool(self, painted: np.ndarray, source: tuple, factors: tuple[int, int, int]) -> _Pooled:
+        """Merged voxels; after a paint edit (same object, same merge factors) only the blocks it touched are merged."""
+        last = self._memo["pool"][1] if "pool" in self._memo else None
+        if last is not None and (last.source, last.factors) == (source, factors):
+            return _Pooled(repool_voxels(last.voxels, last.painted, painted, factors), painted, source, factors)
+        return _Pooled(pool_voxels(painted, factors), painted, source, factors)
 
     def _background(self, floor: tuple, elevation: float) -> Background:
         """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""
