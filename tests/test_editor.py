@@ -441,15 +441,18 @@ def test_headless_exports_refuse_to_overwrite_without_force(display, tmp_path, s
     assert Image.open(existing).size == WINDOW  # the screenshot replaced the file
 
 
-def test_the_window_asks_before_replacing_an_export_and_the_file_menu_exports_side_by_side(display, tmp_path, scene_file,
+def test_the_window_asks_before_replacing_a_file_and_the_file_menu_exports_side_by_side(display, tmp_path, scene_file,
                                                                                           model_file):
-    target = tmp_path / "side.png"
+    target, other_scene = tmp_path / "side.png", tmp_path / "other.json"
     target.write_bytes(b"keep me")
+    other_scene.write_text("keep me too")
     run_editor(display, tmp_path, scene_file, [
         {"action": "export_side_by_side", "path": str(target)},
         {"action": "answer", "choice": "Cancel"},
+        {"action": "save", "path": str(other_scene)},  # "Save as" onto another scene's file asks too
+        {"action": "answer", "choice": "Cancel"},
     ], "--model", str(model_file))
-    assert target.read_bytes() == b"keep me"
+    assert target.read_bytes() == b"keep me" and other_scene.read_text() == "keep me too"
     run_editor(display, tmp_path, scene_file, [
         {"action": "export_side_by_side", "path": str(target)},
         {"action": "answer", "choice": "Replace"},
@@ -465,3 +468,45 @@ def test_the_window_asks_before_replacing_an_export_and_the_file_menu_exports_si
         {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
     ], "--model", str(model_file), cwd=tmp_path)
     assert Image.open(tmp_path / "viewport_and_render.png").size == (1024, 512)
+
+
+# --- file dialog and the path fields without one ------------------------------------------------------
+
+# Where the Object tab (shown first) puts its mesh row, in window pixels: the path field, its Browse button
+# (only when a dialog program exists) and the "Load and voxelise" button below.
+MESH_FIELD, MESH_BROWSE, MESH_LOAD = [990, 645], [1225, 645], [904, 694]
+
+
+def _click(pos) -> list[dict]:
+    return [{"action": "mouse_move", "pos": pos}, {"action": "wait", "frames": 2}, {"action": "mouse_down", "button": 0},
+            {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0}]
+
+
+def test_browse_fills_the_mesh_field_from_zenity_and_typing_does_without_it(display, tmp_path, scene_file, model_file,
+                                                                            monkeypatch):
+    import trimesh
+
+    from app.editor.file_dialog import dialog_command
+    from app.editor.panels import MESH_FILES
+
+    mesh = tmp_path / "tall.obj"
+    trimesh.creation.box(extents=(1.0, 2.0, 1.0)).export(mesh)
+    with_dialog, without = tmp_path / "with_dialog", tmp_path / "without"
+    with_dialog.mkdir()
+    without.mkdir()  # PATH holds no dialog program (the editor itself needs nothing from PATH)
+    zenity = with_dialog / "zenity"
+    zenity.write_text(f'#!/bin/sh\nprintf "%s\\n" "$@" > "{with_dialog}/args.txt"\necho "{mesh}"\n')
+    zenity.chmod(0o755)
+    for path_dir, pick in ((with_dialog, _click(MESH_BROWSE) + [{"action": "wait", "frames": 60}]),
+                           (without, _click(MESH_FIELD) + [{"action": "type", "text": str(mesh)}])):
+        monkeypatch.setenv("PATH", str(path_dir))  # run_editor passes the environment on
+        run_editor(display, path_dir, scene_file, [
+            {"action": "screenshot", "path": str(path_dir / "tools.png")},
+            *pick, *_click(MESH_LOAD),
+            {"action": "save", "path": str(path_dir / "loaded.json")},
+        ], "--model", str(model_file))
+        assert load_scene(path_dir / "loaded.json").mesh_path().resolve() == mesh.resolve()
+    assert (with_dialog / "args.txt").read_text().splitlines() == dialog_command("zenity", MESH_FILES)[1:]
+    browse = [MESH_BROWSE[0] - 15, MESH_BROWSE[1] - 6, MESH_BROWSE[0] + 15, MESH_BROWSE[1] + 6]
+    shown, absent = (np.asarray(Image.open(d / "tools.png").crop(browse), dtype=np.float64) / 255.0 for d in (with_dialog, without))
+    assert np.abs(shown - absent).mean() > 0.1  # the Browse button is drawn only when zenity is there

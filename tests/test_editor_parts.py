@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 
 from app.editor import edits, state
 from app.editor.document import Document
+from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.frame_damage import FrameSummary, changed_boxes, merge
 from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
@@ -302,3 +304,61 @@ def test_side_by_side_enlarges_the_render_by_a_whole_factor_beside_the_viewport(
     assert (image[0:3, 5:8] == render[0, 0]).all() and (image[3:6, 8:11] == render[1, 1]).all()
     with pytest.raises(ValueError):
         compose(np.zeros((7, 5, 3), np.uint8), render)  # 7 rows are not a whole number of render rows
+
+
+# --- the system's file dialog ------------------------------------------------------------------------
+
+MESHES = FileKind("Open a mesh", "Meshes", ("*.obj", "*.ply"))
+
+
+def _fake_program(folder, name: str, body: str):
+    """An executable shell script `name` in `folder` that records its arguments, one a line, then runs `body`."""
+    script = folder / name
+    script.write_text(f'#!/bin/sh\nprintf "%s\\n" "$@" > "{folder}/{name}.args"\n{body}\n')
+    script.chmod(0o755)
+    return folder / f"{name}.args"
+
+
+def test_dialog_commands_for_zenity_and_kdialog():
+    assert dialog_command("zenity", MESHES) == [
+        "zenity", "--file-selection", "--title=Open a mesh", "--file-filter=Meshes | *.obj *.ply", "--file-filter=All files | *"]
+    png = FileKind("Export as", "PNG images", ("*.png",), save=True)
+    assert dialog_command("zenity", png, "out/render.png") == [
+        "zenity", "--file-selection", "--title=Export as", "--save", "--filename=out/render.png",
+        "--file-filter=PNG images | *.png", "--file-filter=All files | *"]
+    assert dialog_command("kdialog", MESHES) == ["kdialog", "--title", "Open a mesh", "--getopenfilename", ".",
+                                                 "*.obj *.ply|Meshes"]
+    assert dialog_command("kdialog", png, "render.png") == ["kdialog", "--title", "Export as", "--getsavefilename",
+                                                            "render.png", "*.png|PNG images"]
+    with pytest.raises(ValueError):
+        dialog_command("yad", MESHES)
+
+
+def test_the_dialog_program_is_found_on_path_zenity_first(tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))
+    assert dialog_program() is None  # no dialog: the editor shows no Browse buttons
+    _fake_program(tmp_path, "kdialog", "exit 1")
+    assert dialog_program() == "kdialog"
+    _fake_program(tmp_path, "zenity", "exit 1")
+    assert dialog_program() == "zenity"
+
+
+def _finish(dialog: FileDialog) -> FileDialog:
+    deadline = time.monotonic() + 30
+    while not dialog.poll():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    return dialog
+
+
+def test_a_dialog_runs_the_program_and_returns_its_choice(tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))
+    arguments = _fake_program(tmp_path, "zenity", "echo /data/chair.obj")
+    command = dialog_command("zenity", MESHES, "old.obj")
+    assert _finish(FileDialog(command)).path == "/data/chair.obj"
+    assert arguments.read_text().splitlines() == command[1:]  # the program got exactly these arguments
+    _fake_program(tmp_path, "zenity", "exit 1")  # the user pressed Cancel
+    cancelled = _finish(FileDialog(command))
+    assert cancelled.path is None and cancelled.error is None
+    missing = _finish(FileDialog(["no-such-dialog-program", "--file-selection"]))
+    assert missing.path is None and "cannot start the file dialog no-such-dialog-program" in missing.error

@@ -223,22 +223,22 @@ class EditorApp:
         else:
             go()
 
-    def save(self, path: str | Path | None = None) -> bool:
-        """Write the scene (atomically) to `path` or to the file it came from."""
+    def save(self, path: str | Path | None = None, overwrite: bool = False) -> bool:
+        """Write the scene (atomically) to `path` or to the file it came from; asks before replacing another file."""
         target = Path(path) if path else self.doc.path
         if target is None:
             self.say("choose a file name to save to (File tab)", error=True)
             return False
-        self.doc.cancel_preview()
-        try:
+        own_file = self.doc.path is not None and target.resolve() == self.doc.path.resolve()
+
+        def write() -> str:
+            self.doc.cancel_preview()
             save_scene(state.adopt_capture(self.scene, target), target)
-        except InputError as exc:
-            self.say(str(exc), error=True)
-            return False
-        self.doc.mark_saved(target)
-        state.clear_recovery()
-        self.say(f"saved {target}")
-        return True
+            self.doc.mark_saved(target)
+            state.clear_recovery()
+            return f"saved {target}"
+
+        return self._write_file(target, overwrite or own_file, write)
 
     def export(self, path: str | Path, overwrite: bool = False) -> bool:
         """Write the neural render of the committed scene as `nvr render --renderer nvr+` would."""

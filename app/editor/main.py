@@ -119,6 +119,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
         if args.export_side_by_side and not app.export_side_by_side(args.export_side_by_side, overwrite=True):
             return EXIT_USER_ERROR
     finally:
+        interface.close()
         app.close()
     if headless:
         print(f"nvr-editor: {frame} frames; {app.stats.summary()}")

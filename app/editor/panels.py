@@ -6,7 +6,6 @@ when released, like every other edit.
 
 from __future__ import annotations
 
-import shutil
 import time
 from dataclasses import dataclass
 
@@ -14,6 +13,7 @@ from imgui_bundle import imgui
 
 from app.editor import edits
 from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
+from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import viewport_camera
@@ -25,6 +25,12 @@ RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
 AMBER = imgui.ImVec4(1.0, 0.75, 0.3, 1.0)
 GREEN = imgui.ImVec4(0.5, 0.85, 0.5, 1.0)
 GRAY = imgui.ImVec4(0.65, 0.65, 0.68, 1.0)
+MESH_FILES = FileKind("Open a mesh", "Meshes", ("*.obj", "*.ply", "*.stl", "*.off", "*.glb", "*.gltf"))
+PHOTO_FILES = FileKind("Open a photo", "Images", ("*.png", "*.jpg", "*.jpeg"))
+CAMERA_FILES = FileKind("Open the photo's camera file", "Camera files", ("*.json",))
+SCENE_FILES = FileKind("Open a scene", "Scenes", ("*.json",))
+NEW_SCENE_FILE = FileKind("Save the scene as", "Scenes", ("*.json",), save=True)
+NEW_PNG_FILE = FileKind("Export as", "PNG images", ("*.png",), save=True)
 RATE_REFRESH_SECONDS = 0.5  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
 
 
@@ -52,8 +58,8 @@ class Interface:
         self.underlay = None
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
         self._popup_title: str | None = None
-        self._file_dialog = None  # a portable_file_dialogs dialog being shown, and what to do with its answer
-        self.has_file_dialogs = bool(shutil.which("zenity") or shutil.which("kdialog"))
+        self.dialog_program = dialog_program()  # None: no Browse buttons, the path fields only
+        self._file_dialog: tuple[FileDialog, str] | None = None  # an open dialog, and the field its answer goes to
         self._rate_text, self._rate_time = "", 0.0
 
     def draw(self) -> None:
@@ -206,7 +212,7 @@ class Interface:
         imgui.separator()
         f = self.fields
         _, f.mesh_path = imgui.input_text("mesh file", f.mesh_path)
-        self._browse("mesh", "Open a mesh", ["Meshes", "*.obj *.ply *.stl *.off *.glb *.gltf"], "mesh_path")
+        self._browse("mesh", MESH_FILES, "mesh_path")
         _, f.mesh_up = imgui.combo("up axis", f.mesh_up, ["y up", "z up"])
         if imgui.button("Load and voxelise") and f.mesh_path:
             self.app.load_mesh(f.mesh_path, up="yz"[f.mesh_up])
@@ -246,50 +252,52 @@ class Interface:
     def _photo_tab(self) -> None:
         f = self.fields
         _, f.photo_path = imgui.input_text("photo", f.photo_path)
-        self._browse("photo", "Open a photo", ["Images", "*.png *.jpg *.jpeg"], "photo_path")
+        self._browse("photo", PHOTO_FILES, "photo_path")
         _, f.camera_path = imgui.input_text("camera file", f.camera_path)
-        self._browse("camera", "Open a photo camera file", ["Camera", "*.json"], "camera_path")
+        self._browse("camera", CAMERA_FILES, "camera_path")
         if imgui.button("Color the object from the photo") and f.photo_path and f.camera_path:
             self.app.load_photo(f.photo_path, f.camera_path)
 
     def _file_tab(self) -> None:
         f, app = self.fields, self.app
-        _, f.scene_path = imgui.input_text("##open", f.scene_path)
-        imgui.same_line()
-        if imgui.button("Open scene") and f.scene_path:
-            app.open_scene(f.scene_path)
-        _, f.save_path = imgui.input_text("##save", f.save_path)
-        imgui.same_line()
-        if imgui.button("Save as") and f.save_path:
-            app.save(f.save_path)
-        _, f.export_path = imgui.input_text("##export", f.export_path)
-        imgui.same_line()
-        if imgui.button("Export PNG") and f.export_path:
-            app.export(f.export_path)
-        _, f.side_by_side_path = imgui.input_text("##side by side", f.side_by_side_path)
-        imgui.same_line()
-        if imgui.button("Export viewport + render") and f.side_by_side_path:
-            app.export_side_by_side(f.side_by_side_path)
+        for key, kind, field_name, label, act in (
+                ("open", SCENE_FILES, "scene_path", "Open scene", app.open_scene),
+                ("save", NEW_SCENE_FILE, "save_path", "Save as", app.save),
+                ("export", NEW_PNG_FILE, "export_path", "Export PNG", app.export),
+                ("side by side", NEW_PNG_FILE, "side_by_side_path", "Export viewport + render", app.export_side_by_side)):
+            imgui.set_next_item_width(200)
+            _, path = imgui.input_text(f"##{key}", getattr(f, field_name))
+            setattr(f, field_name, path)
+            self._browse(key, kind, field_name)
+            imgui.same_line()
+            if imgui.button(label) and path:
+                act(path)
 
-    def _browse(self, key: str, title: str, filters: list[str], field_name: str) -> None:
-        """A 'Browse' button opening the system file dialog, when the system has one (zenity or kdialog)."""
-        if not self.has_file_dialogs:
+    def _browse(self, key: str, kind: FileKind, field_name: str) -> None:
+        """A Browse button after a path field, when the system has a file dialog: the chosen file fills the field."""
+        if self.dialog_program is None:
             return
         imgui.same_line()
         if imgui.button(f"Browse##{key}") and self._file_dialog is None:
-            from imgui_bundle import portable_file_dialogs as pfd
-
-            self._file_dialog = (pfd.open_file(title, "", filters), field_name)
+            command = dialog_command(self.dialog_program, kind, getattr(self.fields, field_name))
+            self._file_dialog = (FileDialog(command), field_name)
 
     def _poll_file_dialog(self) -> None:
         if self._file_dialog is None:
             return
         dialog, field_name = self._file_dialog
-        if dialog.ready(0):
-            chosen = dialog.result()
-            if chosen:
-                setattr(self.fields, field_name, chosen[0])
-            self._file_dialog = None
+        if not dialog.poll():
+            return
+        self._file_dialog = None
+        if dialog.error:
+            self.app.say(dialog.error, error=True)
+        elif dialog.path:
+            setattr(self.fields, field_name, dialog.path)
+
+    def close(self) -> None:
+        """Close a file dialog left open."""
+        if self._file_dialog is not None:
+            self._file_dialog[0].close()
 
     # --- status bar and questions -------------------------------------------------------
 

@@ -20,6 +20,7 @@ buttons and modifiers go to ImGui's input queue directly, see _mouse_button):
                                               buttons 0 left, 1 right, 2 middle; mods held until mouse_up
     {"action": "scroll", "dy": 1}
     {"action": "key", "key": "g", "mods": ["ctrl", "shift"]}   press and release
+    {"action": "type", "text": "chair.obj"}   characters, as typed into the focused text field
 Before each action the replay waits until the editor is idle (jobs done, render up to date),
 so a screenshot always shows the finished result of what came before.
 """
@@ -191,6 +192,11 @@ def _key(app, action) -> Iterator[None]:
     yield
 
 
+def _type(app, action) -> None:
+    for character in str(action["text"]):
+        imgui.backends.glfw_char_callback(_window(app), ord(character))
+
+
 ACTIONS = {
     "drag_light": _drag_light,
     "move_object": lambda app, a: app.edit(lambda s: edits.place_object(s, translation=tuple(a["translation"]))),
@@ -219,4 +225,5 @@ ACTIONS = {
     "mouse_up": _mouse_button(False),
     "scroll": _scroll,
     "key": _key,
+    "type": _type,
 }
