@@ -8,6 +8,7 @@ box, red below and blue on top, rendered by a tiny random NVR+ network (so the l
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import shutil
@@ -510,3 +511,53 @@ def test_browse_fills_the_mesh_field_from_zenity_and_typing_does_without_it(disp
     browse = [MESH_BROWSE[0] - 15, MESH_BROWSE[1] - 6, MESH_BROWSE[0] + 15, MESH_BROWSE[1] + 6]
     shown, absent = (np.asarray(Image.open(d / "tools.png").crop(browse), dtype=np.float64) / 255.0 for d in (with_dialog, without))
     assert np.abs(shown - absent).mean() > 0.1  # the Browse button is drawn only when zenity is there
+
+
+# --- rotate and scale with R and S ------------------------------------------------------------------
+
+
+def test_r_turns_the_object_by_the_angle_the_mouse_sweeps_and_s_x_scales_x_only(display, tmp_path, scene_file, model_file):
+    scene = load_scene(scene_file)  # the box at the origin, turned 20 degrees, scale 1
+    cx, cy = screen_position([0.0, 0.5 * scene.object.scale[1], 0.0])  # the tools turn and scale about this point
+    moves = [
+        # R, then a quarter turn counterclockwise on screen: from right of the centre to above it.
+        {"action": "mouse_move", "pos": [cx + 120, cy]}, {"action": "wait", "frames": 2},
+        {"action": "key", "key": "r"},
+        {"action": "mouse_move", "pos": [cx + 85, cy - 85]}, {"action": "mouse_move", "pos": [cx, cy - 120]},
+        {"action": "mouse_down", "button": 0}, {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "turned.json")},
+        # S then X, from 60 to 150 pixels right of the centre: x grows by 150 / 60.
+        {"action": "mouse_move", "pos": [cx + 60, cy]}, {"action": "wait", "frames": 2},
+        {"action": "key", "key": "s"}, {"action": "key", "key": "x"},
+        {"action": "mouse_move", "pos": [cx + 150, cy]},
+        {"action": "mouse_down", "button": 0}, {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "wide.json")},
+        # S alone, from 100 pixels right to 50 pixels below: every axis shrinks by 50 / 100.
+        {"action": "mouse_move", "pos": [cx + 100, cy]}, {"action": "wait", "frames": 2},
+        {"action": "key", "key": "s"},
+        {"action": "mouse_move", "pos": [cx, cy + 50]},
+        {"action": "key", "key": "enter"},
+        {"action": "save", "path": str(tmp_path / "small.json")},
+        # R, then Esc: nothing changes, and a click afterwards confirms nothing (saving alone would drop a preview).
+        {"action": "key", "key": "r"}, {"action": "mouse_move", "pos": [cx - 100, cy]},
+        {"action": "key", "key": "escape"},
+        {"action": "mouse_move", "pos": [cx - 100, cy + 40]},
+        {"action": "mouse_down", "button": 0}, {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "cancelled.json")},
+    ]
+    run_editor(display, tmp_path, scene_file, moves, "--model", str(model_file))
+    turned = load_scene(tmp_path / "turned.json").object
+    assert turned.rotation_deg == pytest.approx(20.0 + 90.0, abs=1e-6)
+    assert turned.scale == scene.object.scale and turned.translation == scene.object.translation
+    # Counterclockwise on screen is counterclockwise seen from above: the object's own +x axis, as drawn,
+    # turned counterclockwise too (y grows downwards on screen, hence the minus signs).
+    def screen_angle(obj) -> float:
+        centre, tip = (apply_transform(object_to_world(obj), p) for p in ([0.0, 0.5, 0.0], [0.5, 0.5, 0.0]))
+        (x0, y0), (x1, y1) = screen_position(centre), screen_position(tip)
+        return math.degrees(math.atan2(-(y1 - y0), x1 - x0))
+    assert 0.0 < (screen_angle(turned) - screen_angle(scene.object)) % 360.0 < 180.0
+    wide = load_scene(tmp_path / "wide.json").object
+    assert wide.scale == pytest.approx((150 / 60, 1.0, 1.0), abs=1e-6) and wide.rotation_deg == turned.rotation_deg
+    small = load_scene(tmp_path / "small.json").object
+    assert small.scale == pytest.approx((150 / 60 * 0.5, 0.5, 0.5), abs=1e-6)
+    assert load_scene(tmp_path / "cancelled.json").object == small
