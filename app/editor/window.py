@@ -4,7 +4,7 @@ The glfw package uses imgui_bundle's glfw library (see app/editor/__init__.py), 
 handle made here is the one ImGui's native glfw backend reads.
 
 A frame that looks like the one on screen is neither drawn nor shown. With Mesa's software
-OpenGL (GLX_MESA_copy_sub_buffer), the back buffer is never swapped, so it keeps the last
+OpenGL and GLX_MESA_copy_sub_buffer, the back buffer is never swapped, so it keeps the last
 frame: only the boxes that changed are drawn again and copied to the screen
 (app/editor/frame_damage.py). Otherwise every new frame is drawn whole and swapped in.
 """
@@ -29,6 +29,7 @@ _GL_COLOR_BUFFER_BIT, _GL_NEAREST = 0x4000, 0x2600
 FONT_FILE = Path(imgui_bundle.__file__).parent / "assets" / "fonts" / "DroidSans.ttf"
 FONT_SIZE = 15.0
 GLSL_VERSION = "#version 330"
+SOFTWARE_RENDERERS = ("llvmpipe", "softpipe")  # Mesa's CPU rasterisers, as GL_RENDERER names them
 
 
 class WindowError(RuntimeError):
@@ -70,7 +71,9 @@ class Window:
         imgui.backends.opengl3_init(GLSL_VERSION)
         self._bind_framebuffer = _gl_function("glBindFramebuffer", ctypes.c_uint, ctypes.c_uint)
         self._blit_framebuffer = _gl_function("glBlitFramebuffer", *[ctypes.c_int] * 8, ctypes.c_uint, ctypes.c_uint)
-        self._copy_sub_buffer = _copy_sub_buffer(self.handle)  # None: not Mesa, every frame is drawn whole and swapped
+        # Software OpenGL only: a GPU draws a whole frame in well under a millisecond, and a swap waits for the display.
+        software = any(name in self.ctx.info["GL_RENDERER"] for name in SOFTWARE_RENDERERS)
+        self._copy_sub_buffer = _copy_sub_buffer(self.handle) if software else None  # None: frames drawn whole, swapped
 
     @property
     def size(self) -> tuple[int, int]:
