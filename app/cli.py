@@ -110,7 +110,8 @@ def cmd_capture(args: argparse.Namespace) -> None:
     pose = None if args.camera is None else load_pose(args.camera)
     search = args.auto or pose is None
     rgba = voxelize(mesh, resolution=args.res)
-    captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo)
+    captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
+                                  free_focal=args.free_focal)
     save_voxels(voxels_out, captured.rgba)
     save_pose(camera_out, captured.pose)
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
@@ -118,7 +119,8 @@ def cmd_capture(args: argparse.Namespace) -> None:
     how = "camera file" if captured.alignment is None else (
         f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s")
     print(f"pose ({how}): rotation {p.rotation_deg:.1f} deg, elevation {p.camera.elevation_deg:.1f} deg, "
-          f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}")
+          f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}, "
+          f"focal length {p.camera.focal_mm:.1f} mm")
     seen = int(captured.visible.sum())
     occupied = int((captured.rgba[..., 3] > 0.5).sum())
     mirror = "used" if captured.mirror_used else "not used"
@@ -268,6 +270,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--camera", default=None, help="the photo's camera file (JSON); without --auto it is used as is")
     p.add_argument("--auto", action="store_true",
                    help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
+    p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
     p.add_argument("--res", type=int, default=100, help="object voxels per side (default 100)")
     p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")

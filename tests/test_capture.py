@@ -267,3 +267,14 @@ def test_capture_command_writes_a_scene_that_reproduces_the_pose(tmp_path, chair
     assert abs(scene["camera"]["elevation_deg"] - 30.0) < 3.0
     assert (tmp_path / "scene_colors.npz").exists() and (tmp_path / "scene_camera.json").exists()
     assert run(["capture", str(tmp_path / "chair.obj"), str(tmp_path / "photo.png"), "-o", str(out)]) == 2  # exists
+
+
+def test_free_focal_length_is_recovered_for_a_longer_lens(chair):
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(25.0, 128, 128, focal_mm=55.0), rotation_deg=-30.0)
+    start = replace(truth, camera=replace(truth.camera, focal_mm=40.0), rotation_deg=-20.0)
+    fixed = align_pose(silhouettes, silhouettes.mask(truth), initial=start)
+    free = align_pose(silhouettes, silhouettes.mask(truth), initial=start, free_focal=True)
+    assert fixed.pose.camera.focal_mm == 40.0
+    assert free.pose.camera.focal_mm == pytest.approx(55.0, rel=0.15)
+    assert free.iou >= fixed.iou

@@ -38,9 +38,12 @@ CANDIDATES = 6  # distinct coarse poses refined
 FINALISTS = 2  # candidates refined to the end
 DISTINCT_ROTATION_DEG = 25.0
 DISTINCT_ELEVATION_DEG = 15.0
-# Parameters: rotation (deg), elevation (deg), translation x, z (object units), log of the scale factor.
+# Parameters: rotation (deg), elevation (deg), translation x, z (object units), log of the scale factor
+# (and, with a free focal length, the log of its factor).
 INITIAL_STEPS = np.array([6.0, 4.0, 0.03, 0.05, 0.05])
 FINAL_STEPS = np.array([0.25, 0.25, 0.002, 0.003, 0.003])
+FOCAL_STEP, FOCAL_FINAL_STEP = 0.05, 0.003  # log of the focal length factor, when it is free
+LENSES_MM = (24.0, 32.0, 40.0, 55.0, 80.0)  # focal lengths tried first when it is free
 EARLY_HALVINGS = 2  # compass halvings every candidate gets before the finalists are chosen
 
 
@@ -53,17 +56,17 @@ class Alignment:
 
 
 def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial: PhotoPose | None = None,
-               camera: Camera | None = None) -> Alignment:
+               free_focal: bool = False) -> Alignment:
     """The pose whose silhouette best overlaps `photo_mask` ((H, W) bool).
 
     `initial`: a rough pose to start from (searches a window around it); None searches all
-    rotations and elevations. `camera`: the photo's camera model (distance, focal length) when
-    there is no initial pose; the scene camera by default.
+    rotations and elevations with the scene camera. `free_focal`: the last refinement also fits
+    the focal length (for photos not taken with the scene camera's 40 mm lens).
     """
     start = time.perf_counter()
     rays_before = silhouettes.rays_cast
     h, w = photo_mask.shape
-    base = initial if initial is not None else PhotoPose(camera or Camera(elevation_deg=0.0, width=w, height=h))
+    base = initial if initial is not None else PhotoPose(Camera(elevation_deg=0.0, width=w, height=h))
     base = base.at_size(w, h)
     coarse, early, fine = (_Problem(silhouettes, _resize_mask(photo_mask, min(side, max(h, w))), base)
                            for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
@@ -74,7 +77,15 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
         params = early.place(params)
         refined.append(early.compass(params, INITIAL_STEPS, INITIAL_STEPS / 2**EARLY_HALVINGS))
     refined.sort(key=lambda item: -item[1])
-    finals = [fine.compass(params, INITIAL_STEPS / 2**EARLY_HALVINGS, FINAL_STEPS) for params, _ in refined[:FINALISTS]]
+    steps, final_steps = INITIAL_STEPS / 2**EARLY_HALVINGS, FINAL_STEPS
+    starts = [params for params, _ in refined[:FINALISTS]]
+    if free_focal:
+        # The lens changes only the perspective, which a local search follows poorly: try a few
+        # lenses on the best pose, each placed again, and let the last search fine-tune the lens.
+        lenses = [math.log(focal / base.camera.focal_mm) for focal in LENSES_MM]
+        starts = [fine.place(np.append(refined[0][0], lens)) for lens in lenses]
+        steps, final_steps = np.append(steps, FOCAL_STEP), np.append(final_steps, FOCAL_FINAL_STEP)
+    finals = [fine.compass(params, steps, final_steps) for params in starts]
     best_params, best_iou = max(finals, key=lambda item: item[1])
     pose = fine.pose(best_params).at_size(w, h)
     return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start)
@@ -102,9 +113,14 @@ class _Problem:
         self.target_moments = _moments(target)
 
     def pose(self, params: np.ndarray) -> PhotoPose:
-        rotation, elevation, tx, tz, log_scale = params
+        rotation, elevation, tx, tz, log_scale = params[:5]
         factor = math.exp(log_scale)
-        return replace(self.base, camera=replace(self.base.camera, elevation_deg=float(elevation)),
+        # A free focal length moves the camera with it (a dolly zoom): the object keeps its size in
+        # the image and only the perspective changes, so the lens is not a second scale parameter.
+        lens = math.exp(params[5]) if len(params) > 5 else 1.0
+        camera = replace(self.base.camera, elevation_deg=float(elevation), focal_mm=self.base.camera.focal_mm * lens,
+                         distance=self.base.camera.distance * lens)
+        return replace(self.base, camera=camera,
                        rotation_deg=float(rotation), translation=(float(tx), float(tz)),
                        scale=tuple(float(s * factor) for s in self.base.scale))
 
@@ -131,7 +147,7 @@ class _Problem:
                     return params
                 jacobian[:, j] = (np.array(moved) - np.array(current)) / deltas[j]
             step, *_ = np.linalg.lstsq(jacobian, np.array(self.target_moments) - np.array(current), rcond=None)
-            params[2:] = _clip_placement(params[2:] + np.clip(step, -0.5, 0.5))
+            params[2:5] = _clip_placement(params[2:5] + np.clip(step, -0.5, 0.5))
         return params
 
     def compass(self, params: np.ndarray, steps: np.ndarray, final_steps: np.ndarray) -> tuple[np.ndarray, float]:
@@ -230,5 +246,7 @@ def _clip_placement(placement: np.ndarray) -> np.ndarray:
 def _clip_params(params: np.ndarray) -> np.ndarray:
     out = params.copy()
     out[1] = np.clip(out[1], 0.0, MAX_ELEVATION_DEG)
-    out[2:] = _clip_placement(out[2:])
+    out[2:5] = _clip_placement(out[2:5])
+    if len(out) > 5:  # log focal factor: lenses from about 15 to 180 mm around the 40 mm default
+        out[5] = np.clip(out[5], -1.0, 1.5)
     return out

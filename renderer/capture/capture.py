@@ -38,20 +38,20 @@ class Capture:
 
 
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
-              initial: PhotoPose | None = None, path: str | Path | None = None) -> Alignment:
+              initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False) -> Alignment:
     """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough pose."""
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     mask = object_mask(small_rgb, small_alpha, path)
     sh, sw = mask.shape
     start = None if initial is None else initial.at_size(sw, sh)
-    alignment = align_pose(SilhouetteRenderer(mesh), mask, start)
+    alignment = align_pose(SilhouetteRenderer(mesh), mask, start, free_focal)
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, alignment.rays, alignment.seconds)
 
 
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
-                       path: str | Path | None = None) -> Capture:
+                       path: str | Path | None = None, free_focal: bool = False) -> Capture:
     """Color `object_rgba` (voxels of `mesh`, which only the search needs) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
@@ -65,7 +65,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
         raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
     if search:
-        alignment = find_pose(mesh, photo_rgb, alpha, pose, path)
+        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal)
         pose = alignment.pose
     pose = pose.at_size(w, h)
     occupied = object_rgba[..., 3] > 0.5
