@@ -15,11 +15,11 @@ from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_
 from app.editor.frame_damage import FrameSummary, changed_boxes, merge
 from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
-from app.editor.photo_capture import color_from_photo
+from app.editor.photo_capture import PhotoAlignment, object_shape, shape_key
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
 from app.editor.side_by_side import compose, scale_for
 from app.editor.voxel_cache import VoxelCache
-from app.editor.voxel_faces import exposed_faces
+from app.editor.voxel_faces import exposed_faces, voxel_surface_mesh
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.paint import apply_paint
@@ -205,9 +205,28 @@ def test_a_photo_of_the_wrong_size_is_a_clear_error(box_scene, tmp_path):
     from renderer.io import save_png
 
     save_png(tmp_path / "small.png", np.zeros((32, 48, 3)))
-    rgba = VoxelCache().object_rgba(box_scene)
     with pytest.raises(InputError, match="small.png.*48x32 pixels but its camera is 256x256"):
-        color_from_photo(rgba, box_scene.object, tmp_path / "small.png", "assets/demo/photo_camera.json")
+        PhotoAlignment(tmp_path / "small.png", box_scene, "assets/demo/photo_camera.json")
+    save_png(tmp_path / "half.png", np.zeros((128, 128, 3)))  # the same photo, smaller: the pose scales with it
+    assert PhotoAlignment(tmp_path / "half.png", box_scene, "assets/demo/photo_camera.json").pose.camera.width == 128
+
+
+def test_an_object_without_a_mesh_aligns_with_the_surface_of_its_voxels(box_scene):
+    import trimesh
+
+    from renderer.capture.align import silhouette_iou
+    from renderer.capture.pose import PhotoPose
+    from renderer.capture.silhouette import SilhouetteRenderer
+
+    shape = object_shape(box_scene, VoxelCache())  # the red and blue 4^3 cube of the 8^3 grid, in object units
+    np.testing.assert_allclose(shape.bounds, [[-0.25, 0.0, -0.25], [0.25, 0.5, 0.25]])
+    assert shape.area == pytest.approx(6 * 0.5**2)  # only the outer faces: 96 voxel faces of 1/8 x 1/8
+    cube = trimesh.creation.box(extents=(0.5, 0.5, 0.5))
+    cube.apply_translation((0.0, 0.25, 0.0))
+    pose = PhotoPose(Camera(35.0, 96, 96), rotation_deg=30.0)
+    assert silhouette_iou(SilhouetteRenderer(shape).mask(pose), SilhouetteRenderer(cube).mask(pose)) > 0.99
+    assert shape_key(box_scene) == ("voxels", str((box_scene.base_dir / "box.npz").resolve()), 8)
+    assert len(voxel_surface_mesh(np.zeros((4, 4, 4, 4), np.float32)).faces) == 0
 
 
 # --- recovery and captures ------------------------------------------------------------------------

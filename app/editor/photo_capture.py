@@ -3,6 +3,7 @@
 The user aligns by hand (drag on the photo to turn, Shift+drag to move, the wheel to scale, or
 the numeric fields), lets the search refine that pose or find one from nothing, then colors
 the object from the photo; optionally the scene takes the photo's view (placement and elevation).
+The commands that do this in the editor are in app/editor/photo_tool.py, the tab in photo_panel.py.
 """
 
 from __future__ import annotations
@@ -10,22 +11,31 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import trimesh
+from PIL import Image
 
+from app.editor.voxel_faces import voxel_surface_mesh
 from renderer.camera import Camera
-from renderer.capture.capture import capture_appearance
+from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance
 from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
 from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.errors import InputError
 from renderer.io import load_image
+from renderer.pipeline import object_mesh
 from renderer.scene import ObjectSpec, Scene
 
-OVERLAY_SIDE = 320  # long side of the photo shown in the Photo tab
+if TYPE_CHECKING:
+    from app.editor.voxel_cache import VoxelCache
+
+OVERLAY_SIDE = 320  # default long side of the overlay (the Photo tab asks for the size it shows)
 OUTLINE_COLOR = np.array([1.0, 0.2, 0.6])
-TURN_DEG_PER_PIXEL = 0.5
-SHIFT_PER_PIXEL = 0.004  # object units per pixel of the overlay
+TURN_DEG_PER_PIXEL = 0.5  # per pixel the mouse moves over the overlay as shown
+SHIFT_PER_PIXEL = 0.004  # object units per pixel the mouse moves over the overlay
 SCALE_PER_WHEEL_STEP = 1.05
+SHOWN_SIZES_KEPT = 4  # resized photos kept (a drag uses two sizes: small while dragging, full after)
 
 
 class PhotoAlignment:
@@ -36,20 +46,34 @@ class PhotoAlignment:
         self.rgb, self.alpha = load_image(path)
         h, w = self.rgb.shape[:2]
         if camera_path is not None:
-            self.pose = load_pose(camera_path, scene.object).at_size(w, h)
+            filed = load_pose(camera_path, scene.object)
+            _check_aspect(filed.camera, w, h, self.path)
+            self.pose = filed.at_size(w, h)
         else:  # start from the scene's own view, which is what a user sets up to match the photo
             self.pose = PhotoPose(Camera(scene.camera.elevation_deg, w, h), scene.object.rotation_deg,
                                   scene.object.translation, scene.object.scale)
+        self.mesh: trimesh.Trimesh | None = None  # the object's shape, which the search aligns
         self._silhouettes: SilhouetteRenderer | None = None
         self._mesh_key: object = None
+        self._shown_photos: dict[tuple[int, int], np.ndarray] = {}  # the photo resized for the overlay, by size
         self.revision = 0  # grows with every pose change, so the window knows when to redraw the overlay
 
-    def set_mesh(self, mesh: trimesh.Trimesh, key: object) -> None:
-        """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped."""
+    def set_mesh(self, mesh: trimesh.Trimesh, key: object, silhouettes: SilhouetteRenderer | None = None) -> None:
+        """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped.
+
+        `silhouettes` is the mesh's renderer when it was already built (building one takes up to a
+        second, so the editor does it in a background job).
+        """
         if key != self._mesh_key:
-            self._silhouettes = SilhouetteRenderer(mesh)
+            self._silhouettes = silhouettes or SilhouetteRenderer(mesh)
+            self.mesh = mesh
             self._mesh_key = key
             self.revision += 1
+
+    @property
+    def mesh_key(self) -> object:
+        """The key of the mesh in use (None before `set_mesh`)."""
+        return self._mesh_key
 
     @property
     def silhouettes(self) -> SilhouetteRenderer | None:
@@ -81,10 +105,7 @@ class PhotoAlignment:
         h, w = self.rgb.shape[:2]
         factor = min(1.0, long_side / max(h, w))
         size = (max(1, round(w * factor)), max(1, round(h * factor)))
-        from PIL import Image
-
-        shown = np.asarray(Image.fromarray((self.rgb * 255).astype(np.uint8)).resize(size, Image.Resampling.BOX),
-                           dtype=np.float32) / 255.0
+        shown = self._shown_photo(size)
         if self._silhouettes is None:
             return shown
         mask = self._silhouettes.mask(self.pose.at_size(*size))
@@ -93,6 +114,20 @@ class PhotoAlignment:
         shown[mask] = 0.75 * shown[mask] + 0.25 * OUTLINE_COLOR
         shown[outline] = OUTLINE_COLOR
         return shown
+
+    def _shown_photo(self, size: tuple[int, int]) -> np.ndarray:
+        """The photo resized to `size` (width, height), kept: a drag redraws the overlay every frame."""
+        if size not in self._shown_photos:
+            if len(self._shown_photos) >= SHOWN_SIZES_KEPT:
+                self._shown_photos.clear()
+            small = Image.fromarray((self.rgb * 255).astype(np.uint8)).resize(size, Image.Resampling.BOX)
+            self._shown_photos[size] = np.asarray(small, dtype=np.float32) / 255.0
+        return self._shown_photos[size]
+
+    def colors(self, object_rgba: np.ndarray, pose: PhotoPose | None = None) -> np.ndarray:
+        """`object_rgba` recolored from the photo seen at `pose` (default: the current one); occupancy unchanged."""
+        pose = self.pose if pose is None else pose
+        return capture_appearance(object_rgba, None, self.rgb, self.alpha, pose, search=False, path=self.path).rgba
 
 
 def scene_with_photo_view(scene: Scene, pose: PhotoPose) -> Scene:
@@ -107,6 +142,27 @@ def color_from_photo(object_rgba: np.ndarray, spec: ObjectSpec, photo_path: str 
     photo, alpha = load_image(photo_path)
     pose = load_pose(camera_path, spec)
     return capture_appearance(object_rgba, None, photo, alpha, pose, search=False, path=photo_path).rgba
+
+
+def shape_key(scene: Scene) -> tuple:
+    """What the object's shape depends on: its mesh file and up axis, or (without a mesh) its voxels' source."""
+    mesh = scene.mesh_path()
+    if mesh is not None:
+        return ("mesh", str(mesh.resolve()), scene.object.up)
+    return ("voxels", str(scene.voxels_path().resolve()), scene.object.resolution)
+
+
+def object_shape(scene: Scene, voxels: VoxelCache) -> trimesh.Trimesh:
+    """The object's shape in object coordinates, to align with a photo: its mesh, else the surface of its voxels."""
+    if scene.mesh_path() is not None:
+        return object_mesh(scene)
+    return voxel_surface_mesh(voxels.object_rgba(scene))
+
+
+def _check_aspect(camera: Camera, width: int, height: int, path: Path) -> None:
+    """A camera file made for another aspect ratio than the photo's is a mistake (a resized photo is fine)."""
+    if abs(camera.width * height - camera.height * width) > ASPECT_TOLERANCE * camera.width * height:
+        raise InputError(f"the photo is {width}x{height} pixels but its camera is {camera.width}x{camera.height}", path)
 
 
 def _eroded(mask: np.ndarray) -> np.ndarray:
