@@ -315,6 +315,7 @@ def test_meshes_and_photos_load_and_bad_files_leave_the_scene_alone(display, tmp
         {"action": "load_mesh", "path": str(tmp_path / "tall.obj")},
         {"action": "save", "path": str(tmp_path / "tall.json")},
         {"action": "load_photo", "photo": "assets/demo/photo.png", "camera": "assets/demo/photo_camera.json"},
+        {"action": "color_from_photo"},  # at the camera file's pose
         {"action": "save", "path": str(tmp_path / "photo.json")},
     ], "--model", str(model_file))
     assert "broken.obj" in result.stderr and "scene.json: missing" in result.stderr  # shown, and echoed on stderr

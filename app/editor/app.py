@@ -18,7 +18,7 @@ from app.editor import edits, side_by_side, state
 from app.editor.document import Document
 from app.editor.jobs import BackgroundJob, Progress
 from app.editor.orbit_view import HOME, viewport_camera
-from app.editor.photo_capture import color_from_photo
+from app.editor.photo_tool import PhotoTool
 from app.editor.render_panel import LiveRender, RenderedFrame, export_render, final_render
 from app.editor.viewport import ViewportRenderer
 from app.editor.voxel_cache import VoxelCache
@@ -102,6 +102,7 @@ class EditorApp:
         self.tool = "select"  # or "paint"
         self.paint_color: tuple[float, float, float] = PALETTE[0]
         self.tolerance = 0.1
+        self.photo = PhotoTool(self)  # the Photo tab's photo being aligned, and its commands
         self.job: BackgroundJob | None = None
         self._job_done = None  # what to do with the job's result
         self.message: Message | None = None
@@ -287,27 +288,11 @@ class EditorApp:
         except InputError as exc:
             self.say(str(exc), error=True)
             return
-        self._start_job(f"Voxelising {Path(path).name}", lambda progress: self.voxels.object_rgba(candidate, progress),
-                        lambda _: self.edit(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)))
+        self.start_job(f"Voxelising {Path(path).name}", lambda progress: self.voxels.object_rgba(candidate, progress),
+                       lambda _: self.edit(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)))
 
-    def load_photo(self, photo: str | Path, camera: str | Path) -> None:
-        """Recolor the object from a photo taken with a known camera (photo_camera.json format)."""
-        scene = self.doc.history.current
-
-        def work(_progress: Progress) -> Path:
-            rgba, _ = self.voxels.painted(scene)
-            return state.save_capture(color_from_photo(rgba, scene.object, photo, camera))
-
-        def done(capture: Path) -> None:
-            def recolor(s: Scene) -> Scene:
-                return edits.replace_object_source(s, mesh=s.mesh_path(), voxels=capture, up=s.object.up)
-
-            if self.edit(recolor):
-                self.say(f"colored the object from {Path(photo).name}")
-
-        self._start_job(f"Coloring from {Path(photo).name}", work, done)
-
-    def _start_job(self, title: str, work: Callable[[Progress], object], on_result: Callable[[object], None]) -> None:
+    def start_job(self, title: str, work: Callable[[Progress], object], on_result: Callable[[object], None]) -> None:
+        """Run `work(progress)` in the background (one job at a time); `on_result` gets its result on the UI thread."""
         if self.job is not None and not self.job.done:
             self.say(f"busy: {self.job.title}", error=True)
             return
@@ -358,6 +343,7 @@ class EditorApp:
                 self._job_done(job.result)
         if self._synced != self.doc.revision:
             self._sync()
+        self.photo.follow_object()
         frame = self.live.poll()
         if frame is not None:
             self.shown_frame = frame
@@ -374,8 +360,8 @@ class EditorApp:
         scene = self.doc.scene
         if not self.voxels.has_object(scene):
             if self.job is None:
-                self._start_job(f"Voxelising {Path(scene.object.voxels or scene.object.mesh).name}",
-                                lambda progress: self.voxels.object_rgba(scene, progress), lambda _: None)
+                self.start_job(f"Voxelising {Path(scene.object.voxels or scene.object.mesh).name}",
+                               lambda progress: self.voxels.object_rgba(scene, progress), lambda _: None)
             return
         try:
             rgba, self.floor_color = self.voxels.painted(scene)

@@ -17,6 +17,7 @@ from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_
 from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import viewport_camera
+from app.editor.photo_panel import PhotoPanel
 from app.editor.viewport_input import ViewportInput
 
 FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -26,8 +27,6 @@ AMBER = imgui.ImVec4(1.0, 0.75, 0.3, 1.0)
 GREEN = imgui.ImVec4(0.5, 0.85, 0.5, 1.0)
 GRAY = imgui.ImVec4(0.65, 0.65, 0.68, 1.0)
 MESH_FILES = FileKind("Open a mesh", "Meshes", ("*.obj", "*.ply", "*.stl", "*.off", "*.glb", "*.gltf"))
-PHOTO_FILES = FileKind("Open a photo", "Images", ("*.png", "*.jpg", "*.jpeg"))
-CAMERA_FILES = FileKind("Open the photo's camera file", "Camera files", ("*.json",))
 SCENE_FILES = FileKind("Open a scene", "Scenes", ("*.json",))
 NEW_SCENE_FILE = FileKind("Save the scene as", "Scenes", ("*.json",), save=True)
 NEW_PNG_FILE = FileKind("Export as", "PNG images", ("*.png",), save=True)
@@ -55,6 +54,7 @@ class Interface:
         self.app = app
         self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(app.doc.path or "scene.json"))
         self.viewport_input = ViewportInput()
+        self.photo_panel = PhotoPanel(app)
         self.underlay = None
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
         self._popup_title: str | None = None
@@ -69,6 +69,7 @@ class Interface:
         self._menu()
         self._viewport(panels.viewport)
         self._render_panel(panels.render, panels.render_image)
+        self.photo_panel.shown = None  # set again if the Photo tab is open
         self._tools(panels.tools)
         self._status(panels.status)
         self._prompt()
@@ -77,6 +78,8 @@ class Interface:
         framebuffer, x, y = self.underlay
         self.images = ((_box(Rect(x, y, *framebuffer.size)), app.viewport.version),
                        (_box(panels.render_image), app.render_uploads))
+        if self.photo_panel.shown is not None:
+            self.images += (self.photo_panel.shown,)
 
     # --- menu and shortcuts --------------------------------------------------------------
 
@@ -250,13 +253,7 @@ class Interface:
             app.fill_floor()
 
     def _photo_tab(self) -> None:
-        f = self.fields
-        _, f.photo_path = imgui.input_text("photo", f.photo_path)
-        self._browse("photo", PHOTO_FILES, "photo_path")
-        _, f.camera_path = imgui.input_text("camera file", f.camera_path)
-        self._browse("camera", CAMERA_FILES, "camera_path")
-        if imgui.button("Color the object from the photo") and f.photo_path and f.camera_path:
-            self.app.load_photo(f.photo_path, f.camera_path)
+        self.photo_panel.draw(self.fields, self._browse)
 
     def _file_tab(self) -> None:
         f, app = self.fields, self.app
@@ -295,9 +292,10 @@ class Interface:
             setattr(self.fields, field_name, dialog.path)
 
     def close(self) -> None:
-        """Close a file dialog left open."""
+        """Close a file dialog left open; release the photo's texture."""
         if self._file_dialog is not None:
             self._file_dialog[0].close()
+        self.photo_panel.close()
 
     # --- status bar and questions -------------------------------------------------------
 

@@ -25,7 +25,7 @@ from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.io import load_image
 from renderer.pipeline import object_mesh
-from renderer.scene import ObjectSpec, Scene
+from renderer.scene import Scene
 
 if TYPE_CHECKING:
     from app.editor.voxel_cache import VoxelCache
@@ -134,14 +134,6 @@ def scene_with_photo_view(scene: Scene, pose: PhotoPose) -> Scene:
     """The scene placed and seen as in the photo: the pose's rotation, translation, scale and elevation."""
     return scene.with_changes(object=pose.placed(scene.object),
                               camera=replace(scene.camera, elevation_deg=pose.camera.elevation_deg))
-
-
-def color_from_photo(object_rgba: np.ndarray, spec: ObjectSpec, photo_path: str | Path,
-                     camera_path: str | Path) -> np.ndarray:
-    """The object voxels recolored from a photo with a known camera (occupancy unchanged)."""
-    photo, alpha = load_image(photo_path)
-    pose = load_pose(camera_path, spec)
-    return capture_appearance(object_rgba, None, photo, alpha, pose, search=False, path=photo_path).rgba
 
 
 def shape_key(scene: Scene) -> tuple:

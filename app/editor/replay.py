@@ -9,7 +9,14 @@ High-level actions call the same commands as the interface:
     {"action": "undo"} {"action": "redo"}
     {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
-    {"action": "load_mesh", "path": ..., "up": "y"}           {"action": "load_photo", "photo": ..., "camera": ...}
+    {"action": "load_mesh", "path": ..., "up": "y"}
+    {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo; "camera" is optional
+    {"action": "align_photo", "from_scratch": false}           Align (refine from this pose) / Align from scratch
+    {"action": "turn_photo", "dx": 40, "dy": 0}                as a drag on the photo ("shift_photo": Shift+drag), pixels
+    {"action": "zoom_photo", "steps": 1}                       as the wheel over the photo
+    {"action": "set_photo_pose", "rotation_deg": 30, "elevation_deg": 20, "translation": [x, z], "scale": [x, y, z]}
+                                                              the pose fields (any of them)
+    {"action": "color_from_photo"} {"action": "match_photo_view"}   one undo step each
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
     {"action": "close"}                                       as the window's close button
@@ -29,6 +36,7 @@ from __future__ import annotations
 
 import ctypes
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -124,6 +132,32 @@ def _fill(target: str):
     return run
 
 
+def _set_photo_pose(app, action) -> None:
+    """The pose fields: each key given replaces that part of the photo's pose."""
+    def posed(pose):
+        if "rotation_deg" in action:
+            pose = replace(pose, rotation_deg=float(action["rotation_deg"]))
+        if "elevation_deg" in action:
+            pose = replace(pose, camera=replace(pose.camera, elevation_deg=float(action["elevation_deg"])))
+        if "translation" in action:
+            x, z = (float(v) for v in action["translation"])
+            pose = replace(pose, translation=(x, z))
+        if "scale" in action:
+            sx, sy, sz = (float(v) for v in action["scale"])
+            pose = replace(pose, scale=(sx, sy, sz))
+        return pose
+
+    app.photo.adjust(lambda alignment: alignment.set_pose(posed(alignment.pose)))
+
+
+def _photo_gesture(name: str, *keys: str):
+    """A gesture on the photo (turn, shift, zoom) with the action's numbers as its arguments."""
+    def run(app, action) -> None:
+        values = [float(action[key]) for key in keys]
+        app.photo.adjust(lambda alignment: getattr(alignment, name)(*values))
+    return run
+
+
 def _wait(app, action) -> Iterator[None]:
     for _ in range(int(action.get("frames", 1))):
         yield
@@ -214,7 +248,14 @@ ACTIONS = {
     "export": lambda app, a: app.export(a["path"]),
     "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
     "load_mesh": lambda app, a: app.load_mesh(a["path"], up=a.get("up", "y")),
-    "load_photo": lambda app, a: app.load_photo(a["photo"], a["camera"]),
+    "load_photo": lambda app, a: app.photo.load(a["photo"], a.get("camera")),
+    "align_photo": lambda app, a: app.photo.align(from_scratch=bool(a.get("from_scratch", False))),
+    "turn_photo": _photo_gesture("turn", "dx", "dy"),
+    "shift_photo": _photo_gesture("shift", "dx", "dy"),
+    "zoom_photo": _photo_gesture("zoom", "steps"),
+    "set_photo_pose": _set_photo_pose,
+    "color_from_photo": lambda app, a: app.photo.color_object(),
+    "match_photo_view": lambda app, a: app.photo.match_view(),
     "screenshot": lambda app, a: app.screenshot(a["path"]),
     "answer": lambda app, a: app.answer(a["choice"]),
     "tool": _set_tool,
