@@ -1,0 +1,155 @@
+"""The Photo tab through the real window under Xvfb: load a photo, align the object to it (search or mouse),
+take its view, color the object from it, undo; bad photos leave the scene alone.
+
+The object is a generated chair (24^3 voxels, so voxelising is quick); the photo is its
+silhouette, blue on a gray backdrop, at a known pose (rendering it takes milliseconds).
+Each test runs `nvr-editor --frames ... --replay ...` and checks the scene files it saves.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from renderer.camera import Camera
+from renderer.capture.align import rotation_error_deg
+from renderer.capture.pose import PhotoPose, save_pose
+from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.objects import generate_object
+from renderer.pipeline import object_voxels
+from renderer.scene import CameraSpec, ObjectSpec, Scene, load_scene, save_scene
+from tests import test_editor
+from tests.test_editor import PANELS, pixels, run_editor
+
+display, model_file = test_editor.display, test_editor.model_file  # the window tests' fixtures: an Xvfb, a tiny NVR+
+
+TRUTH = PhotoPose(Camera(25.0, 120, 100), rotation_deg=-35.0, translation=(0.1, -0.05))  # where the photo was taken
+START = ObjectSpec(mesh="chair.obj", resolution=24, rotation_deg=20.0)  # the scene before: turned and seen otherwise
+CHAIR_BLUE, BACKDROP = (0.2, 0.4, 0.9), 0.75
+OUTLINE = (1.0, 0.2, 0.6)  # app/editor/photo_capture.py OUTLINE_COLOR
+# Window pixels in the 1280x800 window (tests/test_editor.py WINDOW): the Photo tab's label, and the middle of the
+# photo as the tab shows it once loaded (files folded; the photo at the left, 164x137 pixels from (848, 628)).
+PHOTO_TAB, PHOTO_MIDDLE = [1062, 539], [930, 697]
+
+
+@pytest.fixture(scope="module")
+def chair_scene(tmp_path_factory):
+    """The chair's scene, its photo (the silhouette at TRUTH) and the photo's camera file."""
+    folder = tmp_path_factory.mktemp("chair")
+    chair = generate_object("chair", 8).mesh
+    chair.export(folder / "chair.obj")
+    mask = SilhouetteRenderer(chair).mask(TRUTH)
+    photo = np.where(mask[..., None], np.array(CHAIR_BLUE), BACKDROP)
+    Image.fromarray((photo * 255).round().astype(np.uint8)).save(folder / "photo.png")
+    save_pose(folder / "camera.json", TRUTH)
+    scene = Scene(object=START, camera=CameraSpec(35.0), image_size=64, base_dir=folder)
+    save_scene(scene, folder / "scene.json")
+    return folder / "scene.json"
+
+
+def test_a_photo_without_camera_is_aligned_from_scratch_and_the_scene_takes_its_view(display, tmp_path, chair_scene,
+                                                                                    model_file):
+    run_editor(display, tmp_path, chair_scene, [
+        {"action": "load_photo", "photo": str(chair_scene.parent / "photo.png")},
+        {"action": "align_photo", "from_scratch": True},
+        {"action": "match_photo_view"},
+        {"action": "save", "path": str(tmp_path / "aligned.json")},
+        {"action": "undo"},
+        {"action": "save", "path": str(tmp_path / "undone.json")},
+    ], "--model", str(model_file))
+    aligned = load_scene(tmp_path / "aligned.json")
+    assert rotation_error_deg(aligned.object.rotation_deg, TRUTH.rotation_deg) < 3.0  # from 55 degrees away
+    assert aligned.camera.elevation_deg == pytest.approx(TRUTH.camera.elevation_deg, abs=3.0)  # from 35
+    np.testing.assert_allclose(aligned.object.translation, TRUTH.translation, atol=0.03)
+    np.testing.assert_allclose(aligned.object.scale, (1.0, 1.0, 1.0), atol=0.05)
+    assert aligned.light == load_scene(chair_scene).light and aligned.object.voxels is None  # the view only
+    undone = load_scene(tmp_path / "undone.json")
+    assert (undone.object.rotation_deg, undone.camera.elevation_deg) == (START.rotation_deg, 35.0)  # one undo step
+
+
+def test_color_from_the_photo_changes_the_voxels_and_undo_restores_them_exactly(display, tmp_path, chair_scene,
+                                                                              model_file):
+    folder = chair_scene.parent
+    run_editor(display, tmp_path, chair_scene, [  # the camera-file flow: the photo's pose is known, no search
+        {"action": "load_photo", "photo": str(folder / "photo.png"), "camera": str(folder / "camera.json")},
+        {"action": "color_from_photo"},
+        {"action": "save", "path": str(tmp_path / "colored.json")},
+        {"action": "undo"},
+        {"action": "save", "path": str(tmp_path / "undone.json")},
+    ], "--model", str(model_file))
+    before = object_voxels(load_scene(chair_scene))
+    colored_scene = load_scene(tmp_path / "colored.json")
+    colored = object_voxels(colored_scene)
+    occupied = before[..., 3] > 0.5
+    assert np.array_equal(colored[..., 3], before[..., 3])  # the same shape
+    assert np.all(before[occupied][:, :3] == 0.5)  # the mesh has no colors: gray
+    blue = np.abs(colored[occupied][:, :3] - CHAIR_BLUE).max(axis=1) < 0.02
+    assert blue.mean() > 0.5  # the photo shows (or the mirror copies) most of the chair, all of it blue
+    assert colored_scene.mesh_path().resolve() == (folder / "chair.obj").resolve()  # the mesh stays: its shape, for aligning
+    assert colored_scene.object.rotation_deg == START.rotation_deg  # coloring does not move the object
+    undone = load_scene(tmp_path / "undone.json")
+    assert undone.object.voxels is None
+    np.testing.assert_array_equal(object_voxels(undone), before)
+
+
+def test_a_bad_photo_is_a_message_and_the_scene_stays(display, tmp_path, chair_scene, model_file):
+    folder = chair_scene.parent
+    (tmp_path / "broken.png").write_bytes(b"not a png")
+    result = run_editor(display, tmp_path, chair_scene, [
+        {"action": "load_photo", "photo": str(tmp_path / "missing.png")},
+        {"action": "load_photo", "photo": str(tmp_path / "broken.png")},
+        {"action": "load_photo", "photo": str(folder / "photo.png"), "camera": "assets/demo/photo_camera.json"},
+        {"action": "align_photo"},
+        {"action": "color_from_photo"},
+        {"action": "match_photo_view"},
+        {"action": "save", "path": str(tmp_path / "unchanged.json")},
+    ], "--model", str(model_file))
+    errors = [line for line in result.stderr.splitlines() if line.startswith("nvr-editor: ")]
+    assert errors == [
+        f"nvr-editor: {tmp_path / 'missing.png'}: file not found",
+        f"nvr-editor: {tmp_path / 'broken.png'}: not a readable image (cannot identify image file "
+        f"'{tmp_path / 'broken.png'}')",
+        f"nvr-editor: {folder / 'photo.png'}: the photo is 120x100 pixels but its camera is 256x256",
+        *["nvr-editor: load a photo first (Photo tab)"] * 3,
+    ]  # the first says the tiny model is used; no traceback
+    assert "Traceback" not in result.stderr
+    unchanged, original = load_scene(tmp_path / "unchanged.json"), load_scene(chair_scene)
+    assert unchanged.mesh_path().resolve() == original.mesh_path().resolve()
+    assert replace(unchanged, base_dir=original.base_dir, object=original.object) == original
+    assert replace(unchanged.object, mesh=original.object.mesh) == original.object
+
+
+def test_dragging_on_the_photo_turns_shift_drag_moves_and_the_wheel_scales(display, tmp_path, chair_scene, model_file):
+    folder = chair_scene.parent
+    x, y = PHOTO_MIDDLE
+    click = [{"action": "wait", "frames": 2}, {"action": "mouse_down", "button": 0},
+             {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0}]
+    run_editor(display, tmp_path, chair_scene, [
+        {"action": "mouse_move", "pos": PHOTO_TAB}, *click,
+        {"action": "load_photo", "photo": str(folder / "photo.png"), "camera": str(folder / "camera.json")},
+        {"action": "screenshot", "path": str(tmp_path / "tab.png")},
+        {"action": "mouse_move", "pos": [x, y]}, {"action": "wait", "frames": 2},
+        {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
+        {"action": "mouse_move", "pos": [x + 40, y - 10]}, {"action": "wait", "frames": 2},  # 0.5 degree a pixel
+        {"action": "mouse_up", "button": 0},
+        {"action": "mouse_down", "button": 0, "mods": ["shift"]}, {"action": "wait", "frames": 2},
+        {"action": "mouse_move", "pos": [x + 15, y]}, {"action": "wait", "frames": 2},  # 0.004 object units a pixel
+        {"action": "mouse_up", "button": 0},
+        {"action": "scroll", "dy": 2}, {"action": "wait", "frames": 2},  # 5 % a step
+        {"action": "screenshot", "path": str(tmp_path / "posed.png")},
+        {"action": "match_photo_view"},
+        {"action": "save", "path": str(tmp_path / "posed.json")},
+    ], "--model", str(model_file))
+    posed = load_scene(tmp_path / "posed.json")
+    assert posed.object.rotation_deg == pytest.approx(TRUTH.rotation_deg + 20.0)
+    assert posed.camera.elevation_deg == pytest.approx(TRUTH.camera.elevation_deg - 5.0)
+    assert posed.object.translation == pytest.approx((TRUTH.translation[0] - 0.1, TRUTH.translation[1] + 0.04))
+    assert posed.object.scale == pytest.approx((1.05**2,) * 3)
+    tools = (pixels(tmp_path / name, PANELS.tools) for name in ("tab.png", "posed.png"))
+    outlines = [np.all(np.abs(t - OUTLINE) < 0.03, axis=-1) for t in tools]
+    assert outlines[0].sum() > 50  # the tab shows the photo with the chair's outline
+    assert (outlines[0] != outlines[1]).sum() > 50  # which follows the pose
+
