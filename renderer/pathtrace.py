@@ -27,11 +27,18 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.mitsuba_object import object_shapes
 from renderer.mitsuba_variant import active_variant
-from renderer.scene import AMBIENT_RADIANCE, FLOOR_HALF_SIZE, LIGHT_SIZE, MAX_IMAGE_SIZE, MIN_IMAGE_SIZE, Scene
+from renderer.scene import (
+    AMBIENT_RADIANCE,
+    FLOOR_HALF_SIZE,
+    FLOOR_IOR,
+    FLOOR_ROUGHNESS,
+    LIGHT_RADIANCE,
+    LIGHT_SIZE,
+    MAX_IMAGE_SIZE,
+    MIN_IMAGE_SIZE,
+    Scene,
+)
 
-LIGHT_RADIANCE = 14.0  # white, linear; see the module docstring for the exposure reasoning
-FLOOR_ROUGHNESS = 0.1  # GGX alpha of the floor's clear coat: blurred but visible reflections
-FLOOR_IOR = 1.5  # coat index of refraction: 4 % reflectance head on, more at grazing angles
 MAX_DEPTH = 6  # path segments: direct light plus up to 5 indirect bounces (Russian roulette from 5)
 GUIDE_SPP = 16  # samples per pixel of the denoiser's albedo and normal guides (first hit only: cheap)
 MAX_SAMPLES_PER_PASS = 1 << 26  # pixels x spp per Mitsuba call: sample indices stay far below 2^32

@@ -29,7 +29,10 @@ LOOK_AT = (0.0, 0.5, 0.0)  # scene centre the camera looks at
 FOCAL_MM = 40.0
 SENSOR_MM = 36.0  # sensor width (and height: images are square)
 LIGHT_SIZE = 1.0  # side of the square area light, facing down
+LIGHT_RADIANCE = 14.0  # white, linear; renderer/pathtrace.py explains the exposure
 AMBIENT_RADIANCE = 0.2  # uniform white environment light (linear), also the background seen past the floor
+FLOOR_ROUGHNESS = 0.1  # GGX alpha of the floor's clear coat: blurred but visible reflections
+FLOOR_IOR = 1.5  # coat index of refraction: 4 % reflectance head on, more at grazing angles
 FLOOR_HALF_SIZE = 10.0  # the floor is a square of side 20 centred under the scene
 GRID_SIZE = 128  # voxels per side of the camera-aligned scene grid
 GRID_EXTENT = 2.56  # world units per side of that grid (one voxel = 0.02)

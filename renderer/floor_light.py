@@ -1,0 +1,165 @@
+"""The lit empty floor: how the path tracer's floor looks under the area light, without the object.
+
+An analytic image of the empty scene (no object, so no shadows or bounced light): the square
+area light and the ambient environment on the floor's diffuse base and its glossy GGX coat,
+the same materials `renderer/pathtrace.py` gives Mitsuba, seen by the render camera.
+
+It is an optional input of NVR+ (`NVRConfig.floor_light_input`): most of the error of a
+network that has to discover the light's bright spot and fall-off on the floor from a tiled
+light code alone is on the floor (78 % of the MSE of the first shipped model, at low spatial
+frequency), and this image gives it that shading directly, per pixel. The network still has to
+learn everything the object does: its shading, its shadow, its reflection.
+
+Cost: the shading varies slowly over the floor, so it is evaluated on a coarse grid of pixel
+centres (COARSE_STEP pixels apart) with LIGHT_SAMPLES^2 points on the light, interpolated
+bilinearly to full size, and cut at the horizon with the exact floor mask.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from renderer.camera import Camera
+from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.errors import InputError
+from renderer.scene import AMBIENT_RADIANCE, FLOOR_IOR, FLOOR_ROUGHNESS, LIGHT_RADIANCE, LIGHT_SIZE
+from renderer.splat import floor_mask
+
+LIGHT_SAMPLES = 8  # points per side of the light square (the coat's highlight is ~0.2 rad wide)
+COARSE_STEP = 8  # pixels between shading samples
+HORIZON_DIRECTION_Y = -1e-3  # rays at or above the horizon are bent down to this to keep the shading smooth
+
+COAT_F0 = ((FLOOR_IOR - 1.0) / (FLOOR_IOR + 1.0)) ** 2  # Schlick's reflectance head on
+# Fitted by least squares to 8 path-traced empty floors (256 spp + OIDN, random light, elevation
+# and floor color; rms error 0.0045 linear): the diffuse base seen through the coat keeps
+# DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * F(view) of albedo * irradiance / pi, and the coat
+# reflects ENVIRONMENT_SCALE * F(view) of the ambient light (the GGX lobe of the area light
+# came out at 1.04 of its analytic value and is used as is).
+DIFFUSE_SCALE = 0.94
+DIFFUSE_FRESNEL_LOSS = 0.859
+ENVIRONMENT_SCALE = 0.69
+
+
+def lit_floor_image(camera: Camera, light_position, floor_color) -> np.ndarray:
+    """(H, W, 3) float32 sRGB image of the empty floor lit by the light at `light_position` (world)."""
+    light = np.asarray(light_position, dtype=np.float64)
+    color = np.asarray(floor_color, dtype=np.float64)
+    if light.shape != (3,) or not np.all(np.isfinite(light)) or light[1] <= 0.0:
+        raise InputError(f"light position must be 3 finite values above the floor, got {light_position!r}")
+    if color.shape != (3,) or not np.all(np.isfinite(color)):
+        raise InputError(f"floor color must be 3 finite sRGB values, got {floor_color!r}")
+    geometry = _coarse_geometry(camera)
+    diffuse_irradiance, glossy = _light_terms(geometry, light)
+    irradiance = LIGHT_RADIANCE * diffuse_irradiance + AMBIENT_RADIANCE * np.maximum(math.pi - diffuse_irradiance, 0.0)
+    base = irradiance / math.pi * (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel)
+    coat = LIGHT_RADIANCE * glossy + ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel
+    coarse = base[..., None] * srgb_to_linear(color).astype(np.float32) + coat[..., None]  # (h, w, 3) linear
+    floor = _upsample(linear_to_srgb(coarse).astype(np.float32), geometry)  # smooth, so sRGB interpolates well
+    background = np.float32(linear_to_srgb(AMBIENT_RADIANCE))
+    return np.where(geometry.floor[..., None], floor, background)
+
+
+# --- per-camera geometry (cached: the editor lights many frames with one camera) ------------
+
+
+class _Geometry:
+    """Floor points of the coarse pixel grid, their view terms, and the full-size interpolation."""
+
+    def __init__(self, camera: Camera):
+        self.floor = floor_mask(camera)
+        rows = np.arange(0.5, camera.height, COARSE_STEP)
+        cols = np.arange(0.5, camera.width, COARSE_STEP)
+        # Coarse samples cover the image's corners so interpolation never extrapolates.
+        rows = np.append(rows, camera.height - 0.5) if rows[-1] < camera.height - 0.5 else rows
+        cols = np.append(cols, camera.width - 0.5) if cols[-1] < camera.width - 0.5 else cols
+        v, u = np.meshgrid(rows, cols, indexing="ij")
+        origin, dirs = camera.pixel_rays(u, v)
+        dirs[..., 1] = np.minimum(dirs[..., 1], HORIZON_DIRECTION_Y)
+        t = -origin[1] / dirs[..., 1]
+        points = origin + t[..., None] * dirs  # (h, w, 3), y = 0
+        to_camera = origin - points
+        self.points = points.astype(np.float32)
+        self.view = (to_camera / np.linalg.norm(to_camera, axis=-1, keepdims=True)).astype(np.float32)
+        self.cos_view = np.clip(self.view[..., 1], 1e-4, 1.0)
+        self.view_fresnel = _schlick(self.cos_view)
+        self.view_masking = _smith_g1(self.cos_view)
+        self.row_weights = _linear_weights(rows, camera.height)
+        self.col_weights = _linear_weights(cols, camera.width)
+        for array in (self.floor, self.points, self.view):
+            array.flags.writeable = False
+
+
+@lru_cache(maxsize=8)
+def _coarse_geometry(camera: Camera) -> _Geometry:
+    return _Geometry(camera)
+
+
+def _light_terms(geometry: _Geometry, light: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per coarse pixel: the diffuse irradiance factor (integral of cos cos / r^2 over the light)
+    and the coat's glossy reflectance towards the camera (the same integral weighted by its BRDF)."""
+    offsets = ((np.arange(LIGHT_SAMPLES) + 0.5) / LIGHT_SAMPLES - 0.5) * LIGHT_SIZE
+    sample_x = (light[0] + offsets)[:, None].repeat(LIGHT_SAMPLES, 1).ravel().astype(np.float32)
+    sample_z = (light[2] + offsets)[None, :].repeat(LIGHT_SAMPLES, 0).ravel().astype(np.float32)
+    area = np.float32(LIGHT_SIZE**2 / LIGHT_SAMPLES**2)
+    # Vectors from each floor point (y = 0) to each light sample, as separate (h, w, k) components.
+    dx = sample_x - geometry.points[..., 0:1]
+    dy = np.float32(light[1])
+    dz = sample_z - geometry.points[..., 2:3]
+    distance2 = np.maximum(dx * dx + dy * dy + dz * dz, np.float32(1e-12))
+    inv_distance = 1.0 / np.sqrt(distance2)
+    cos_in = dy * inv_distance  # the light faces straight down, so the cosine at the light is the same
+    solid = cos_in * cos_in / distance2 * area  # cos_floor * cos_light / r^2 dA
+    # Half vector between the light direction and the view direction.
+    vx, vy, vz = (geometry.view[..., i : i + 1] for i in range(3))
+    hx, hy, hz = dx * inv_distance + vx, cos_in + vy, dz * inv_distance + vz
+    inv_half = 1.0 / np.maximum(np.sqrt(hx * hx + hy * hy + hz * hz), np.float32(1e-12))
+    cos_half = np.clip(hy * inv_half, 0.0, 1.0)
+    cos_in_half = np.clip((dx * inv_distance * hx + cos_in * hy + dz * inv_distance * hz) * inv_half, 0.0, 1.0)
+    cos_in = np.maximum(cos_in, np.float32(1e-4))
+    brdf = (_schlick(cos_in_half) * _ggx(cos_half) * _smith_g1(cos_in)
+            * (geometry.view_masking / (4.0 * geometry.cos_view))[..., None] / cos_in)
+    return solid.sum(-1), (brdf * solid).sum(-1)
+
+
+def _ggx(cos_half: np.ndarray) -> np.ndarray:
+    a2 = FLOOR_ROUGHNESS**2
+    denominator = cos_half**2 * (a2 - 1.0) + 1.0
+    return a2 / (math.pi * denominator**2)
+
+
+def _smith_g1(cos_theta: np.ndarray) -> np.ndarray:
+    a2 = FLOOR_ROUGHNESS**2
+    tan2 = (1.0 - cos_theta**2) / (cos_theta**2)
+    return 2.0 / (1.0 + np.sqrt(1.0 + a2 * tan2))
+
+
+def _schlick(cos_theta: np.ndarray) -> np.ndarray:
+    return COAT_F0 + (1.0 - COAT_F0) * (1.0 - cos_theta) ** 5
+
+
+# --- interpolation ---------------------------------------------------------------------------
+
+
+def _linear_weights(samples: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of `size` pixel centres: the sample left of it, the one right of it, and the weight of
+    the right one, interpolating linearly between values at pixel-centre positions `samples`."""
+    centres = np.arange(size) + 0.5
+    right = np.clip(np.searchsorted(samples, centres, side="right"), 1, len(samples) - 1)
+    left = right - 1
+    weight = np.clip((centres - samples[left]) / (samples[right] - samples[left]), 0.0, 1.0)
+    return left, right, weight.astype(np.float32)
+
+
+def _upsample(coarse: np.ndarray, geometry: _Geometry) -> np.ndarray:
+    """Bilinear interpolation of (h, w, c) coarse values to the full image, rows then columns.
+
+    Gathers and element-wise arithmetic, no matrix product: numpy's multi-threaded BLAS fought
+    the network's threads for the cores and made this 7-40x slower on a busy machine.
+    """
+    top, bottom, down = geometry.row_weights
+    rows = coarse[top] * (1.0 - down)[:, None, None] + coarse[bottom] * down[:, None, None]  # (H, w, c)
+    left, right, across = geometry.col_weights
+    return rows[:, left] * (1.0 - across)[None, :, None] + rows[:, right] * across[None, :, None]
