@@ -186,7 +186,7 @@ def cmd_train(args: argparse.Namespace) -> None:
         data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
         steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, device=args.device, threads=args.threads,
         checkpoint_minutes=args.checkpoint_minutes, perceptual_weights=args.vgg_weights,
-        perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)),
+        perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
     print(f"wrote {train(args.out, config, resume=args.resume)}")
 
@@ -315,6 +315,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a network config field, e.g. --set grid_size=64 (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.add_argument("--init", default=None, metavar="WEIGHTS",
+                   help="start a new run from these weights (new input channels start at zero)")
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("eval", help="table 1 metrics of a model (or the splat baseline) on a test split")

@@ -12,17 +12,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
-import torch
-from torch.utils.flop_counter import FlopCounterMode
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as models/engine.py sets it, before torch loads OpenMP
 
+import torch  # noqa: E402
+from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
+
+from models.bench import network_calls  # noqa: E402
 from models.config import CompactConfig, NVRConfig, PaperConfig  # noqa: E402
 from models.inference import prepare_for_inference  # noqa: E402
 from models.nvr import build_model  # noqa: E402
@@ -67,20 +70,9 @@ def measure(config: NVRConfig, architecture: str, repeats: int, prepare: bool) -
     params = sum(p.numel() for p in model.parameters())
     if prepare:
         model = prepare_for_inference(model)
-    g, s = config.grid_size, config.output_size
-    voxels = (torch.rand(g, g, g, 4) < 0.1).float().permute(3, 0, 1, 2)[None]  # channels-last for free
-    light = torch.tensor([[0.3, 0.9, -0.8]])
-    splat = torch.rand(1, 3, s, s) if architecture == "nvr_plus" else None
+    full, light_edit = network_calls(model, config)  # the light edit reruns the splat branch if it reads the lit floor
     with torch.inference_mode():
-        latent = model.encode_voxels(voxels)
-        splat_features = model.encode_splat(splat) if splat is not None else None
-        result = {
-            "params_M": params / 1e6,
-            "gflop_full": gflop(lambda: model(voxels, light, splat)),
-            "gflop_light_edit": gflop(lambda: model.render_from_latent(latent, light, splat_features)),
-        }
-        full = lambda: model(voxels, light, splat)  # noqa: E731
-        light_edit = lambda: model.render_from_latent(latent, light, splat_features)  # noqa: E731
+        result = {"params_M": params / 1e6, "gflop_full": gflop(full), "gflop_light_edit": gflop(light_edit)}
         result["ms_full_median"], result["ms_full_min"] = wall_ms(full, repeats)
         result["ms_light_median"], result["ms_light_min"] = wall_ms(light_edit, repeats * 3)
         result["cpu1_ms_full"], result["cpu1_ms_light"] = cpu_ms(full, repeats), cpu_ms(light_edit, repeats * 3)

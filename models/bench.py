@@ -267,8 +267,8 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
         for architecture in ("nvr_plus", "nvr"):
             torch.manual_seed(0)
             model = build_model(architecture, config).eval()
-            counted = _network_calls(prepare_for_inference(model), config)  # FlopCounterMode knows these convolutions
-            timed = _network_calls(RenderEngine(model).model, config)  # the engine's copy, on oneDNN
+            counted = network_calls(prepare_for_inference(model), config)  # FlopCounterMode knows these convolutions
+            timed = network_calls(RenderEngine(model).model, config)  # the engine's copy, on oneDNN
             repeats = settings.repeats if config.name == "compact" else 2
             with torch.inference_mode():
                 out.append({
@@ -280,17 +280,25 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
     return out
 
 
-def _network_calls(model, config: NVRConfig) -> tuple[Callable[[], Any], Callable[[], Any]]:
-    """A full forward pass on a 10%-occupied grid and the light edit (render_from_latent) after it."""
+def network_calls(model, config: NVRConfig) -> tuple[Callable[[], Any], Callable[[], Any]]:
+    """A full forward pass on a 10%-occupied grid and the light edit after it (render_from_latent, and
+    the splat branch again if it reads the lit floor, which depends on the light)."""
     g, s = config.grid_size, config.output_size
     generator = torch.Generator().manual_seed(0)
     voxels = (torch.rand(g, g, g, 4, generator=generator) < 0.1).float().permute(3, 0, 1, 2)[None]
     light = torch.tensor([[0.3, 0.9, -0.8]])
-    splat = torch.rand(1, 3, s, s, generator=generator) if model.architecture == "nvr_plus" else None
+    plus = model.architecture == "nvr_plus"
+    splat = torch.rand(1, 3, s, s, generator=generator) if plus else None
+    floor_light = torch.rand(1, 3, s, s, generator=generator) if plus and config.floor_light_input else None
     with torch.inference_mode():
         latent = model.encode_voxels(voxels)
-        features = model.encode_splat(splat) if splat is not None else None
-    return (lambda: model(voxels, light, splat)), (lambda: model.render_from_latent(latent, light, features))
+        features = model.encode_splat(splat, floor_light) if plus else None
+
+    def light_edit():
+        splat_features = model.encode_splat(splat, floor_light) if floor_light is not None else features
+        return model.render_from_latent(latent, light, splat_features)
+
+    return (lambda: model(voxels, light, splat, floor_light)), light_edit
 
 
 def _gflop(call: Callable[[], Any]) -> float:

@@ -29,6 +29,7 @@ class NVRConfig:
     per entry of `decoder_channels` (conv kernel `decoder_kernel`). NVR+: a splat branch of
     `splat_layers` full-resolution convs of `splat_channels`, and a U-Net with one level per
     entry of `unet_channels` and `unet_mid_blocks` residual blocks in its middle.
+    With `floor_light_input` the splat branch reads the splat and the lit empty floor (6 channels).
     """
 
     name: ClassVar[str] = ""
@@ -52,6 +53,7 @@ class NVRConfig:
     unet_channels: tuple[int, ...]
     unet_mid_blocks: int
     unet_kernel: int
+    floor_light_input: bool  # NVR+ only: the splat branch also reads the lit empty floor (renderer/floor_light.py)
     perceptual_weight: float  # beta of the loss L1 + beta * perceptual
 
     def __post_init__(self) -> None:
@@ -104,6 +106,8 @@ class NVRConfig:
                     "decoder_kernel", "splat_channels", "splat_kernel", "unet_kernel"):
             if getattr(self, key) < 1:
                 raise ValueError(f"config field {key} must be at least 1")
+        if not isinstance(self.floor_light_input, bool):
+            raise ValueError(f"config field floor_light_input must be true or false, got {self.floor_light_input!r}")
         if not self.perceptual_weight >= 0.0:
             raise ValueError(f"perceptual_weight must be >= 0, got {self.perceptual_weight!r}")
 
@@ -122,6 +126,7 @@ class NVRConfig:
         if not isinstance(data, dict) or data.get("name") not in classes:
             raise ValueError(f"unknown configuration name {data.get('name') if isinstance(data, dict) else data!r}")
         cls = classes[data["name"]]
+        data = {"floor_light_input": False, **data}  # files written before the field existed had no such input
         fields = {f.name for f in dataclasses.fields(cls)}
         given = set(data) - {"name"}
         if given != fields:
@@ -161,6 +166,7 @@ class PaperConfig(NVRConfig):
     unet_channels: tuple[int, ...] = (128, 256, 512)
     unet_mid_blocks: int = 3
     unet_kernel: int = 4
+    floor_light_input: bool = False  # the paper's inputs only
     perceptual_weight: float = 0.002
 
 
@@ -178,6 +184,8 @@ class CompactConfig(NVRConfig):
       1x1 since the tiled light code is constant over space.
     - Full-resolution layers are 8 channels wide (a 3x3 16->16 conv at 256^2 is 0.3 GFLOP) and
       the U-Net has two levels (16, 32).
+    - The splat branch also reads the lit empty floor (renderer/floor_light.py): a network this small
+      learned the light's spot and fall-off on the floor slowly, and that was most of its error.
     """
 
     name: ClassVar[str] = "compact"
@@ -201,4 +209,5 @@ class CompactConfig(NVRConfig):
     unet_channels: tuple[int, ...] = (16, 32)
     unet_mid_blocks: int = 1
     unet_kernel: int = 3
+    floor_light_input: bool = True
     perceptual_weight: float = 0.002

@@ -53,7 +53,7 @@ class VoxelRenderSet(Dataset):
     """Samples of one or several data folders, as network-ready tensors."""
 
     def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128, voxel_cache: int = 256,
-                 object_resolution: int | None = None):
+                 object_resolution: int | None = None, floor_light: bool = False):
         folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
         self.items: list[tuple[Path, dict]] = []
         self.settings: list[str] = []
@@ -67,6 +67,7 @@ class VoxelRenderSet(Dataset):
             raise InputError(f"no samples in {', '.join(map(str, folders))}")
         self.grid_size = grid_size
         self.object_resolution = object_resolution  # coarser object voxels, for the resolution study
+        self.floor_light = floor_light  # add the lit empty floor (NVR+ with config.floor_light_input)
         self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
 
     def _load_voxels(self, path: str) -> np.ndarray:
@@ -95,10 +96,22 @@ class VoxelRenderSet(Dataset):
             from renderer.splat import splat_scene
 
             splat = torch.from_numpy(np.ascontiguousarray(splat_scene(scene, rgba, scene.floor.color).transpose(2, 0, 1)))
-        return {
+        item = {
             "voxels": voxels,
             "light": light,
             "splat": splat,
             "target": image_tensor(folder / sample["target"]),
             "index": torch.tensor(index),
         }
+        if self.floor_light:
+            item["floor_light"] = floor_light_tensor(scene, scene.floor.color, splat.shape[-1])
+        return item
+
+
+def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
+    """The lit empty floor of a scene (renderer/floor_light.py) as the network's (3, size, size) input."""
+    from renderer.camera import Camera
+    from renderer.floor_light import lit_floor_image
+
+    image = lit_floor_image(Camera.from_scene(scene, size), scene.light.position, floor_color)
+    return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))

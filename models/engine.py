@@ -19,20 +19,23 @@ when those change:
     shell         voxels                                                  the voxels with an exposed face
     splat_layout  shell, translation, rotation, scale, camera elevation   the voxel each pixel shows, the floor
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
-    splat_branch  as splat                                                splat features (encode_splat)
+    floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read it)
+    splat_branch  as splat (and floor_light, if the network reads it)     splat features (encode_splat)
     light         all of the above and the light position                 image (render_from_latent)
 
-Floor color is the scene's floor color after its floor paint strokes. Hence, per edit:
+Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
+runs only for networks that read the lit floor, like the shipped compact NVR+; for the others a
+light move reruns the light stage alone):
 
     edit                          stages rerun
-    light move                    light
-    floor color / floor paint     background, gather, voxel_branch, splat, splat_branch, light
+    light move                    floor_light, splat_branch, light
+    floor color / floor paint     background, gather, voxel_branch, splat, floor_light, splat_branch, light
     paint stroke, object color    paint, pool, gather, voxel_branch, splat, splat_branch, light
     object move or rotation       placement, gather, voxel_branch, splat_layout, splat, splat_branch, light
     object scale                  pool (if the merge factors change), placement, gather, voxel_branch,
                                   splat_layout, splat, splat_branch, light
     camera elevation              placement, background, gather, voxel_branch, splat_layout, splat,
-                                  splat_branch, light
+                                  floor_light, splat_branch, light
     new mesh, up or resolution    voxels, paint, pool, placement, gather, voxel_branch, shell, splat_layout,
                                   splat, splat_branch, light
     nothing                       none (the last image again)
@@ -75,6 +78,7 @@ from models.onednn import use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
 from renderer.camera import Camera  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
+from renderer.floor_light import lit_floor_image  # noqa: E402
 from renderer.grid import (  # noqa: E402
     gather,
     grid_index_to_world,
@@ -127,6 +131,8 @@ class _Keys(NamedTuple):
     grid: tuple
     layout: tuple
     splat: tuple
+    floor_light: tuple | None  # what the lit floor depends on, if the network reads it
+    splat_branch: tuple
 
 
 @dataclass
@@ -144,6 +150,7 @@ class RenderEngine:
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
+        self._reads_floor_light = self.kind == "nvr+" and self.config.floor_light_input
         self.model = split_light_merge(use_onednn_convolutions(prepare_for_inference(model)))
         self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
         self.last_report: RenderReport | None = None
@@ -189,7 +196,8 @@ class RenderEngine:
         with torch.inference_mode():
             painted, floor, paint_key = self._painted(scene)
             keys = self._keys(scene, painted, floor, paint_key)
-            if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat_branch", keys.splat)):
+            # Only the light changed: the voxel branch and the splat are kept, the rest is a light edit.
+            if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             else:
                 image = self._splat(scene, painted, floor, keys)
@@ -203,7 +211,12 @@ class RenderEngine:
         features = None
         if self.kind == "nvr+":
             splat = self._splat(scene, painted, floor, keys)
-            features = self._stage("splat_branch", keys.splat, lambda: self.model.encode_splat(_image_tensor(splat)))
+            floor_light = None
+            if keys.floor_light is not None:
+                floor_light = self._stage("floor_light", keys.floor_light, lambda: _image_tensor(lit_floor_image(
+                    Camera.from_scene(scene, self.output_size), scene.light.position, floor)))
+            features = self._stage("splat_branch", keys.splat_branch,
+                                   lambda: self.model.encode_splat(_image_tensor(splat), floor_light))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
         key = (keys.grid, keys.splat, scene.light.position)
         return self._stage("light", key, lambda: _to_image(self.model.render_from_latent(latent, light, features)))
@@ -228,8 +241,10 @@ class RenderEngine:
         # Placement reads which object rows are empty, and layout the occupancy: neither changes with paint.
         placement = (paint_key[0], n, factors, o.translation, o.rotation_deg, o.scale, elevation)
         layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
+        splat = (paint_key, layout, floor)
+        floor_light = (elevation, floor, scene.light.position) if self._reads_floor_light else None
         return _Keys(pool=(paint_key, factors), placement=placement, grid=(paint_key, placement, floor),
-                     layout=layout, splat=(paint_key, layout, floor))
+                     layout=layout, splat=splat, floor_light=floor_light, splat_branch=(splat, floor_light))
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         n, factors = keys.placement[1:3]

@@ -2,7 +2,8 @@
 
 The renderer is a trained NVR or NVR+ (weights file) or the splat baseline (the splatted image S
 itself). Writes a Markdown report and, beside it, a figure of input (splat), prediction and
-target for a few samples.
+target for a few samples. The report also says how much of the squared error lies off the object
+(pixels where the splat shows only floor or sky): where a model still has most to learn.
 """
 
 from __future__ import annotations
@@ -58,7 +59,8 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     figure = report.with_suffix(".png")
     if rows:
         save_png(figure, torch.cat(rows, dim=1).permute(1, 2, 0).numpy())
-    _write_report(report, figure, renderer, model_path, extra, scores, metrics.perceptual.weights_name,
+    columns = "splat, lit floor, prediction, target" if _reads_floor_light(renderer, config) else "splat, prediction, target"
+    _write_report(report, figure, columns, renderer, model_path, extra, scores, metrics.perceptual.weights_name,
                   count, seconds, data)
     return report
 
@@ -87,7 +89,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
            object_resolution: int | None = None):
     """Per-setting metric lists, the first figure rows, and the sample count."""
     grid_size = 8 if config is None else config.grid_size  # the splat baseline reads no voxels
-    dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution)
+    reads_floor_light = _reads_floor_light(renderer, config)
+    dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=reads_floor_light)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
     rows = []
@@ -101,31 +104,54 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                 if target.shape[-1] != config.output_size:
                     raise InputError(f"test images are {target.shape[-1]}^2 but the model renders {config.output_size}^2")
                 splat = sample["splat"][None] if renderer == "nvr+" else None
-                prediction = model(sample["voxels"][None], sample["light"][None], splat)
+                floor_light = sample["floor_light"][None] if reads_floor_light else None
+                prediction = model(sample["voxels"][None], sample["light"][None], splat, floor_light)
             values = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
+            values["ground_share"] = _ground_share(prediction[0], target[0], sample["splat"], dataset.scene(index))
             scores[dataset.settings[index]].append(values)
             if len(rows) < FIGURE_SAMPLES:
-                rows.append(torch.cat([sample["splat"], prediction[0], target[0]], dim=2))
+                inputs = [sample["splat"]] + ([sample["floor_light"]] if reads_floor_light else [])
+                rows.append(torch.cat([*inputs, prediction[0], target[0]], dim=2))
     return scores, rows, count
 
 
-def _write_report(report: Path, figure: Path, renderer: str, model_path, extra: dict, scores: dict,
+def _ground_share(prediction: torch.Tensor, target: torch.Tensor, splat: torch.Tensor, scene) -> float:
+    """Share of the squared error on pixels where the splat shows no object (floor and sky)."""
+    from renderer.camera import Camera
+    from renderer.splat import floor_mask, ground_and_background
+
+    size = splat.shape[-1]
+    empty = ground_and_background(floor_mask(Camera.from_scene(scene, size)), scene.floor.color)
+    ground = torch.from_numpy(np.abs(empty.transpose(2, 0, 1) - splat.numpy()).max(0) < 1.0 / 255.0)
+    error = ((prediction - target) ** 2).sum(0)
+    total = float(error.sum())
+    return float(error[ground].sum()) / total if total > 0.0 else 0.0
+
+
+def _reads_floor_light(renderer: str, config) -> bool:
+    return renderer == "nvr+" and config is not None and config.floor_light_input
+
+
+def _write_report(report: Path, figure: Path, columns: str, renderer: str, model_path, extra: dict, scores: dict,
                   weights_name: str, count: int, seconds: float, data: list[str]) -> None:
     lines = [
         f"# Evaluation: {renderer}",
         "",
         f"- model: {model_path or ('shipped' if renderer != 'splat' else 'none (splat baseline)')}"
-        + (f", trained {extra.get('steps', '?')} steps" if extra else ""),
+        + (f", trained {extra.get('steps', '?')} steps" if extra else "")
+        + (f" starting from {extra['init']}" if extra.get("init") else ""),
         f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",
         f"- perceptual metric: VGG16 conv1 + 0.1 conv2 with {weights_name}",
         "",
-        "| setting | samples | MSE (0-255) | DSSIM | perceptual |",
-        "|---|---:|---:|---:|---:|",
+        "| setting | samples | MSE (0-255) | DSSIM | perceptual | share of the MSE off the object |",
+        "|---|---:|---:|---:|---:|---:|",
     ]
     for setting in sorted(scores):
         values = scores[setting]
         mean = {k: float(np.mean([v[k] for v in values])) for k in values[0]}
-        lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} |")
-    lines += ["", f"![splat, prediction, target]({figure.name})", ""]
+        ground = sum(v["ground_share"] * v["mse"] for v in values) / max(sum(v["mse"] for v in values), 1e-12)
+        lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} "
+                     f"| {100 * ground:.0f} % |")
+    lines += ["", f"![{columns}]({figure.name})", ""]
     with atomic_path(report) as tmp:
         tmp.write_text("\n".join(lines))

@@ -9,13 +9,16 @@ Input/output convention (the one place it is written down):
   look-at point is (0, 0, -1); `light_to_network` makes it from a world position.
 - splat (NVR+ only): (B, 3, S, S) float32 sRGB in [0, 1], S = config.output_size, the splatted
   image of the same scene and camera.
+- floor_light (NVR+ with config.floor_light_input only): (B, 3, S, S) float32 sRGB in [0, 1], the
+  lit empty floor of the same scene (renderer.floor_light.lit_floor_image); it depends on the light.
 - output: (B, 3, S, S) float32 sRGB, squashed into (0, 1) by a sigmoid (never clamped, so every
   pixel keeps a gradient).
 
 Stages, so a live engine can cache what an edit does not change:
-`encode_voxels(voxels) -> latent` and `encode_splat(splat) -> features` do not depend on the
-light; `render_from_latent(latent, light, splat_features)` is everything from the light merge
-on; `forward(voxels, light, splat)` composes them.
+`encode_voxels(voxels) -> latent` does not depend on the light, nor does
+`encode_splat(splat, floor_light) -> features` unless it reads the lit floor;
+`render_from_latent(latent, light, splat_features)` is everything from the light merge on;
+`forward(voxels, light, splat, floor_light)` composes them.
 """
 
 from __future__ import annotations
@@ -97,14 +100,14 @@ class SplatEncoder(nn.Module):
 
     def __init__(self, config: NVRConfig):
         super().__init__()
-        layers, c_in = [], IMAGE_CHANNELS
+        layers, c_in = [], IMAGE_CHANNELS * (2 if config.floor_light_input else 1)
         for _ in range(config.splat_layers):
             layers.append(conv_block_2d(c_in, config.splat_channels, config.splat_kernel))
             c_in = config.splat_channels
         self.layers = nn.Sequential(*layers)
 
-    def forward(self, splat: torch.Tensor) -> torch.Tensor:
-        return self.layers(splat)
+    def forward(self, image: torch.Tensor) -> torch.Tensor:
+        return self.layers(image)
 
 
 class RerenderUNet(nn.Module):
@@ -178,9 +181,10 @@ class NVR(_VoxelRenderer):
             raise ValueError("NVR takes no splat; use NVRPlus")
         return torch.sigmoid(self.to_rgb(self._features(latent, light)))
 
-    def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None) -> torch.Tensor:
-        if splat is not None:
-            raise ValueError("NVR takes no splat; use NVRPlus")
+    def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None,
+                floor_light: torch.Tensor | None = None) -> torch.Tensor:
+        if splat is not None or floor_light is not None:
+            raise ValueError("NVR takes no splat or lit floor; use NVRPlus")
         return self.render_from_latent(self.encode_voxels(voxels), light)
 
 
@@ -195,11 +199,18 @@ class NVRPlus(_VoxelRenderer):
         self.splat_encoder = SplatEncoder(config)
         self.rerender = RerenderUNet(config)
 
-    def encode_splat(self, splat: torch.Tensor) -> torch.Tensor:
-        """Light-independent features (B, splat_channels, S, S) of the splatted image."""
+    def encode_splat(self, splat: torch.Tensor, floor_light: torch.Tensor | None = None) -> torch.Tensor:
+        """Features (B, splat_channels, S, S) of the splatted image (and of the lit floor, if the config reads it)."""
         s = self.config.output_size
         _check_shape("splat", splat, (IMAGE_CHANNELS, s, s))
-        return self.splat_encoder(splat)
+        if not self.config.floor_light_input:
+            if floor_light is not None:
+                raise ValueError("this network reads no lit floor (config.floor_light_input is false)")
+            return self.splat_encoder(splat)
+        if floor_light is None:
+            raise ValueError("this network reads the lit floor too (config.floor_light_input): pass floor_light")
+        _check_shape("floor_light", floor_light, (IMAGE_CHANNELS, s, s))
+        return self.splat_encoder(torch.cat([splat, floor_light], dim=1))
 
     def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
                            splat_features: torch.Tensor | None = None) -> torch.Tensor:
@@ -209,10 +220,11 @@ class NVRPlus(_VoxelRenderer):
         features = self.to_features(self._features(latent, light)) + splat_features
         return torch.sigmoid(self.rerender(features))
 
-    def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None,
+                floor_light: torch.Tensor | None = None) -> torch.Tensor:
         if splat is None:
             raise ValueError("NVRPlus needs a splat image")
-        return self.render_from_latent(self.encode_voxels(voxels), light, self.encode_splat(splat))
+        return self.render_from_latent(self.encode_voxels(voxels), light, self.encode_splat(splat, floor_light))
 
 
 ARCHITECTURES: dict[str, type[_VoxelRenderer]] = {NVR.architecture: NVR, NVRPlus.architecture: NVRPlus}

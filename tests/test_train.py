@@ -79,3 +79,33 @@ def test_two_process_ddp_matches_one_process_with_the_same_total_batch(data, tmp
     # Same updates up to float rounding: the BatchNorm statistics and gradients cover the global batch.
     # (Adam turns rounding noise in gradients that are zero in theory into full-size steps, so compare norms.)
     assert float((step_single - step_ddp).norm() / step_single.norm()) < 0.01  # per-rank BatchNorm gives ~0.04
+
+
+def test_init_from_a_model_without_the_lit_floor_starts_out_computing_the_same_images(tmp_path):
+    from models.checkpoint import save_model
+    from models.config import CompactConfig
+    from models.nvr import build_model
+    from models.train import initialize_from
+
+    old_config = CompactConfig(grid_size=16, output_size=32, floor_light_input=False)
+    torch.manual_seed(3)
+    old = build_model("nvr_plus", old_config).eval()
+    save_model(tmp_path / "old.safetensors", old, old_config)
+    torch.manual_seed(4)
+    new = build_model("nvr_plus", CompactConfig(grid_size=16, output_size=32)).eval()
+    initialize_from(new, tmp_path / "old.safetensors")
+    voxels = (torch.rand(2, 4, 16, 16, 16) > 0.8).float()
+    light, splat, floor_light = torch.randn(2, 3), torch.rand(2, 3, 32, 32), torch.rand(2, 3, 32, 32)
+    with torch.no_grad():
+        assert torch.equal(new(voxels, light, splat, floor_light), old(voxels, light, splat))
+    # The new input channels start at zero but are trainable: they are not frozen.
+    first = new.splat_encoder.layers[0][0].weight
+    assert first.requires_grad and torch.count_nonzero(first[:, 3:]) == 0 and torch.count_nonzero(first[:, :3]) > 0
+
+    with pytest.raises(InputError, match="holds a nvr network"):
+        save_model(tmp_path / "nvr.safetensors", build_model("nvr", old_config), old_config)
+        initialize_from(new, tmp_path / "nvr.safetensors")
+    wider = CompactConfig(grid_size=16, output_size=32, latent_channels=48)
+    save_model(tmp_path / "wider.safetensors", build_model("nvr_plus", wider), wider)
+    with pytest.raises(InputError, match="has shape"):
+        initialize_from(new, tmp_path / "wider.safetensors")
