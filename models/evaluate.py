@@ -139,7 +139,7 @@ def _write_report(report: Path, figure: Path, columns: str, renderer: str, model
         "",
         f"- model: {model_path or ('shipped' if renderer != 'splat' else 'none (splat baseline)')}"
         + (f", trained {extra.get('steps', '?')} steps" if extra else "")
-        + (f" starting from {extra['init']}" if extra.get("init") else ""),
+        + (f" starting from {extra['init']} (trained {extra.get('init_steps', '?')} steps)" if extra.get("init") else ""),
         f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",
         f"- perceptual metric: VGG16 conv1 + 0.1 conv2 with {weights_name}",
         "",

@@ -255,7 +255,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         save_model(final, model, net_config, {"architecture": config.architecture, "steps": str(config.steps),
                                                "data": json.dumps(list(config.data)),
                                                "perceptual_weights": loss_fn.weights_name,
-                                               **({"init": config.init} if config.init else {})})
+                                               **_init_record(config.init)})
         log_file.close()
     return final
 
@@ -282,6 +282,19 @@ def initialize_from(model: nn.Module, path: Path) -> None:
             target[:, : value.shape[1]].copy_(value)
         else:
             raise InputError(f"layer {key} has shape {tuple(value.shape)}, this network's {tuple(target.shape)}", path)
+
+
+def _init_record(init: str | None) -> dict[str, str]:
+    """What a model started from, for its metadata: the weights file and how long that one had trained."""
+    if not init:
+        return {}
+    from models.checkpoint import load_model
+
+    try:
+        steps = load_model(init)[2].get("steps", "?")
+    except InputError:
+        steps = "?"  # moved or deleted since the run began: the path alone is still worth keeping
+    return {"init": init, "init_steps": str(steps)}
 
 
 def crop_box(config: TrainConfig, step: int, size: int) -> tuple[int, int, int] | None:

@@ -109,3 +109,15 @@ def test_init_from_a_model_without_the_lit_floor_starts_out_computing_the_same_i
     save_model(tmp_path / "wider.safetensors", build_model("nvr_plus", wider), wider)
     with pytest.raises(InputError, match="has shape"):
         initialize_from(new, tmp_path / "wider.safetensors")
+
+
+def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp_path):
+    from models.checkpoint import load_model, save_model
+    from models.config import CompactConfig
+    from models.nvr import build_model
+
+    old_config = CompactConfig(grid_size=16, output_size=32, floor_light_input=False)
+    save_model(tmp_path / "old.safetensors", build_model("nvr_plus", old_config), old_config, {"steps": "77"})
+    final = train(tmp_path / "run", config(data, steps=1, init=str(tmp_path / "old.safetensors")), progress=False)
+    _, _, extra = load_model(final)
+    assert extra["init"] == str(tmp_path / "old.safetensors") and extra["init_steps"] == "77"
