@@ -19,7 +19,8 @@ when those change:
     shell         voxels                                                  the voxels with an exposed face
     splat_layout  shell, translation, rotation, scale, camera elevation   the voxel each pixel shows, the floor
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
-    floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read it)
+    floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
+                                                                          it, and previews)
     splat_branch  as splat (and floor_light, if the network reads it)     splat features (encode_splat)
     light         all of the above and the light position                 image (render_from_latent)
 
@@ -93,7 +94,7 @@ from renderer.grid import (  # noqa: E402
 from renderer.paint import apply_paint  # noqa: E402
 from renderer.pipeline import object_voxels  # noqa: E402
 from renderer.scene import Scene  # noqa: E402
-from renderer.splat import color_splat, splat_layout  # noqa: E402
+from renderer.splat import SplatLayout, color_splat, splat_layout  # noqa: E402
 from renderer.surface import Shell, occupancy  # noqa: E402
 from renderer.transform import object_to_world  # noqa: E402
 
@@ -131,7 +132,7 @@ class _Keys(NamedTuple):
     grid: tuple
     layout: tuple
     splat: tuple
-    floor_light: tuple | None  # what the lit floor depends on, if the network reads it
+    floor_light: tuple
     splat_branch: tuple
 
 
@@ -191,7 +192,7 @@ class RenderEngine:
 
     def preview(self, scene: Scene) -> np.ndarray:
         """A fast image while the user drags: the full render when only the light changed (that is cheap),
-        else the splatted image, whose stage the full render then reuses."""
+        else the splatted object over the lit empty floor, from stages the full render then reuses."""
         start = self._begin()
         with torch.inference_mode():
             painted, floor, paint_key = self._painted(scene)
@@ -200,7 +201,9 @@ class RenderEngine:
             if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             else:
-                image = self._splat(scene, painted, floor, keys)
+                splat = self._splat(scene, painted, floor, keys)
+                on_object = self._splat_layout(scene, painted, keys).voxel >= 0
+                image = np.where(on_object[..., None], splat, self._floor_light(scene, floor, keys))
         self._finish(start, preview=True)
         return image.copy()
 
@@ -211,10 +214,7 @@ class RenderEngine:
         features = None
         if self.kind == "nvr+":
             splat = self._splat(scene, painted, floor, keys)
-            floor_light = None
-            if keys.floor_light is not None:
-                floor_light = self._stage("floor_light", keys.floor_light, lambda: _image_tensor(lit_floor_image(
-                    Camera.from_scene(scene, self.output_size), scene.light.position, floor)))
+            floor_light = _image_tensor(self._floor_light(scene, floor, keys)) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self.model.encode_splat(_image_tensor(splat), floor_light))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
@@ -242,9 +242,10 @@ class RenderEngine:
         placement = (paint_key[0], n, factors, o.translation, o.rotation_deg, o.scale, elevation)
         layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
         splat = (paint_key, layout, floor)
-        floor_light = (elevation, floor, scene.light.position) if self._reads_floor_light else None
+        floor_light = (elevation, floor, scene.light.position)
+        splat_branch = (splat, floor_light if self._reads_floor_light else None)
         return _Keys(pool=(paint_key, factors), placement=placement, grid=(paint_key, placement, floor),
-                     layout=layout, splat=splat, floor_light=floor_light, splat_branch=(splat, floor_light))
+                     layout=layout, splat=splat, floor_light=floor_light, splat_branch=splat_branch)
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         n, factors = keys.placement[1:3]
@@ -285,11 +286,18 @@ class RenderEngine:
         spans = changed_spans(indices, pooled, ground_mask(elevation, g), window)
         return _Placement(indices, None if spans is None else self.encoder.plan(spans))
 
-    def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+    def _splat_layout(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> SplatLayout:
         shell = self._stage("shell", keys.layout[0], lambda: Shell(occupancy(painted)))  # paint keeps occupancy
-        layout = self._stage("splat_layout", keys.layout, lambda: splat_layout(
+        return self._stage("splat_layout", keys.layout, lambda: splat_layout(
             shell, object_to_world(scene.object), Camera.from_scene(scene, self.output_size)))
+
+    def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+        layout = self._splat_layout(scene, painted, keys)
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
+
+    def _floor_light(self, scene: Scene, floor: tuple, keys: _Keys) -> np.ndarray:
+        return self._stage("floor_light", keys.floor_light, lambda: lit_floor_image(
+            Camera.from_scene(scene, self.output_size), scene.light.position, floor))
 
     # --- the memo and the report ------------------------------------------------------------
 

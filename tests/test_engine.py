@@ -18,10 +18,12 @@ from models.engine import RenderEngine, changed_spans, ground_grid, occupied_spa
 from models.inference import prepare_for_inference
 from models.nvr import build_model
 from models.receptive import conv_chain
+from renderer.camera import Camera
 from renderer.errors import InputError
+from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene
-from renderer.splat import splat_scene
+from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
 # Grid 64 (not 128) keeps each render at a few milliseconds; the object still fills only part of it.
@@ -213,16 +215,22 @@ def test_occupied_spans_bound_the_true_entries():
     assert occupied_spans(mask) == ((1, 4), (2, 6), (2, 7))
 
 
-def test_preview_is_the_splat_unless_only_the_light_changed(model, scene):
+def test_preview_is_the_splat_over_the_lit_floor_unless_only_the_light_changed(model, scene):
     live = engine(model)
     live.render(scene)
     lit = scene.with_changes(light=LightSpec((0.0, 3.0, 0.0)))
     np.testing.assert_array_equal(live.preview(lit), live.render(lit))
     assert live.last_report.stages_run == ()  # the preview already rendered it
-    moved = scene.with_changes(object=replace(scene.object, translation=(0.2, 0.2)))
+    moved = lit.with_changes(object=replace(lit.object, translation=(0.2, 0.2)))
     preview = live.preview(moved)
     assert live.last_report.preview and live.last_report.stages_run == ("splat_layout", "splat")
-    np.testing.assert_array_equal(preview, splat_scene(moved, load_voxels(scene.voxels_path()), (0.5, 0.6, 0.7), size=64))
+    # Expected, from the renderer's own functions: the object's pixels of the splat, the lit floor elsewhere.
+    camera = Camera.from_scene(moved, 64)
+    splat = splat_scene(moved, load_voxels(scene.voxels_path()), (0.5, 0.6, 0.7), size=64)
+    on_object = np.any(splat != ground_and_background(floor_mask(camera), (0.5, 0.6, 0.7)), axis=-1)
+    assert on_object.any() and not on_object.all()
+    expected = np.where(on_object[..., None], splat, lit_floor_image(camera, (0.0, 3.0, 0.0), (0.5, 0.6, 0.7)))
+    np.testing.assert_array_equal(preview, expected)
     live.render(moved)
     assert "splat" not in live.last_report.stages_run  # the release reuses the preview's splat
 
