@@ -11,6 +11,8 @@ from PIL import Image
 from app.cli import run
 from models.bench_plot import Point, pareto_front
 from models.bench_system import PeakMemory
+from models.checkpoint import load_model
+from models.evaluate import shipped_model
 
 
 def test_quick_bench_writes_json_report_and_figure(tmp_path):
@@ -20,8 +22,11 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     results = json.loads(numbers.read_text())
     for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms"):
         assert math.isfinite(results[key]) and results[key] > 0.0
-    # A light edit reruns only the last stage (timings are the benchmark's business, not a test's).
-    assert results["edits"]["light"]["stages"] == ["light"]
+    # A light edit reruns only the stages after the light enters (timings are the benchmark's business,
+    # not a test's): the last one, and the lit floor and splat branch for a model that reads the lit floor.
+    reads_floor_light = load_model(shipped_model("nvr+"))[1].floor_light_input
+    expected = ["floor_light", "splat_branch", "light"] if reads_floor_light else ["light"]
+    assert results["edits"]["light"]["stages"] == expected
     labels = {row["label"] for row in results["renderers"]}
     assert {"path tracing 1 spp", "path tracing 1 spp + OIDN", "path tracing 4 spp + OIDN", "splatting"} <= labels
     rows = {row["label"]: row for row in results["renderers"]}
