@@ -43,7 +43,7 @@ from models.engine import RenderEngine
 from models.evaluate import ASSET_MODELS
 from models.inference import prepare_for_inference
 from models.metrics import ImageMetrics
-from models.nvr import build_model
+from models.nvr import build_model, reads_floor_light
 from renderer.errors import InputError
 from renderer.io import save_json
 from renderer.pathtrace import PathTracer
@@ -289,7 +289,7 @@ def network_calls(model, config: NVRConfig) -> tuple[Callable[[], Any], Callable
     light = torch.tensor([[0.3, 0.9, -0.8]])
     plus = model.architecture == "nvr_plus"
     splat = torch.rand(1, 3, s, s, generator=generator) if plus else None
-    floor_light = torch.rand(1, 3, s, s, generator=generator) if plus and config.floor_light_input else None
+    floor_light = torch.rand(1, 3, s, s, generator=generator) if reads_floor_light(model.architecture, config) else None
     with torch.inference_mode():
         latent = model.encode_voxels(voxels)
         features = model.encode_splat(splat, floor_light) if plus else None

@@ -74,7 +74,7 @@ import torch  # noqa: E402
 from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # noqa: E402
 from models.inference import prepare_for_inference  # noqa: E402
 from models.light_merge import split_light_merge  # noqa: E402
-from models.nvr import NVR, NVRPlus, light_to_network  # noqa: E402
+from models.nvr import NVR, NVRPlus, light_to_network, reads_floor_light  # noqa: E402
 from models.onednn import use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
 from renderer.camera import Camera  # noqa: E402
@@ -151,7 +151,7 @@ class RenderEngine:
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
-        self._reads_floor_light = self.kind == "nvr+" and self.config.floor_light_input
+        self._reads_floor_light = reads_floor_light(model.architecture, self.config)
         self.model = split_light_merge(use_onednn_convolutions(prepare_for_inference(model)))
         self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
         self.last_report: RenderReport | None = None

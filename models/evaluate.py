@@ -18,6 +18,7 @@ import torch
 
 from models.data import VoxelRenderSet
 from models.metrics import ImageMetrics
+from models.nvr import reads_floor_light
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 
@@ -59,7 +60,8 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     figure = report.with_suffix(".png")
     if rows:
         save_png(figure, torch.cat(rows, dim=1).permute(1, 2, 0).numpy())
-    columns = "splat, lit floor, prediction, target" if _reads_floor_light(renderer, config) else "splat, prediction, target"
+    with_floor_light = model is not None and reads_floor_light(model.architecture, config)
+    columns = "splat, lit floor, prediction, target" if with_floor_light else "splat, prediction, target"
     _write_report(report, figure, columns, renderer, model_path, extra, scores, metrics.perceptual.weights_name,
                   count, seconds, data)
     return report
@@ -89,8 +91,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
            object_resolution: int | None = None):
     """Per-setting metric lists, the first figure rows, and the sample count."""
     grid_size = 8 if config is None else config.grid_size  # the splat baseline reads no voxels
-    reads_floor_light = _reads_floor_light(renderer, config)
-    dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=reads_floor_light)
+    with_floor_light = model is not None and reads_floor_light(model.architecture, config)
+    dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
     rows = []
@@ -104,13 +106,13 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                 if target.shape[-1] != config.output_size:
                     raise InputError(f"test images are {target.shape[-1]}^2 but the model renders {config.output_size}^2")
                 splat = sample["splat"][None] if renderer == "nvr+" else None
-                floor_light = sample["floor_light"][None] if reads_floor_light else None
+                floor_light = sample["floor_light"][None] if with_floor_light else None
                 prediction = model(sample["voxels"][None], sample["light"][None], splat, floor_light)
             values = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
             values["ground_share"] = _ground_share(prediction[0], target[0], sample["splat"], dataset.scene(index))
             scores[dataset.settings[index]].append(values)
             if len(rows) < FIGURE_SAMPLES:
-                inputs = [sample["splat"]] + ([sample["floor_light"]] if reads_floor_light else [])
+                inputs = [sample["splat"]] + ([sample["floor_light"]] if with_floor_light else [])
                 rows.append(torch.cat([*inputs, prediction[0], target[0]], dim=2))
     return scores, rows, count
 
@@ -126,10 +128,6 @@ def _ground_share(prediction: torch.Tensor, target: torch.Tensor, splat: torch.T
     error = ((prediction - target) ** 2).sum(0)
     total = float(error.sum())
     return float(error[ground].sum()) / total if total > 0.0 else 0.0
-
-
-def _reads_floor_light(renderer: str, config) -> bool:
-    return renderer == "nvr+" and config is not None and config.floor_light_input
 
 
 def _write_report(report: Path, figure: Path, columns: str, renderer: str, model_path, extra: dict, scores: dict,

@@ -230,6 +230,11 @@ class NVRPlus(_VoxelRenderer):
 ARCHITECTURES: dict[str, type[_VoxelRenderer]] = {NVR.architecture: NVR, NVRPlus.architecture: NVRPlus}
 
 
+def reads_floor_light(architecture: str, config: NVRConfig | None) -> bool:
+    """Whether a network of this architecture and config takes the lit empty floor as an input."""
+    return architecture == NVRPlus.architecture and config is not None and config.floor_light_input
+
+
 def build_model(architecture: str, config: NVRConfig) -> NVR | NVRPlus:
     """A fresh network of the named architecture ('nvr' or 'nvr_plus')."""
     if architecture not in ARCHITECTURES:

@@ -182,7 +182,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     from models.checkpoint import save_model
     from models.data import VoxelRenderSet
     from models.loss import RenderLoss
-    from models.nvr import build_model
+    from models.nvr import build_model, reads_floor_light
 
     out = Path(out)
     dist_info = Distributed.from_environment(config.device)
@@ -198,8 +198,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     if dist_info.is_main:
         _prepare_run(out, config, resume, net_config)
 
-    reads_floor_light = config.architecture == "nvr_plus" and net_config.floor_light_input
-    dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size, floor_light=reads_floor_light)
+    dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size,
+                             floor_light=reads_floor_light(config.architecture, net_config))
     torch.manual_seed(config.seed)  # identical initial weights on every rank
     model = build_model(config.architecture, net_config)
     if config.init and not resume:
