@@ -6,13 +6,15 @@ the same materials `renderer/pathtrace.py` gives Mitsuba, seen by the render cam
 
 It is an optional input of NVR+ (`NVRConfig.floor_light_input`): most of the error of a
 network that has to discover the light's bright spot and fall-off on the floor from a tiled
-light code alone is on the floor (78 % of the MSE of the first shipped model, at low spatial
-frequency), and this image gives it that shading directly, per pixel. The network still has to
+light code alone is on the floor (79 % of the test MSE of the 2,014-step compact NVR+, mostly at
+low spatial frequency), and this image gives it that shading directly, per pixel. The network still has to
 learn everything the object does: its shading, its shadow, its reflection.
 
 Cost: the shading varies slowly over the floor, so it is evaluated on a coarse grid of pixel
 centres (COARSE_STEP pixels apart) with LIGHT_SAMPLES^2 points on the light, interpolated
-bilinearly to full size, and cut at the horizon with the exact floor mask.
+bilinearly to full size, and cut at the horizon with the exact floor mask. Measured at 256^2 on
+the idle 2-core machine: 5.1 ms median with the camera's geometry cached (the light-term sums take
+3.1 ms of it), 11.8 ms for a new camera elevation.
 """
 
 from __future__ import annotations
