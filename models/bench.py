@@ -39,7 +39,7 @@ from models.bench_scenes import BenchScene, data_scenes, procedural_scenes
 from models.bench_system import PeakMemory, cpu_snapshot, machine_description, other_load
 from models.checkpoint import load_model
 from models.config import CompactConfig, NVRConfig, PaperConfig
-from models.engine import RenderEngine
+from models.engine import RenderEngine, resolve_precision
 from models.evaluate import ASSET_MODELS
 from models.inference import prepare_for_inference
 from models.metrics import ImageMetrics
@@ -112,7 +112,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
 
         rows = bench_pathtracing(tracers, settings, memory, score)
         rows.append(bench_splatting(scenes, settings, memory, score))
-        trained = [_load_engine(path) for path in _weights_files(model_paths)]
+        trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         for engine in trained:
             rows.append(bench_network(engine, scenes, settings, memory, score))
         timing_only = _random_engines(settings, trained)
@@ -194,7 +194,8 @@ def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: Benc
         images.append(engine.render(bench.scene))
         times += _alternating_ms(engine, _transform_pair(bench.scene), repeats)
     errors = score(images) if score is not None else {}
-    setting = engine.model_name if score is not None else f"{engine.config.name} (random weights: timing only)"
+    setting = (f"{engine.model_name}, {engine.precision}" if score is not None
+               else f"{engine.config.name}, {engine.precision} (random weights: timing only)")
     return Row(FAMILY["nvr_plus" if engine.kind == "nvr+" else "nvr"], setting, *_spread(times), memory.peak_mb(), **errors)
 
 
@@ -268,7 +269,7 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
             torch.manual_seed(0)
             model = build_model(architecture, config).eval()
             counted = network_calls(prepare_for_inference(model), config)  # FlopCounterMode knows these convolutions
-            timed = network_calls(RenderEngine(model).model, config)  # the engine's copy, on oneDNN
+            timed = network_calls(RenderEngine(model, precision="fp32").model, config)  # the engine's copy, fp32 like the peak
             repeats = settings.repeats if config.name == "compact" else 2
             with torch.inference_mode():
                 out.append({
@@ -324,11 +325,17 @@ def _weights_files(paths: list[str] | None) -> list[Path]:
     return sorted(ASSET_MODELS.glob("*.safetensors")) if ASSET_MODELS.is_dir() else []
 
 
-def _load_engine(path: Path) -> RenderEngine:
+def _precisions() -> list[str]:
+    """The engine's default precision first (the one the editor uses), then float32 if that is not it."""
+    default = resolve_precision("auto")
+    return [default] + (["fp32"] if default != "fp32" else [])
+
+
+def _load_engine(path: Path, precision: str) -> RenderEngine:
     model, config, _ = load_model(path)
     if config.output_size != SIZE:
         raise InputError(f"renders {config.output_size}^2; the benchmark compares at {SIZE}^2", path)
-    return RenderEngine(model, model_name=f"{config.name} ({path.name})")
+    return RenderEngine(model, model_name=f"{config.name} ({path.name})", precision=precision)
 
 
 def _random_engines(settings: BenchSettings, trained: list[RenderEngine]) -> list[RenderEngine]:

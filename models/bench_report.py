@@ -106,7 +106,8 @@ def _edits(r: dict[str, Any]) -> list[str]:
 def _networks(r: dict[str, Any]) -> list[str]:
     lines = ["## Compute per frame", "",
              f"fp32 matrix-multiply peak measured in this run: {r['matmul_peak_gflops']:.0f} GFLOP/s. Network alone "
-             "(no resampling or splat), full 128^3 grid, batch 1, random weights, on the engine's inference copy.", "",
+             "(no resampling or splat), full 128^3 grid, batch 1, random weights, on the engine's inference copy in "
+             "float32 (the renderers table also times bfloat16, where the CPU has it).", "",
              "| network | config | GFLOP / frame | ms / frame | share of peak | GFLOP / light edit | ms / light edit | share of peak |",
              "|---|---|---:|---:|---:|---:|---:|---:|"]
     for n in r["networks"]:
@@ -123,7 +124,8 @@ def _method(r: dict[str, Any]) -> list[str]:
         "sampling plus OIDN with the Mitsuba scene built once per scene (kernels compiled before timing). "
         "Splatting: the splat of already painted voxels. NVR / NVR+: a re-render after an object transform "
         "through the live engine (resampling, voxel branch on the object's crop, splat, shading); the mesh is "
-        "voxelised once per scene.",
+        "voxelised once per scene. Networks run in the precision named in their row: bf16 (bfloat16, the "
+        "engine's default where the CPU computes it natively) or fp32.",
         f"- Peak memory: resident memory above the level before each renderer ({r['memory_method']}).",
         "- Errors: mean over scenes of MSE (0-255), DSSIM and the perceptual distance of models/metrics.py against "
         f"the {r['reference_spp']}-spp reference, whose own noise is included. Networks with random weights are timed only.",

@@ -263,17 +263,25 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
 def initialize_from(model: nn.Module, path: Path) -> None:
     """Start from another model's weights: equal shapes are copied; a layer that now reads more input
     channels (e.g. the splat branch with `floor_light_input`) gets the old weights on its first
-    channels and zeros on the new ones, so the network starts out computing what the old one did."""
+    channels and zeros on the new ones, so the network starts out computing what the old one did.
+
+    NVR may start from NVR+ (the other way round has nothing to gain): the branches both have,
+    voxel encoder and light decoder, come over, and NVR's own output layer keeps its fresh weights.
+    """
     from models.checkpoint import load_model
 
     source, _, _ = load_model(path)
-    if source.architecture != model.architecture:
-        raise InputError(f"holds a {source.architecture} network, not {model.architecture}", path)
     old, new = source.state_dict(), model.state_dict()
-    if set(old) != set(new):
-        raise InputError("its layers differ from this network's; --init needs the same layers", path)
-    for key, target in new.items():
-        value = old[key]
+    if source.architecture == model.architecture:
+        if set(old) != set(new):
+            raise InputError("its layers differ from this network's; --init needs the same layers", path)
+        keys = list(new)
+    elif (source.architecture, model.architecture) == ("nvr_plus", "nvr"):
+        keys = [key for key in new if key.startswith(SHARED_BRANCHES)]
+    else:
+        raise InputError(f"holds a {source.architecture} network, not {model.architecture}", path)
+    for key in keys:
+        value, target = old[key], new[key]
         if value.shape == target.shape:
             target.copy_(value)
         elif (value.ndim == target.ndim >= 2 and value.shape[0] == target.shape[0] and value.shape[2:] == target.shape[2:]
@@ -282,6 +290,9 @@ def initialize_from(model: nn.Module, path: Path) -> None:
             target[:, : value.shape[1]].copy_(value)
         else:
             raise InputError(f"layer {key} has shape {tuple(value.shape)}, this network's {tuple(target.shape)}", path)
+
+
+SHARED_BRANCHES = ("voxel_encoder.", "light_decoder.")  # the layers NVR and NVR+ have in common (models/nvr.py)
 
 
 def _init_record(init: str | None) -> dict[str, str]:

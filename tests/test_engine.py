@@ -14,7 +14,7 @@ from models.async_render import AsyncRenderer
 from models.checkpoint import save_model
 from models.config import CompactConfig, PaperConfig
 from models.cropped_encoder import CroppedVoxelEncoder, NarrowGround
-from models.engine import RenderEngine, changed_spans, ground_grid, occupied_spans
+from models.engine import BF16_BOUND, RenderEngine, changed_spans, ground_grid, occupied_spans, resolve_precision
 from models.inference import prepare_for_inference
 from models.nvr import build_model
 from models.receptive import conv_chain
@@ -22,7 +22,8 @@ from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene
+from renderer.objects.demo import DEMO_DIR
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, load_scene
 from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
@@ -58,7 +59,7 @@ def random_model(config, architecture: str = "nvr_plus", seed: int = 0):
 
 
 def engine(model, crop: bool = True) -> RenderEngine:
-    return RenderEngine(model, crop=crop, threads=1)
+    return RenderEngine(model, crop=crop, threads=1, precision="fp32")  # exact comparisons: bf16 has its own test
 
 
 @pytest.fixture(scope="module")
@@ -311,13 +312,29 @@ def test_no_narrow_ground_when_it_would_not_be_narrower():
 def test_load_checks_the_architecture(tmp_path, model, scene):
     path = tmp_path / "w.safetensors"
     save_model(path, model, TINY_COMPACT)
-    live = RenderEngine.load(path, kind="nvr+", threads=1)
+    live = RenderEngine.load(path, kind="nvr+", threads=1, precision="fp32")
     assert live.output_size == 64 and "w.safetensors" in live.model_name
     np.testing.assert_allclose(live.render(scene), engine(model).render(scene), atol=1e-6)
     with pytest.raises(InputError, match="not nvr"):
         RenderEngine.load(path, kind="nvr")
     with pytest.raises(InputError, match="unknown network renderer"):
         RenderEngine.load(path, kind="splat")
+
+
+def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():
+    demo = load_scene(DEMO_DIR / "scene.json")
+    fp32, bf16 = (RenderEngine.load(None, threads=2, precision=p) for p in ("fp32", "bf16"))
+    assert bf16.dtype == torch.bfloat16 and next(bf16.model.parameters()).dtype == torch.bfloat16
+    for light in (demo.light.position, (-1.5, 3.5, 1.5)):
+        scene = replace(demo, light=replace(demo.light, position=light))
+        exact, fast = fp32.render(scene), bf16.render(scene)
+        assert fast.dtype == np.float32 and np.isfinite(fast).all()
+        difference = (fast.astype(np.float64) - exact) * 255.0
+        assert 0.0 < np.abs(difference).max() <= BF16_BOUND["max_abs"]  # really rounded, and only a little
+        assert np.mean(difference**2) <= BF16_BOUND["mse"]
+    assert resolve_precision("fp32") == "fp32" and resolve_precision("auto") in ("fp32", "bf16")
+    with pytest.raises(InputError, match="unknown precision"):
+        RenderEngine(random_model(TINY_COMPACT), precision="fp16")
 
 
 # --- the worker thread ---------------------------------------------------------------------------------
@@ -384,6 +401,6 @@ def test_cli_renders_with_the_engine(tmp_path, model, scene):
     save_scene(scene, tmp_path / "scene.json")
     out = tmp_path / "out.png"
     assert run(["render", str(tmp_path / "scene.json"), "-o", str(out), "--renderer", "nvr+",
-                "--model", str(tmp_path / "w.safetensors")]) == 0
+                "--model", str(tmp_path / "w.safetensors"), "--precision", "fp32"]) == 0
     image, _ = load_image(out)
     np.testing.assert_allclose(image, engine(model).render(scene), atol=1 / 255)

@@ -102,13 +102,35 @@ def test_init_from_a_model_without_the_lit_floor_starts_out_computing_the_same_i
     first = new.splat_encoder.layers[0][0].weight
     assert first.requires_grad and torch.count_nonzero(first[:, 3:]) == 0 and torch.count_nonzero(first[:, :3]) > 0
 
-    with pytest.raises(InputError, match="holds a nvr network"):
+    with pytest.raises(InputError, match="holds a nvr network"):  # NVR+ cannot start from NVR
         save_model(tmp_path / "nvr.safetensors", build_model("nvr", old_config), old_config)
         initialize_from(new, tmp_path / "nvr.safetensors")
     wider = CompactConfig(grid_size=16, output_size=32, latent_channels=48)
     save_model(tmp_path / "wider.safetensors", build_model("nvr_plus", wider), wider)
     with pytest.raises(InputError, match="has shape"):
         initialize_from(new, tmp_path / "wider.safetensors")
+
+
+def test_nvr_started_from_nvr_plus_takes_its_voxel_and_light_branches_and_keeps_its_own_output_layer(tmp_path):
+    from models.checkpoint import save_model
+    from models.config import CompactConfig
+    from models.nvr import build_model
+    from models.train import initialize_from
+
+    config = CompactConfig(grid_size=16, output_size=32)
+    torch.manual_seed(5)
+    plus = build_model("nvr_plus", config).eval()
+    save_model(tmp_path / "plus.safetensors", plus, config)
+    torch.manual_seed(6)
+    nvr = build_model("nvr", config).eval()
+    fresh_output = {k: v.clone() for k, v in nvr.to_rgb.state_dict().items()}
+    initialize_from(nvr, tmp_path / "plus.safetensors")
+    voxels, light = (torch.rand(1, 4, 16, 16, 16) > 0.8).float(), torch.randn(1, 3)
+    with torch.no_grad():  # same latent and light features as the NVR+ it came from
+        latent = nvr.encode_voxels(voxels)
+        assert torch.equal(latent, plus.encode_voxels(voxels))
+        assert torch.equal(nvr._features(latent, light), plus._features(latent, light))
+    assert all(torch.equal(v, fresh_output[k]) for k, v in nvr.to_rgb.state_dict().items())
 
 
 def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp_path):
