@@ -119,8 +119,11 @@ def machine_description() -> dict[str, str]:
         names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines() if line.startswith("model name")]
         cpu = names[0] if names else cpu
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    from models.onednn import cpu_has_native_bfloat16
+
+    bf16 = cpu_has_native_bfloat16()
     return {
-        "cpu": f"{cpu}, {cores} cores usable",
+        "cpu": f"{cpu}, {cores} cores usable, {'native bfloat16 (AVX512-BF16)' if bf16 else 'no native bfloat16'}",
         "os": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
         "torch": f"{torch.__version__}, {torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', 'unset')}",

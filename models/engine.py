@@ -79,7 +79,7 @@ from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # 
 from models.inference import prepare_for_inference  # noqa: E402
 from models.light_merge import split_light_merge  # noqa: E402
 from models.nvr import NVR, NVRPlus, light_to_network, reads_floor_light  # noqa: E402
-from models.onednn import use_onednn_convolutions  # noqa: E402
+from models.onednn import cpu_has_native_bfloat16, use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
 from renderer.camera import Camera  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
@@ -347,8 +347,7 @@ class RenderEngine:
 def resolve_precision(precision: str) -> str:
     """'fp32' or 'bf16' as asked; 'auto': bf16 where the CPU computes it natively (AVX512-BF16), else fp32."""
     if precision == "auto":
-        native = getattr(torch.cpu, "_is_avx512_bf16_supported", lambda: False)()
-        return "bf16" if native else "fp32"
+        return "bf16" if cpu_has_native_bfloat16() else "fp32"
     if precision not in PRECISIONS:
         raise InputError(f"unknown precision {precision!r} (choose from auto, {', '.join(PRECISIONS)})")
     return precision

@@ -23,6 +23,11 @@ from models.layers import ResidualBlock2d
 NO_ACTIVATION = ("none", [])
 
 
+def cpu_has_native_bfloat16() -> bool:
+    """Whether this CPU computes bfloat16 in hardware (AVX512-BF16); without it oneDNN emulates it, slower than fp32."""
+    return bool(getattr(torch.cpu, "_is_avx512_bf16_supported", lambda: False)())
+
+
 class OneDnnConv(nn.Module):
     """A Conv2d or Conv3d (zero padding) that calls oneDNN directly, then applies `activation`; same weights."""
 
