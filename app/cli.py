@@ -182,9 +182,12 @@ def cmd_train(args: argparse.Namespace) -> None:
 
     if args.steps < 1 or args.batch < 1:
         raise InputError("--steps and --batch must be at least 1")
+    if not (args.lr > 0 and args.lr_decay_steps >= 0 and 0 <= args.lr_final_fraction <= 1):
+        raise InputError("--lr must be positive, --lr-decay-steps at least 0, --lr-final-fraction between 0 and 1")
     config = TrainConfig(
         data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
-        steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed, device=args.device, threads=args.threads,
+        steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
+        lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, threads=args.threads,
         checkpoint_minutes=args.checkpoint_minutes, perceptual_weights=args.vgg_weights,
         perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
@@ -308,6 +311,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, default=10000)
     p.add_argument("--batch", type=int, default=10, help="global batch size (paper: 10)")
     p.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (paper: 1e-4)")
+    p.add_argument("--lr-decay-steps", type=int, default=0, metavar="N",
+                   help="over the last N steps the rate falls linearly to --lr-final-fraction of --lr (0: constant)")
+    p.add_argument("--lr-final-fraction", type=float, default=0.1, help="the rate on the last step, as a share of --lr")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="cpu", help="cpu or cuda")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: torch's default)")

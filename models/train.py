@@ -44,6 +44,8 @@ class TrainConfig:
     steps: int = 10000
     batch: int = 10
     lr: float = 1e-4
+    lr_decay_steps: int = 0  # the last this many steps fall linearly from lr to lr * lr_final_fraction (0: constant)
+    lr_final_fraction: float = 0.1
     seed: int = 0
     device: str = "cpu"
     threads: int = 0  # 0: torch's default
@@ -68,6 +70,18 @@ class TrainConfig:
             (k, tuple(v) if isinstance(v, list) else v) for k, v in d.get("config_overrides", {}).items()
         )
         return cls(**d)
+
+
+def learning_rate(config: TrainConfig, step: int) -> float:
+    """Adam's step size at `step` (0-based): config.lr, then over the run's last lr_decay_steps steps a linear
+    fall to lr * lr_final_fraction, reached on the last step. A late fall takes out the gradient noise that a
+    constant rate leaves in the weights; on resume it follows from the step alone."""
+    decay = min(config.lr_decay_steps, config.steps)
+    start = config.steps - decay
+    if decay <= 0 or step < start:
+        return config.lr
+    progress = (step - start + 1) / decay
+    return config.lr * (1.0 - progress * (1.0 - config.lr_final_fraction))
 
 
 def batch_indices(seed: int, step: int, batch: int, count: int) -> torch.Tensor:
@@ -235,6 +249,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         loss, parts = loss_fn(prediction, batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
+        for group in optimizer.param_groups:
+            group["lr"] = learning_rate(config, step)
         optimizer.step()
         value = float(loss.detach())
         if not torch.isfinite(loss.detach()):

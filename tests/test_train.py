@@ -143,3 +143,28 @@ def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp
     final = train(tmp_path / "run", config(data, steps=1, init=str(tmp_path / "old.safetensors")), progress=False)
     _, _, extra = load_model(final)
     assert extra["init"] == str(tmp_path / "old.safetensors") and extra["init_steps"] == "77"
+
+
+def test_learning_rate_is_constant_then_falls_linearly_over_the_last_steps():
+    from models.train import TrainConfig, learning_rate
+
+    constant = TrainConfig(data=("d",), steps=10, lr=1e-3)
+    assert [learning_rate(constant, step) for step in (0, 5, 9)] == [1e-3, 1e-3, 1e-3]
+    falling = TrainConfig(data=("d",), steps=10, lr=1e-3, lr_decay_steps=4, lr_final_fraction=0.2)
+    # Steps 6..9 fall by (1 - 0.2) / 4 = 0.2 of lr each, reaching 0.2 * lr on the last step.
+    expected = [1e-3] * 6 + [8e-4, 6e-4, 4e-4, 2e-4]
+    assert [learning_rate(falling, step) for step in range(10)] == pytest.approx(expected)
+    longer_than_run = TrainConfig(data=("d",), steps=2, lr=1.0, lr_decay_steps=5, lr_final_fraction=0.0)
+    assert [learning_rate(longer_than_run, step) for step in range(2)] == pytest.approx([0.5, 0.0])
+
+
+def test_the_training_loop_uses_the_decayed_rate(data, tmp_path):
+    # A rate falling to zero on the last step makes that step move no weight: the parameters equal
+    # those of a run that stopped one step earlier (BatchNorm statistics still move, so they are left out).
+    decayed = train(tmp_path / "decayed", config(data, steps=3, lr_decay_steps=1, lr_final_fraction=0.0), progress=False)
+    shorter = train(tmp_path / "shorter", config(data, steps=2), progress=False)
+    a, b = weights(decayed), weights(shorter)
+    parameters = [k for k in a if not k.endswith(("running_mean", "running_var", "num_batches_tracked"))]
+    assert parameters and all(torch.equal(a[k], b[k]) for k in parameters)
+    moved = train(tmp_path / "moved", config(data, steps=3), progress=False)
+    assert not all(torch.equal(weights(moved)[k], b[k]) for k in parameters)
