@@ -71,11 +71,11 @@ def _render_pathtrace(scene, size: int, args: argparse.Namespace):
 def _render_network(scene, size: int, args: argparse.Namespace):
     from models.engine import RenderEngine
 
-    engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision)
+    engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device)
     if size != engine.output_size:
         raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {size} is not supported")
     image = engine.render(scene)
-    return image, f", model {engine.model_name}, {engine.precision}"
+    return image, f", model {engine.model_name}, {engine.precision} on {engine.device.type}"
 
 
 # --- nvr voxelize / info ------------------------------------------------------------------
@@ -258,6 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
     p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
                    help="network arithmetic (auto: bf16 on CPUs with native bfloat16, else fp32)")
+    p.add_argument("--device", default="auto", help="network device: auto (a CUDA GPU if there is one), cpu or cuda")
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.set_defaults(func=cmd_render)
 

@@ -50,6 +50,8 @@ a time (models/async_render.py runs it on a worker thread).
 Precision: on a CPU with native bfloat16 (AVX512-BF16) the network runs in bfloat16 by default
 (`precision="auto"`), which took an object-transform frame from about 50 to 35 ms here; images
 agree with float32 within BF16_BOUND (tests/test_engine.py). Everything outside the network stays float32.
+Device: a CUDA GPU if there is one (`device="auto"`), in float32 and without the oneDNN convolutions,
+which are CPU kernels; the stages and their caching are the same.
 """
 
 from __future__ import annotations
@@ -153,16 +155,20 @@ class RenderEngine:
     """NVR or NVR+ rendering scenes, caching every stage on exactly the scene parts it depends on."""
 
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
-                 precision: str = "auto"):
+                 precision: str = "auto", device: str = "auto"):
         torch.set_num_threads(threads or default_threads())
+        self.device = resolve_device(device)
         self.config = model.config
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
-        self.precision = resolve_precision(precision)
+        self.precision = resolve_precision(precision, self.device)
         self.dtype = PRECISIONS[self.precision]
         self._reads_floor_light = reads_floor_light(model.architecture, self.config)
-        self.model = split_light_merge(use_onednn_convolutions(prepare_for_inference(model))).to(self.dtype)
+        inference = prepare_for_inference(model)
+        if self.device.type == "cpu":
+            inference = use_onednn_convolutions(inference)
+        self.model = split_light_merge(inference).to(self.device, self.dtype)
         self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
         self.last_report: RenderReport | None = None
         self._memo: dict[str, tuple[Any, Any]] = {}
@@ -227,7 +233,8 @@ class RenderEngine:
             floor_light = self._image_tensor(self._floor_light(scene, floor, keys)) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self.model.encode_splat(self._image_tensor(splat), floor_light))
-        light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None].to(self.dtype)
+        light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
+        light = light.to(self.device, self.dtype)
         key = (keys.grid, keys.splat, scene.light.position)
         return self._stage("light", key, lambda: _to_image(self.model.render_from_latent(latent, light, features)))
 
@@ -311,10 +318,10 @@ class RenderEngine:
 
     def _grid_tensor(self, grid: np.ndarray) -> torch.Tensor:
         """A (D, H, W, 4) grid as the network's (1, 4, D, H, W) input; channels-last, and without a copy in float32."""
-        return torch.from_numpy(grid).permute(3, 0, 1, 2)[None].to(self.dtype)
+        return torch.from_numpy(grid).permute(3, 0, 1, 2)[None].to(self.device, self.dtype)
 
     def _image_tensor(self, image: np.ndarray) -> torch.Tensor:
-        return torch.from_numpy(image).permute(2, 0, 1)[None].to(self.dtype)
+        return torch.from_numpy(image).permute(2, 0, 1)[None].to(self.device, self.dtype)
 
     # --- the memo and the report ------------------------------------------------------------
 
@@ -324,6 +331,8 @@ class RenderEngine:
             return self._memo[name][1]
         start = time.perf_counter()
         value = compute()
+        if self.device.type == "cuda":
+            torch.cuda.synchronize(self.device)  # GPU work is asynchronous: time it, not its launch
         self._recording.stage_ms[name] = (time.perf_counter() - start) * 1000.0
         self._memo[name] = (key, value)
         return value
@@ -344,10 +353,22 @@ class RenderEngine:
 # --- helpers ------------------------------------------------------------------------------------
 
 
-def resolve_precision(precision: str) -> str:
-    """'fp32' or 'bf16' as asked; 'auto': bf16 where the CPU computes it natively (AVX512-BF16), else fp32."""
+def resolve_device(device: str) -> torch.device:
+    """'cpu' or 'cuda' (or 'cuda:N') as asked; 'auto': the first CUDA GPU if there is one, else the CPU."""
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if device != "cpu" and not device.startswith("cuda"):
+        raise InputError(f"unknown device {device!r} (choose from auto, cpu, cuda)")
+    if device.startswith("cuda") and not torch.cuda.is_available():
+        raise InputError(f"device {device!r} was asked for, but no CUDA GPU is available")
+    return torch.device(device)
+
+
+def resolve_precision(precision: str, device: torch.device | None = None) -> str:
+    """'fp32' or 'bf16' as asked; 'auto': bf16 on a CPU that computes it natively (AVX512-BF16), else fp32."""
     if precision == "auto":
-        return "bf16" if cpu_has_native_bfloat16() else "fp32"
+        on_cpu = device is None or device.type == "cpu"
+        return "bf16" if on_cpu and cpu_has_native_bfloat16() else "fp32"
     if precision not in PRECISIONS:
         raise InputError(f"unknown precision {precision!r} (choose from auto, {', '.join(PRECISIONS)})")
     return precision
@@ -432,4 +453,4 @@ def _file_stamp(path: Path) -> tuple:
 
 
 def _to_image(batch: torch.Tensor) -> np.ndarray:
-    return batch[0].permute(1, 2, 0).float().contiguous().numpy()
+    return batch[0].permute(1, 2, 0).float().cpu().contiguous().numpy()

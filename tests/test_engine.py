@@ -337,6 +337,20 @@ def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():
         RenderEngine(random_model(TINY_COMPACT), precision="fp16")
 
 
+def test_device_choice():
+    from models.engine import resolve_device
+
+    expected = "cuda" if torch.cuda.is_available() else "cpu"
+    assert resolve_device("auto").type == expected and resolve_device("cpu").type == "cpu"
+    with pytest.raises(InputError, match="unknown device"):
+        resolve_device("tpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(InputError, match="no CUDA GPU"):
+            RenderEngine(random_model(TINY_COMPACT), device="cuda")
+    # bf16 is chosen only for the CPU, where its bound is tested; a GPU runs fp32 unless asked.
+    assert resolve_precision("auto", torch.device("cuda")) == "fp32"
+
+
 # --- the worker thread ---------------------------------------------------------------------------------
 
 
