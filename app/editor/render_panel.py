@@ -97,7 +97,8 @@ class LiveRender:
             self.engine = RenderEngine.load(model_path, kind="nvr+")
             self.neural = True
             self.label = f"NVR+ {self.engine.model_name}"
-            self.device = f"cpu, {default_threads()} threads"
+            e = self.engine
+            self.device = f"{e.device.type}, {e.precision}" + (f", {default_threads()} threads" if e.device.type == "cpu" else "")
         except InputError as exc:
             self.engine = SplatEngine(voxels)
             self.neural = False
