@@ -312,16 +312,18 @@ SHARED_BRANCHES = ("voxel_encoder.", "light_decoder.")  # the layers NVR and NVR
 
 
 def _init_record(init: str | None) -> dict[str, str]:
-    """What a model started from, for its metadata: the weights file and how long that one had trained."""
+    """What a model started from, for its metadata: the weights file and how many steps in all stand behind
+    it (its own run's, plus those of the weights that run started from, as its metadata records them)."""
     if not init:
         return {}
     from models.checkpoint import load_model
 
     try:
-        steps = load_model(init)[2].get("steps", "?")
-    except InputError:
+        extra = load_model(init)[2]
+        steps = str(int(extra["steps"]) + int(extra.get("init_steps", 0)))
+    except (InputError, KeyError, ValueError):
         steps = "?"  # moved or deleted since the run began: the path alone is still worth keeping
-    return {"init": init, "init_steps": str(steps)}
+    return {"init": init, "init_steps": steps}
 
 
 def crop_box(config: TrainConfig, step: int, size: int) -> tuple[int, int, int] | None:

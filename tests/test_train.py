@@ -143,6 +143,9 @@ def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp
     final = train(tmp_path / "run", config(data, steps=1, init=str(tmp_path / "old.safetensors")), progress=False)
     _, _, extra = load_model(final)
     assert extra["init"] == str(tmp_path / "old.safetensors") and extra["init_steps"] == "77"
+    # A run from that run's model counts both: its 1 step and the 77 behind its start.
+    again = train(tmp_path / "again", config(data, steps=1, init=str(final)), progress=False)
+    assert load_model(again)[2]["init_steps"] == "78"
 
 
 def test_learning_rate_is_constant_then_falls_linearly_over_the_last_steps():
