@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import datetime
 import os
+import re
 import statistics
 import tempfile
 import time
@@ -389,7 +390,9 @@ def write_outputs(results: dict[str, Any], report: Path, json_path: Path | None)
 
     rows = [r for r in results["renderers"] if r["mse"] is not None]
     figure = report.parent / "speed_vs_error.png"
-    draw_speed_vs_error([Point(r["label"], r["family"], r["ms"], r["mse"]) for r in rows], figure)
+    # The figure's labels leave out the weights file names, which the table gives.
+    draw_speed_vs_error([Point(re.sub(r" \([^)]*\.safetensors\)", "", r["label"]), r["family"], r["ms"], r["mse"])
+                         for r in rows], figure)
     write_report(results, report, figure)
     if json_path is not None:
         save_json(json_path, results)

@@ -53,13 +53,18 @@ def draw_speed_vs_error(points: list[Point], path: str | Path, error_name: str =
         xy = [(x_axis(p.ms), y_axis(p.error)) for p in front]
         for (x0, y0), (x1, y1) in zip(xy, xy[1:]):  # staircase: nothing below and left of it
             draw.line([(x0, y0), (x1, y0), (x1, y1)], fill=(120, 120, 120), width=2)
+        taken: list[tuple[float, float, float, float]] = []  # label boxes drawn so far
         for p in points:
             x, y = x_axis(p.ms), y_axis(p.error)
             color = FAMILY_COLORS.get(p.family, (0, 0, 0))
             on_front = p in front
             draw.ellipse([x - 6, y - 6, x + 6, y + 6], fill=color if on_front else "white", outline=color, width=2)
             width = draw.textlength(p.label, font=font)
-            draw.text((x + 8 if x + 8 + width < WIDTH - MARGIN_RIGHT else x - 8 - width, y - 16), p.label, fill=color, font=font)
+            left, top = (x + 8 if x + 8 + width < WIDTH - MARGIN_RIGHT else x - 8 - width), y - 16
+            while any(left < x1 and left + width > x0 and top < y1 and top + 16 > y0 for x0, y0, x1, y1 in taken):
+                top += 16  # below the label it would cover (points close in time and error)
+            taken.append((left, top, left + width, top + 16))
+            draw.text((left, top), p.label, fill=color, font=font)
         _draw_legend(draw, font)
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG")
