@@ -81,7 +81,7 @@ from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # 
 from models.inference import prepare_for_inference  # noqa: E402
 from models.light_merge import split_light_merge  # noqa: E402
 from models.nvr import NVR, NVRPlus, light_to_network, reads_floor_light  # noqa: E402
-from models.onednn import cpu_has_native_bfloat16, use_onednn_convolutions  # noqa: E402
+from models.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, use_onednn_convolutions  # noqa: E402
 from models.paint_replay import PaintReplay  # noqa: E402
 from renderer.camera import Camera  # noqa: E402
 from renderer.errors import InputError  # noqa: E402
@@ -371,6 +371,9 @@ def resolve_precision(precision: str, device: torch.device | None = None) -> str
         return "bf16" if on_cpu and cpu_has_native_bfloat16() else "fp32"
     if precision not in PRECISIONS:
         raise InputError(f"unknown precision {precision!r} (choose from auto, {', '.join(PRECISIONS)})")
+    on_cpu = device is None or device.type == "cpu"
+    if precision == "bf16" and on_cpu and not cpu_can_run_bfloat16():
+        raise InputError("this CPU cannot run bf16 convolutions (oneDNN needs AVX512 or AVX-NE-CONVERT): use fp32")
     return precision
 
 

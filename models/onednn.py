@@ -28,6 +28,11 @@ def cpu_has_native_bfloat16() -> bool:
     return bool(getattr(torch.cpu, "_is_avx512_bf16_supported", lambda: False)())
 
 
+def cpu_can_run_bfloat16() -> bool:
+    """Whether oneDNN runs bfloat16 convolutions here at all (natively or emulated: AVX512 or AVX-NE-CONVERT)."""
+    return bool(torch.backends.mkldnn.is_available() and torch.ops.mkldnn._is_mkldnn_bf16_supported())
+
+
 class OneDnnConv(nn.Module):
     """A Conv2d or Conv3d (zero padding) that calls oneDNN directly, then applies `activation`; same weights."""
 

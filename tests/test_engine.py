@@ -17,6 +17,7 @@ from models.cropped_encoder import CroppedVoxelEncoder, NarrowGround
 from models.engine import BF16_BOUND, RenderEngine, changed_spans, ground_grid, occupied_spans, resolve_precision
 from models.inference import prepare_for_inference
 from models.nvr import build_model
+from models.onednn import cpu_can_run_bfloat16
 from models.receptive import conv_chain
 from renderer.camera import Camera
 from renderer.errors import InputError
@@ -322,6 +323,10 @@ def test_load_checks_the_architecture(tmp_path, model, scene):
 
 
 def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():
+    if not cpu_can_run_bfloat16():
+        with pytest.raises(InputError, match="cannot run bf16"):
+            resolve_precision("bf16")
+        pytest.skip("this CPU cannot run bf16 convolutions (oneDNN needs AVX512 or AVX-NE-CONVERT)")
     demo = load_scene(DEMO_DIR / "scene.json")
     fp32, bf16 = (RenderEngine.load(None, threads=2, precision=p) for p in ("fp32", "bf16"))
     assert bf16.dtype == torch.bfloat16 and next(bf16.model.parameters()).dtype == torch.bfloat16
