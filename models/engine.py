@@ -48,7 +48,7 @@ that differ from the ground, and the result equals the full-grid encode_voxels (
 a time (models/async_render.py runs it on a worker thread).
 
 Precision: on a CPU with native bfloat16 (AVX512-BF16) the network runs in bfloat16 by default
-(`precision="auto"`), which took an object-transform frame from about 50 to 35 ms here; images
+(`precision="auto"`): an object-transform frame took 29.6 ms instead of 39.1 (nvr bench, session 5); images
 agree with float32 within BF16_BOUND (tests/test_engine.py). Everything outside the network stays float32.
 Device: a CUDA GPU if there is one (`device="auto"`), in float32 and without the oneDNN convolutions,
 which are CPU kernels; the stages and their caching are the same.
