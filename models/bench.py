@@ -193,7 +193,7 @@ def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: Benc
     repeats = settings.repeats if engine.config.name == "compact" else 2
     for bench in scenes:
         images.append(engine.render(bench.scene))
-        times += _alternating_ms(engine, _transform_pair(bench.scene), repeats)
+        times += alternating_ms(engine, transform_pair(bench.scene), repeats)
     errors = score(images) if score is not None else {}
     setting = (f"{engine.model_name}, {engine.precision}" if score is not None
                else f"{engine.config.name}, {engine.precision} (random weights: timing only)")
@@ -207,14 +207,14 @@ def bench_edits(engine: RenderEngine, bench: BenchScene, settings: BenchSettings
     paint_seed = tuple(int(i) for i in occupied[len(occupied) // 2])
     out = {}
     for name, pair in _edit_pairs(bench.scene, paint_seed).items():
-        times = _alternating_ms(engine, pair, settings.repeats)
+        times = alternating_ms(engine, pair, settings.repeats)
         report = engine.last_report
         row = {"ms": statistics.median(times), "ms_q25": _spread(times)[1], "ms_q75": _spread(times)[2],
                "stages": list(report.stages_run), "grid_fraction": report.grid_fraction,
                "voxel_branch_ms": report.stage_ms.get("gather", 0.0) + report.stage_ms.get("voxel_branch", 0.0)}
         if settings.full_grid_edits:
             engine.crop = False
-            full = _alternating_ms(engine, pair, settings.repeats)
+            full = alternating_ms(engine, pair, settings.repeats)
             row["full_grid_ms"] = statistics.median(full)
             row["full_grid_voxel_branch_ms"] = sum(engine.last_report.stage_ms.get(s, 0.0) for s in ("gather", "voxel_branch"))
             engine.crop = True
@@ -234,19 +234,19 @@ def _edit_pairs(scene: Scene, paint_seed: tuple[int, int, int]) -> dict[str, tup
         "paint": tuple(scene.with_changes(paint=(*scene.paint, PaintOp("region", color, seed=paint_seed)))
                        for color in ((0.9, 0.2, 0.2), (0.2, 0.2, 0.9))),
         "floor color": (scene, scene.with_changes(floor=FloorSpec((0.8, 0.7, 0.3)))),
-        "object transform": _transform_pair(scene),
+        "object transform": transform_pair(scene),
         "camera": (scene, scene.with_changes(camera=CameraSpec(scene.camera.elevation_deg + 5.0))),
     }
 
 
-def _transform_pair(scene: Scene) -> tuple[Scene, Scene]:
+def transform_pair(scene: Scene) -> tuple[Scene, Scene]:
     """The scene and the scene with its object moved by (0.15, -0.1) and turned by 20 degrees."""
     o = scene.object
     moved = replace(o, translation=(o.translation[0] + 0.15, o.translation[1] - 0.1), rotation_deg=o.rotation_deg + 20.0)
     return scene, scene.with_changes(object=moved)
 
 
-def _alternating_ms(engine: RenderEngine, pair: tuple[Scene, Scene], repeats: int) -> list[float]:
+def alternating_ms(engine: RenderEngine, pair: tuple[Scene, Scene], repeats: int) -> list[float]:
     """Render the pair's scenes in turn (after one of each to fill the caches); ms per render."""
     engine.render(pair[1])
     engine.render(pair[0])

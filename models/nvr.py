@@ -228,6 +228,7 @@ class NVRPlus(_VoxelRenderer):
 
 
 ARCHITECTURES: dict[str, type[_VoxelRenderer]] = {NVR.architecture: NVR, NVRPlus.architecture: NVRPlus}
+SHARED_BRANCHES = ("voxel_encoder.", "light_decoder.")  # state-dict prefixes of _VoxelRenderer's layers: both have them
 
 
 def reads_floor_light(architecture: str, config: NVRConfig | None) -> bool:

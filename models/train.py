@@ -285,6 +285,7 @@ def initialize_from(model: nn.Module, path: Path) -> None:
     voxel encoder and light decoder, come over, and NVR's own output layer keeps its fresh weights.
     """
     from models.checkpoint import load_model
+    from models.nvr import SHARED_BRANCHES
 
     source, _, _ = load_model(path)
     old, new = source.state_dict(), model.state_dict()
@@ -306,9 +307,6 @@ def initialize_from(model: nn.Module, path: Path) -> None:
             target[:, : value.shape[1]].copy_(value)
         else:
             raise InputError(f"layer {key} has shape {tuple(value.shape)}, this network's {tuple(target.shape)}", path)
-
-
-SHARED_BRANCHES = ("voxel_encoder.", "light_decoder.")  # the layers NVR and NVR+ have in common (models/nvr.py)
 
 
 def _init_record(init: str | None) -> dict[str, str]:

@@ -97,8 +97,8 @@ class LiveRender:
             self.engine = RenderEngine.load(model_path, kind="nvr+")
             self.neural = True
             self.label = f"NVR+ {self.engine.model_name}"
-            e = self.engine
-            self.device = f"{e.device.type}, {e.precision}" + (f", {default_threads()} threads" if e.device.type == "cpu" else "")
+            threads = f", {default_threads()} threads" if self.engine.device.type == "cpu" else ""
+            self.device = f"{self.engine.device.type}, {self.engine.precision}{threads}"
         except InputError as exc:
             self.engine = SplatEngine(voxels)
             self.neural = False
