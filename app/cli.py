@@ -60,7 +60,7 @@ def _render_splat(scene, size: int):
 
 
 def _render_pathtrace(scene, size: int, args: argparse.Namespace):
-    from renderer.pathtrace import render_pathtraced
+    from renderer.pathtrace.path_tracer import render_pathtraced
     from renderer.pipeline import object_mesh
 
     result = render_pathtraced(scene, object_mesh(scene), size=size, spp=args.spp, seed=args.seed, denoise=args.denoise)
@@ -69,7 +69,7 @@ def _render_pathtrace(scene, size: int, args: argparse.Namespace):
 
 
 def _render_network(scene, size: int, args: argparse.Namespace):
-    from models.engine import RenderEngine
+    from models.engine.render_engine import RenderEngine
 
     engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device)
     if size != engine.output_size:
@@ -178,7 +178,7 @@ def cmd_data_merge(args: argparse.Namespace) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> None:
-    from models.train import TrainConfig, train
+    from models.training.train import TrainConfig, train
 
     if args.steps < 1 or args.batch < 1:
         raise InputError("--steps and --batch must be at least 1")
@@ -212,11 +212,11 @@ def _parse_overrides(items: list[str]) -> list[tuple[str, object]]:
 
 
 def cmd_eval(args: argparse.Namespace) -> None:
-    from models.evaluate import evaluate
+    from models.evaluation.evaluate import evaluate
 
     out = _output_path(args.report, args.force)
     if args.resolution_study:
-        from models.evaluate import resolution_study
+        from models.evaluation.evaluate import resolution_study
 
         try:
             resolutions = [int(r) for r in args.resolution_study.split(",")]
@@ -231,13 +231,24 @@ def cmd_eval(args: argparse.Namespace) -> None:
 
 
 def cmd_bench(args: argparse.Namespace) -> None:
-    from models.bench import DOCS, FULL, QUICK, run_bench, write_outputs
+    from models.bench.benchmark import DOCS, FULL, QUICK, REPORT_FILES, run_bench, write_outputs
 
-    report = Path(args.report) if args.report else DOCS / "benchmarks.md"
+    folder = Path(args.report) if args.report else Path("out") / ("bench-quick" if args.quick else "bench")
+    if args.quick and folder.resolve() == DOCS:
+        raise InputError(f"{folder}: a --quick run's one-scene numbers do not replace the benchmark page; "
+                         "give --report another folder")
+    if not folder.is_dir():
+        try:
+            folder.mkdir(parents=True)
+        except OSError as exc:
+            raise InputError(f"cannot create the report folder: {exc.strerror}", folder) from None
+    for name in REPORT_FILES:
+        _output_path(str(folder / name), args.force)
     results = run_bench(QUICK if args.quick else FULL, data=args.data, model_paths=args.model, note=args.note)
-    write_outputs(results, report, Path(args.json) if args.json else None)
-    print(f"wrote {report}{f' and {args.json}' if args.json else ''}: light edit {results['nvrplus_light_edit_ms']:.1f} ms, "
-          f"frame {results['nvrplus_frame_ms']:.1f} ms, path tracing 1 spp + OIDN {results['pathtrace_1spp_oidn_ms']:.1f} ms")
+    write_outputs(results, folder)
+    print(f"wrote {', '.join(str(folder / name) for name in REPORT_FILES)}: light edit "
+          f"{results['nvrplus_light_edit_ms']:.1f} ms, frame {results['nvrplus_frame_ms']:.1f} ms, "
+          f"path tracing 1 spp + OIDN {results['pathtrace_1spp_oidn_ms']:.1f} ms")
 
 
 # --- parser ---------------------------------------------------------------------------------
@@ -339,12 +350,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")
     p.set_defaults(func=cmd_eval)
 
-    p = sub.add_parser("bench", help="every renderer on the same scenes: time, memory and error; writes docs/benchmarks.md")
+    p = sub.add_parser("bench", help="every renderer on the same scenes: time, memory and error, as a report")
     p.add_argument("--data", nargs="+", default=None, help="test data folders to take scenes from (default: procedural)")
     p.add_argument("--model", action="append", default=None, help="weights to include (repeatable; default: assets/models)")
     p.add_argument("--quick", action="store_true", help="a CI-sized subset (one scene, 1 and 4 spp, no paper config)")
-    p.add_argument("--json", default=None, help="also write the numbers as JSON here")
-    p.add_argument("--report", default=None, help="Markdown report (default docs/benchmarks.md; the figure goes beside it)")
+    p.add_argument("--report", default=None, metavar="DIR",
+                   help="folder for benchmarks.md, benchmarks.json and speed_vs_error.png (default out/bench, "
+                        "or out/bench-quick with --quick); `--report docs` updates the project's page (full runs only)")
+    p.add_argument("--force", action="store_true", help="replace an earlier report in that folder")
     p.add_argument("--note", default="", help="a line for the report, e.g. what else ran on the machine")
     p.set_defaults(func=cmd_bench)
 

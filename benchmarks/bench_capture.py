@@ -40,7 +40,7 @@ from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.io import atomic_path
 from renderer.objects import apply_appearance, generate_object, split_seeds
-from renderer.pathtrace import render_pathtraced
+from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.scene import (
     ELEVATION_RANGE,
     LIGHT_XZ_RANGE,

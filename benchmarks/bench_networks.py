@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/bench_networks.py [--config compact|paper] [--arch nvr|nvr_plus]
        [--set FIELD=JSON ...] [--repeats N] [--no-prepare]
-fp32, eval mode, batch 1, on the inference copy (models/inference.py: BatchNorm folded,
+fp32, eval mode, batch 1, on the inference copy (models/networks/inference.py: BatchNorm folded,
 channels-last) unless --no-prepare. Two measurements, because other processes share the CPU:
 wall-clock with torch.set_num_threads(2) over N runs (median, and minimum beside it), and the
 CPU time of the same call on 1 thread (median), which contention barely changes.
@@ -20,15 +20,15 @@ from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as models/engine.py sets it, before torch loads OpenMP
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as models/engine/render_engine.py sets it, before torch loads OpenMP
 
 import torch  # noqa: E402
 from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
 
-from models.bench import network_calls  # noqa: E402
-from models.config import CompactConfig, NVRConfig, PaperConfig  # noqa: E402
-from models.inference import prepare_for_inference  # noqa: E402
-from models.nvr import build_model  # noqa: E402
+from models.bench.benchmark import network_calls  # noqa: E402
+from models.networks.config import CompactConfig, NVRConfig, PaperConfig  # noqa: E402
+from models.networks.inference import prepare_for_inference  # noqa: E402
+from models.networks.nvr import build_model  # noqa: E402
 
 CONFIGS = {"paper": PaperConfig, "compact": CompactConfig}
 

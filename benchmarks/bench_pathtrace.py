@@ -22,12 +22,12 @@ import numpy as np
 import torch
 import trimesh
 
-from models.metrics import dssim, mse_255
+from models.evaluation.metrics import dssim, mse_255
 from renderer.color import linear_to_srgb
 from renderer.io import atomic_path
-from renderer.mitsuba_variant import active_variant
 from renderer.objects import apply_appearance, generate_object
-from renderer.pathtrace import GUIDE_SPP, LIGHT_RADIANCE, MAX_DEPTH, PathTracer
+from renderer.pathtrace.mitsuba_variant import active_variant
+from renderer.pathtrace.path_tracer import GUIDE_SPP, LIGHT_RADIANCE, MAX_DEPTH, PathTracer
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 
 SIZES = (256, 128)
@@ -251,7 +251,7 @@ processes load them instead.
 - Each setting is rendered with seeds 0, 1, 2 up to 16 spp and seed 0 above; times are the
   median over scenes and seeds, errors the mean over scenes of the per-scene median. The reference
   uses other seeds, so its noise is independent of the measured images.
-- MSE on the 0-255 scale and DSSIM = (1 - SSIM) / 2 with `models/metrics.py`, on sRGB images.
+- MSE on the 0-255 scale and DSSIM = (1 - SSIM) / 2 with `models/evaluation/metrics.py`, on sRGB images.
 """
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path) as tmp:

@@ -4,7 +4,7 @@ Usage: python benchmarks/bench_precision.py [--data DIR ...] [--scenes N] [--rep
 For each shipped network (assets/models) both precisions render the first view of up to N objects
 of the test folders; prints the largest pixel difference and the MSE between them (0-255), and the
 median ms of a full render after an object transform and of a light edit in each precision.
-models/engine.py's BF16_BOUND is the bound the tests hold bf16 to.
+models/engine/render_engine.py's BF16_BOUND is the bound the tests hold bf16 to.
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from models.bench import alternating_ms, transform_pair  # noqa: E402 - models.bench imports models.engine before torch
-from models.bench_scenes import data_scenes  # noqa: E402
-from models.engine import BF16_BOUND, RenderEngine, cpu_can_run_bfloat16  # noqa: E402
-from models.evaluate import shipped_model  # noqa: E402
+from models.bench.benchmark import alternating_ms, transform_pair  # noqa: E402 - models.bench.benchmark imports models.engine.render_engine before torch
+from models.bench.scenes import data_scenes  # noqa: E402
+from models.engine.render_engine import BF16_BOUND, RenderEngine, cpu_can_run_bfloat16  # noqa: E402
+from models.evaluation.evaluate import shipped_model  # noqa: E402
 
 
 def main() -> None:

@@ -200,7 +200,7 @@ def _object_name(index: int) -> str:
 def _renderer_info(config: DataConfig) -> dict[str, Any]:
     import mitsuba
 
-    from renderer.pathtrace import active_variant
+    from renderer.pathtrace.path_tracer import active_variant
 
     return {"name": "mitsuba", "version": mitsuba.__version__, "variant": active_variant(),
             "spp": config.spp, "denoise": config.denoise}
@@ -230,7 +230,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     from renderer.camera import Camera
     from renderer.capture.pose import PhotoPose
     from renderer.objects import apply_appearance, generate_object, split_seeds
-    from renderer.pathtrace import render_pathtraced
+    from renderer.pathtrace.path_tracer import render_pathtraced
     from renderer.photo import color_voxels_from_photo, is_mirror_symmetric
     from renderer.splat import splat_scene
     from renderer.transform import object_to_world

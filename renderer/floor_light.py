@@ -2,7 +2,7 @@
 
 An analytic image of the empty scene (no object, so no shadows or bounced light): the square
 area light and the ambient environment on the floor's diffuse base and its glossy GGX coat,
-the same materials `renderer/pathtrace.py` gives Mitsuba, seen by the render camera.
+the same materials `renderer/pathtrace/path_tracer.py` gives Mitsuba, seen by the render camera.
 
 It is an optional input of NVR+ (`NVRConfig.floor_light_input`): most of the error of a
 network that has to discover the light's bright spot and fall-off on the floor from a tiled

@@ -9,16 +9,16 @@ import numpy as np
 from PIL import Image
 
 from app.cli import run
-from models.bench_plot import Point, pareto_front
-from models.bench_system import PeakMemory
-from models.checkpoint import load_model
-from models.evaluate import shipped_model
+from models.bench.plot import Point, pareto_front
+from models.bench.system import PeakMemory
+from models.evaluation.evaluate import shipped_model
+from models.networks.checkpoint import load_model
 
 
 def test_quick_bench_writes_json_report_and_figure(tmp_path):
     """The CI-sized run (about 15 s on an idle 2-core CPU: one scene, 1 and 4 spp, compact networks)."""
-    report, numbers = tmp_path / "benchmarks.md", tmp_path / "bench.json"
-    assert run(["bench", "--quick", "--json", str(numbers), "--report", str(report)]) == 0
+    report, numbers = tmp_path / "benchmarks.md", tmp_path / "benchmarks.json"
+    assert run(["bench", "--quick", "--report", str(tmp_path)]) == 0
     results = json.loads(numbers.read_text())
     for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms"):
         assert math.isfinite(results[key]) and results[key] > 0.0
@@ -38,6 +38,21 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     assert "| path tracing | 1 spp + OIDN |" in text and "## Latency per edit" in text
     with Image.open(tmp_path / "speed_vs_error.png") as figure:
         assert figure.format == "PNG" and figure.size == (1100, 760)
+
+
+def test_quick_bench_never_writes_the_project_page(tmp_path, capsys):
+    """A --quick run's one-scene numbers stay out of docs/, and an earlier report is kept without --force."""
+    from models.bench.benchmark import DOCS
+
+    page = DOCS / "benchmarks.md"
+    before = page.read_bytes()
+    assert run(["bench", "--quick", "--report", str(DOCS)]) == 2
+    assert "--quick" in capsys.readouterr().err
+    assert page.read_bytes() == before
+    (tmp_path / "benchmarks.md").write_text("earlier report")
+    assert run(["bench", "--quick", "--report", str(tmp_path)]) == 2
+    assert "exists" in capsys.readouterr().err
+    assert (tmp_path / "benchmarks.md").read_text() == "earlier report"
 
 
 def test_pareto_front_by_hand():

@@ -18,7 +18,7 @@ from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.io import load_image
 from renderer.objects import generate_object
-from renderer.pathtrace import render_pathtraced
+from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.photo import is_mirror_symmetric
 from renderer.scene import CameraSpec, LightSpec, Scene
 from renderer.voxels import voxelize

@@ -9,9 +9,9 @@ import torch
 from safetensors import safe_open
 from safetensors.torch import load_file, save_file
 
-from models.checkpoint import FORMAT_VERSION, load_model, save_model
-from models.config import CompactConfig, PaperConfig
-from models.nvr import NVR, NVRPlus, build_model
+from models.networks.checkpoint import FORMAT_VERSION, load_model, save_model
+from models.networks.config import CompactConfig, PaperConfig
+from models.networks.nvr import NVR, NVRPlus, build_model
 from renderer.errors import InputError
 
 TINY_COMPACT = CompactConfig(grid_size=16, output_size=32)

@@ -25,9 +25,9 @@ from PIL import Image
 from app.editor.layout import layout_for
 from app.editor.orbit_view import HOME, viewport_camera
 from app.editor.viewport_input import LIGHT_HEIGHT_PER_PIXEL
-from models.checkpoint import save_model
-from models.config import CompactConfig
-from models.nvr import build_model
+from models.networks.checkpoint import save_model
+from models.networks.config import CompactConfig
+from models.networks.nvr import build_model
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, load_scene, save_scene
 from renderer.surface import voxel_centers_at

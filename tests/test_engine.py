@@ -10,15 +10,22 @@ import numpy as np
 import pytest
 import torch
 
-from models.async_render import AsyncRenderer
-from models.checkpoint import save_model
-from models.config import CompactConfig, PaperConfig
-from models.cropped_encoder import CroppedVoxelEncoder, NarrowGround
-from models.engine import BF16_BOUND, RenderEngine, changed_spans, ground_grid, occupied_spans, resolve_precision
-from models.inference import prepare_for_inference
-from models.nvr import build_model
-from models.onednn import cpu_can_run_bfloat16
-from models.receptive import conv_chain
+from models.engine.async_render import AsyncRenderer
+from models.engine.cropped_encoder import CroppedVoxelEncoder, NarrowGround
+from models.engine.onednn import cpu_can_run_bfloat16
+from models.engine.receptive import conv_chain
+from models.engine.render_engine import (
+    BF16_BOUND,
+    RenderEngine,
+    changed_spans,
+    ground_grid,
+    occupied_spans,
+    resolve_precision,
+)
+from models.networks.checkpoint import save_model
+from models.networks.config import CompactConfig, PaperConfig
+from models.networks.inference import prepare_for_inference
+from models.networks.nvr import build_model
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
@@ -85,7 +92,7 @@ PLACED = ["gather", "voxel_branch", "splat_layout", "splat", "splat_branch", "li
 # The same, for edits that also change the lit floor (TINY_COMPACT reads it, as the shipped model does).
 FLOOR_BRANCH = ["gather", "voxel_branch", "splat", "floor_light", "splat_branch", "light"]
 FLOOR_PLACED = ["gather", "voxel_branch", "splat_layout", "splat", "floor_light", "splat_branch", "light"]
-# edit -> the stages the module docstring of models/engine.py says it reruns
+# edit -> the stages the module docstring of models/engine/render_engine.py says it reruns
 EDITS = {
     "light": (lambda s: s.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), ["floor_light", "splat_branch", "light"]),
     "floor color": (lambda s: s.with_changes(floor=FloorSpec((0.9, 0.2, 0.1))), ["background", *FLOOR_BRANCH]),
@@ -345,7 +352,7 @@ def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():
 
 
 def test_device_choice():
-    from models.engine import resolve_device
+    from models.engine.render_engine import resolve_device
 
     expected = "cuda" if torch.cuda.is_available() else "cpu"
     assert resolve_device("auto").type == expected and resolve_device("cpu").type == "cpu"

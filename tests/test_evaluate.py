@@ -7,9 +7,9 @@ from pathlib import Path
 import pytest
 import torch
 
-from models.checkpoint import save_model
-from models.config import CompactConfig
-from models.nvr import build_model
+from models.networks.checkpoint import save_model
+from models.networks.config import CompactConfig
+from models.networks.nvr import build_model
 from tests.fake_data import make_fake_dataset
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,7 +63,7 @@ def test_a_renderer_that_does_not_match_the_weights_is_refused(setup, tmp_path):
 
 
 def test_ground_share_splits_the_error_at_the_object_outline():
-    from models.evaluate import _ground_share
+    from models.evaluation.evaluate import _ground_share
     from renderer.camera import Camera
     from renderer.scene import FloorSpec, Scene
     from renderer.splat import floor_mask, ground_and_background

@@ -10,7 +10,7 @@ from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
-from renderer.pathtrace import render_pathtraced
+from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.scene import AMBIENT_RADIANCE, CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 from renderer.splat import background_color, floor_mask
 

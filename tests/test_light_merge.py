@@ -1,13 +1,13 @@
-"""The split light merge (models/light_merge.py): equal to the plain light decoder, per latent and per light."""
+"""The split light merge (models/engine/light_merge.py): equal to the plain light decoder, per latent and per light."""
 
 from __future__ import annotations
 
 import torch
 
-from models.inference import prepare_for_inference
-from models.light_merge import SplitLightMerge, split_light_merge
-from models.nvr import LightDecoder
-from models.onednn import use_onednn_convolutions
+from models.engine.light_merge import SplitLightMerge, split_light_merge
+from models.engine.onednn import use_onednn_convolutions
+from models.networks.inference import prepare_for_inference
+from models.networks.nvr import LightDecoder
 from tests.test_engine import TINY_COMPACT, TINY_PAPER, random_model
 
 

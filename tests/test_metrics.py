@@ -10,9 +10,9 @@ import pytest
 import torch
 from safetensors.torch import save_file
 
-from models.loss import RenderLoss
-from models.metrics import ImageMetrics, dssim, mse_255, ssim
-from models.perceptual import PerceptualLoss, hed_weights_file
+from models.evaluation.metrics import ImageMetrics, dssim, mse_255, ssim
+from models.training.loss import RenderLoss
+from models.training.perceptual import PerceptualLoss, hed_weights_file
 from renderer.errors import InputError
 
 C1, C2 = 0.01**2, 0.03**2

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from models.config import CompactConfig, NVRConfig, PaperConfig
-from models.inference import prepare_for_inference
-from models.loss import RenderLoss
-from models.nvr import LIGHT_SCALE, NVR, NVRPlus, build_model, light_to_network
+from models.networks.config import CompactConfig, NVRConfig, PaperConfig
+from models.networks.inference import prepare_for_inference
+from models.networks.nvr import LIGHT_SCALE, NVR, NVRPlus, build_model, light_to_network
+from models.training.loss import RenderLoss
 from renderer.scene import CAMERA_DISTANCE, LOOK_AT
 
 # The paper's structure (block counts, kernels, U-Net depth) at a tiny size and width.

@@ -1,4 +1,4 @@
-"""The oneDNN inference copy (models/onednn.py): fused activations and residual adds give the same images."""
+"""The oneDNN inference copy (models/engine/onednn.py): fused activations and residual adds give the same images."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import pytest
 import torch
 from torch import nn
 
-from models.inference import prepare_for_inference
-from models.onednn import FusedResidual, OneDnnConv, OneDnnConvTranspose, use_onednn_convolutions
+from models.engine.onednn import FusedResidual, OneDnnConv, OneDnnConvTranspose, use_onednn_convolutions
+from models.networks.inference import prepare_for_inference
 from tests.test_engine import TINY_COMPACT, TINY_PAPER, random_model
 
 

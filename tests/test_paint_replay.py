@@ -1,12 +1,12 @@
-"""The engine's paint replay (models/paint_replay.py): painting from a kept stroke list equals painting from scratch."""
+"""The engine's paint replay (models/engine/paint_replay.py): painting from a kept stroke list equals painting from scratch."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import models.paint_replay as paint_replay
-from models.paint_replay import PaintReplay
+import models.engine.paint_replay as paint_replay
+from models.engine.paint_replay import PaintReplay
 from renderer.paint import apply_paint, fill_object
 from renderer.scene import PaintOp
 

@@ -19,9 +19,9 @@ from scipy.spatial import ConvexHull
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
-from renderer.mitsuba_object import condition_faces
-from renderer.mitsuba_variant import LLVM_VARIANT, SCALAR_VARIANT, choose_variant, libllvm_version
-from renderer.pathtrace import LIGHT_RADIANCE, PathTracer, render_pathtraced, sample_passes
+from renderer.pathtrace.mitsuba_object import condition_faces
+from renderer.pathtrace.mitsuba_variant import LLVM_VARIANT, SCALAR_VARIANT, choose_variant, libllvm_version
+from renderer.pathtrace.path_tracer import LIGHT_RADIANCE, PathTracer, render_pathtraced, sample_passes
 from renderer.scene import AMBIENT_RADIANCE, CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 from renderer.transform import apply_transform, object_to_world
 
@@ -315,7 +315,7 @@ def test_scalar_fallback_renders_the_same_scene_when_llvm_does_not_load():
     program = (
         "import json, numpy as np\n"
         "from tests.test_pathtrace import make_scene, column\n"
-        "from renderer.pathtrace import render_pathtraced\n"
+        "from renderer.pathtrace.path_tracer import render_pathtraced\n"
         "r = render_pathtraced(make_scene(light=(1.0, 2.75, 0.5)), column(), size=32, spp=64)\n"
         "d = render_pathtraced(make_scene(light=(1.0, 2.75, 0.5)), column(), size=32, spp=4, denoise=True)\n"
         "print(json.dumps({'variant': r.variant, 'mean': float(r.image.mean()), 'denoised': float(d.image.mean())}))\n"

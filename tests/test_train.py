@@ -9,7 +9,7 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
-from models.train import CHECKPOINT, TrainConfig, batch_indices, train
+from models.training.train import CHECKPOINT, TrainConfig, batch_indices, train
 from renderer.errors import InputError
 from tests.fake_data import make_fake_dataset
 
@@ -82,10 +82,10 @@ def test_two_process_ddp_matches_one_process_with_the_same_total_batch(data, tmp
 
 
 def test_init_from_a_model_without_the_lit_floor_starts_out_computing_the_same_images(tmp_path):
-    from models.checkpoint import save_model
-    from models.config import CompactConfig
-    from models.nvr import build_model
-    from models.train import initialize_from
+    from models.networks.checkpoint import save_model
+    from models.networks.config import CompactConfig
+    from models.networks.nvr import build_model
+    from models.training.train import initialize_from
 
     old_config = CompactConfig(grid_size=16, output_size=32, floor_light_input=False)
     torch.manual_seed(3)
@@ -112,10 +112,10 @@ def test_init_from_a_model_without_the_lit_floor_starts_out_computing_the_same_i
 
 
 def test_nvr_started_from_nvr_plus_takes_its_voxel_and_light_branches_and_keeps_its_own_output_layer(tmp_path):
-    from models.checkpoint import save_model
-    from models.config import CompactConfig
-    from models.nvr import build_model
-    from models.train import initialize_from
+    from models.networks.checkpoint import save_model
+    from models.networks.config import CompactConfig
+    from models.networks.nvr import build_model
+    from models.training.train import initialize_from
 
     config = CompactConfig(grid_size=16, output_size=32)
     torch.manual_seed(5)
@@ -134,9 +134,9 @@ def test_nvr_started_from_nvr_plus_takes_its_voxel_and_light_branches_and_keeps_
 
 
 def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp_path):
-    from models.checkpoint import load_model, save_model
-    from models.config import CompactConfig
-    from models.nvr import build_model
+    from models.networks.checkpoint import load_model, save_model
+    from models.networks.config import CompactConfig
+    from models.networks.nvr import build_model
 
     old_config = CompactConfig(grid_size=16, output_size=32, floor_light_input=False)
     save_model(tmp_path / "old.safetensors", build_model("nvr_plus", old_config), old_config, {"steps": "77"})
@@ -149,7 +149,7 @@ def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp
 
 
 def test_learning_rate_is_constant_then_falls_linearly_over_the_last_steps():
-    from models.train import TrainConfig, learning_rate
+    from models.training.train import TrainConfig, learning_rate
 
     constant = TrainConfig(data=("d",), steps=10, lr=1e-3)
     assert [learning_rate(constant, step) for step in (0, 5, 9)] == [1e-3, 1e-3, 1e-3]

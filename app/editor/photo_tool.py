@@ -11,29 +11,43 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import trimesh
 
 from app.editor import edits, state
-from app.editor.jobs import Progress
+from app.editor.document import Document
+from app.editor.jobs import BackgroundJob, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
+from app.editor.voxel_cache import VoxelCache
 from renderer.capture.align import Alignment
 from renderer.capture.capture import find_pose
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.scene import Scene
 
-if TYPE_CHECKING:
-    from app.editor.app import EditorApp
-    from app.editor.voxel_cache import VoxelCache
-
 Shape = tuple[trimesh.Trimesh, tuple, SilhouetteRenderer]  # the object's shape, its shape_key, its silhouettes
+
+
+class Editor(Protocol):
+    """What the tool needs from the editor (app/editor/app.py's EditorApp has it): the document, the
+    voxel cache, the status line, undoable edits and background jobs."""
+
+    doc: Document
+    voxels: VoxelCache
+    job: BackgroundJob | None
+
+    def say(self, text: str, error: bool = False) -> None: ...
+
+    def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool: ...
+
+    def start_job(self, title: str, work: Callable[[Progress], object],
+                  on_result: Callable[[object], None]) -> None: ...
 
 
 class PhotoTool:
     """The photo being aligned (None before one is loaded) and what can be done with it."""
 
-    def __init__(self, app: EditorApp):
+    def __init__(self, app: Editor):
         self.app = app
         self.alignment: PhotoAlignment | None = None
         self._shape_tried: tuple | None = None  # shape_key last loaded (or tried) for the alignment

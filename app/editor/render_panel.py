@@ -1,6 +1,6 @@
 """The live render beside the viewport: the neural engine off the UI thread, or splatting when there is no model.
 
-All coupling to models/engine.py and models/async_render.py lives here. Without a trained
+All coupling to models/engine/render_engine.py and models/engine/async_render.py lives here. Without a trained
 model (RenderEngine.load raises InputError) a stand-in engine renders the splatted image S
 instead, and the panel says so. The AsyncRenderer renders only the newest scene submitted,
 so a drag never queues up stale frames.
@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from app.editor.voxel_cache import VoxelCache
-from models.async_render import AsyncRenderer
-from models.engine import RenderEngine, RenderReport, default_threads
+from models.engine.async_render import AsyncRenderer
+from models.engine.render_engine import RenderEngine, RenderReport, default_threads
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.pipeline import object_voxels, painted_voxels

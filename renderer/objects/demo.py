@@ -57,7 +57,7 @@ def write_demo_photo(folder: Path = DEMO_DIR) -> Path:
 
     from renderer.camera import Camera
     from renderer.capture.pose import PhotoPose
-    from renderer.pathtrace import render_pathtraced
+    from renderer.pathtrace.path_tracer import render_pathtraced
     from renderer.pipeline import object_mesh
 
     scene = replace(DEMO_SCENE, base_dir=folder)

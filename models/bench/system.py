@@ -119,7 +119,7 @@ def machine_description() -> dict[str, str]:
         names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines() if line.startswith("model name")]
         cpu = names[0] if names else cpu
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    from models.onednn import cpu_has_native_bfloat16
+    from models.engine.onednn import cpu_has_native_bfloat16
 
     bf16 = cpu_has_native_bfloat16()
     return {

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 from torch import nn
 
-from models.layers import ResidualBlock2d
-from models.onednn import OneDnnConv
+from models.engine.onednn import OneDnnConv
+from models.networks.layers import ResidualBlock2d
 
 Span = tuple[int, int]
 _CONVS = (nn.Conv2d, nn.Conv3d, OneDnnConv)

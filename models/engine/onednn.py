@@ -2,7 +2,7 @@
 
 At batch 1, torch sends a convolution with kernels of at most 3 to a slow reference path
 (im2col) unless channels x (first two spatial sizes) exceeds 20480. The full 128^3 grid passes
-that test, but the crops of models/cropped_encoder.py often do not, and there the reference
+that test, but the crops of models/engine/cropped_encoder.py often do not, and there the reference
 path was up to 6x slower than oneDNN on the same crop. `torch.ops.aten.mkldnn_convolution`
 is the oneDNN call torch itself makes for large inputs, so the numbers are the same kind.
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from models.layers import ResidualBlock2d
+from models.networks.layers import ResidualBlock2d
 
 NO_ACTIVATION = ("none", [])
 

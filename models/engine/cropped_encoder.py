@@ -3,7 +3,7 @@
 Without its object the grid holds only the ground, which depends on the camera elevation and
 the floor color alone; its features (`Background`) are computed once per pair. An object changes
 only the outputs whose receptive field reaches one of its voxels. `plan` finds them with the
-arithmetic of models/receptive.py; `encode` runs the network's own layers on a crop of the grid
+arithmetic of models/engine/receptive.py; `encode` runs the network's own layers on a crop of the grid
 that holds everything those outputs read (snapped to the strides, so the crop's outputs line up
 with the full grid's) and pastes them over the background: first the 3D stack, then the
 depth-folding projection and the 2D blocks over the changed latent rows and columns.
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import torch
 
-from models.nvr import VoxelEncoder
-from models.receptive import ConvChain, Span, conv_chain
+from models.engine.receptive import ConvChain, Span, conv_chain
+from models.networks.nvr import VoxelEncoder
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ Renderers: path tracing at 1, 4, 16, 64 and 256 spp, raw and denoised by OIDN; s
 and NVR+ through the live engine for every weights file (--model, else assets/models/*.safetensors);
 for timing only, the compact networks when they have no weights yet and the paper configuration,
 with random weights. For each: median time per frame at 256^2 and its interquartile range over
-all scenes and repeats, peak memory (models/bench_system.py), and MSE, DSSIM and the perceptual
+all scenes and repeats, peak memory (models/bench/system.py), and MSE, DSSIM and the perceptual
 distance against a raw path-traced reference of the same scene (1024 spp; --quick: 32).
 Also: the engine's latency per edit type with the object crop and with the full grid, the FLOPs
 per frame of each network configuration, and the share of a measured fp32 matmul peak they imply.
@@ -35,26 +35,26 @@ import numpy as np
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
-from models.bench_plot import Point, draw_speed_vs_error, pareto_front
-from models.bench_scenes import BenchScene, data_scenes, procedural_scenes
-from models.bench_system import PeakMemory, cpu_snapshot, machine_description, other_load
-from models.checkpoint import load_model
-from models.config import CompactConfig, NVRConfig, PaperConfig
-from models.engine import RenderEngine, resolve_precision
-from models.evaluate import ASSET_MODELS
-from models.inference import prepare_for_inference
-from models.metrics import ImageMetrics
-from models.nvr import build_model, reads_floor_light
+from models.bench.plot import Point, draw_speed_vs_error, pareto_front
+from models.bench.scenes import BenchScene, data_scenes, procedural_scenes
+from models.bench.system import PeakMemory, cpu_snapshot, machine_description, other_load
+from models.engine.render_engine import RenderEngine, resolve_precision
+from models.evaluation.evaluate import ASSET_MODELS
+from models.evaluation.metrics import ImageMetrics
+from models.networks.checkpoint import load_model
+from models.networks.config import CompactConfig, NVRConfig, PaperConfig
+from models.networks.inference import prepare_for_inference
+from models.networks.nvr import build_model, reads_floor_light
 from renderer.errors import InputError
 from renderer.io import save_json
-from renderer.pathtrace import PathTracer
+from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
 from renderer.splat import splat_scene
 
 SIZE = 256
 REFERENCE_SEED = 1_000_003
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 FAMILY = {"nvr_plus": "NVR+", "nvr": "NVR"}
 
 
@@ -384,15 +384,18 @@ def _point(row: Row) -> Point:
     return Point(row.label, row.family, row.ms, row.mse)
 
 
-def write_outputs(results: dict[str, Any], report: Path, json_path: Path | None) -> None:
-    """The Markdown report, the figure beside it, and the JSON numbers."""
-    from models.bench_report import write_report
+REPORT_FILES = ("benchmarks.md", "benchmarks.json", "speed_vs_error.png")
 
+
+def write_outputs(results: dict[str, Any], folder: Path) -> None:
+    """The Markdown report, the JSON numbers and the speed-against-error figure, in one folder."""
+    from models.bench.report import write_report
+
+    folder.mkdir(parents=True, exist_ok=True)
+    report, numbers, figure = (folder / name for name in REPORT_FILES)
     rows = [r for r in results["renderers"] if r["mse"] is not None]
-    figure = report.parent / "speed_vs_error.png"
     # The figure's labels leave out the weights file names, which the table gives.
     draw_speed_vs_error([Point(re.sub(r" \([^)]*\.safetensors\)", "", r["label"]), r["family"], r["ms"], r["mse"])
                          for r in rows], figure)
     write_report(results, report, figure)
-    if json_path is not None:
-        save_json(json_path, results)
+    save_json(numbers, results)

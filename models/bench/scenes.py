@@ -51,7 +51,7 @@ def procedural_scenes(folder: Path, count: int) -> list[BenchScene]:
 
 def data_scenes(folders: list[str | Path], count: int) -> list[BenchScene]:
     """The first view of up to `count` objects of test data folders (renderer/dataset.py), meshes rebuilt from their seeds."""
-    from models.data import read_manifest
+    from models.training.data import read_manifest
 
     scenes: list[BenchScene] = []
     for folder in map(Path, folders):

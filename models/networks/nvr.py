@@ -27,8 +27,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from models.config import IMAGE_CHANNELS, LIGHT_DIMS, VOXEL_CHANNELS_IN, NVRConfig
-from models.layers import (
+from models.networks.config import IMAGE_CHANNELS, LIGHT_DIMS, VOXEL_CHANNELS_IN, NVRConfig
+from models.networks.layers import (
     ResidualBlock2d,
     ResidualBlock3d,
     ResidualStack,

@@ -1,12 +1,12 @@
 """The live renderer of NVR Studio: a scene in, an image out, redoing only the stages an edit touched.
 
 The model is loaded once and turned into an inference copy (BatchNorm folded, channels-last,
-convolutions on oneDNN with their activations fused, the light merge split: models/light_merge.py).
+convolutions on oneDNN with their activations fused, the light merge split: models/engine/light_merge.py).
 Every stage keeps its last result with the exact scene parts it was computed from, and reruns only
 when those change:
 
     stage         depends on                                              result
-    voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/paint_replay.py)
+    voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/engine/paint_replay.py)
     paint         voxels, object color, region/object paint strokes       painted object voxels (from the
                                                                           longest stroke list painted before)
     pool          paint, merge factors (resolution, scale)                merged voxels (after a paint edit:
@@ -41,11 +41,11 @@ light move reruns the light stage alone):
                                   splat, splat_branch, light
     nothing                       none (the last image again)
 
-The voxel branch runs only around the object (models/cropped_encoder.py): the ground's
+The voxel branch runs only around the object (models/engine/cropped_encoder.py): the ground's
 features come from the background stage (computed on a ground grid a few columns wide, since
 the ground is the same in every column), the object's from a crop of the grid around the voxels
 that differ from the ground, and the result equals the full-grid encode_voxels (`crop=False`). The engine is not thread-safe: one caller at
-a time (models/async_render.py runs it on a worker thread).
+a time (models/engine/async_render.py runs it on a worker thread).
 
 Precision: on a CPU with native bfloat16 (AVX512-BF16) the network runs in bfloat16 by default
 (`precision="auto"`): an object-transform frame took 29.6 ms instead of 39.1 (nvr bench, session 5); images
@@ -57,36 +57,25 @@ which are CPU kernels; the stages and their caching are the same.
 from __future__ import annotations
 
 import os
-import sys
-import warnings
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, NamedTuple
 
-# OpenMP reads this when torch loads it: passive waiting keeps idle worker threads from spinning,
-# which made 2-thread rendering 10x slower when other processes shared the cores (measured here).
-if "torch" in sys.modules and "OMP_WAIT_POLICY" not in os.environ:
-    warnings.warn("models.engine was imported after torch, so OMP_WAIT_POLICY=PASSIVE is not in effect and "
-                  "rendering may be 10x slower on a shared CPU: import models.engine first, or set the variable",
-                  stacklevel=2)
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+import numpy as np
+import torch
 
-import time  # noqa: E402
-from collections.abc import Callable  # noqa: E402
-from dataclasses import dataclass, field, replace  # noqa: E402
-from pathlib import Path  # noqa: E402
-from typing import Any, NamedTuple  # noqa: E402
-
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-
-from models.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan  # noqa: E402
-from models.inference import prepare_for_inference  # noqa: E402
-from models.light_merge import split_light_merge  # noqa: E402
-from models.nvr import NVR, NVRPlus, light_to_network, reads_floor_light  # noqa: E402
-from models.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, use_onednn_convolutions  # noqa: E402
-from models.paint_replay import PaintReplay  # noqa: E402
-from renderer.camera import Camera  # noqa: E402
-from renderer.errors import InputError  # noqa: E402
-from renderer.floor_light import lit_floor_image  # noqa: E402
-from renderer.grid import (  # noqa: E402
+from models.engine.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan
+from models.engine.light_merge import split_light_merge
+from models.engine.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, use_onednn_convolutions
+from models.engine.paint_replay import PaintReplay
+from models.networks.inference import prepare_for_inference
+from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light
+from renderer.camera import Camera
+from renderer.errors import InputError
+from renderer.floor_light import lit_floor_image
+from renderer.grid import (
     gather,
     grid_index_to_world,
     ground_mask,
@@ -97,12 +86,12 @@ from renderer.grid import (  # noqa: E402
     sample_indices,
     voxel_table,
 )
-from renderer.paint import apply_paint  # noqa: E402
-from renderer.pipeline import object_voxels  # noqa: E402
-from renderer.scene import Scene  # noqa: E402
-from renderer.splat import SplatLayout, color_splat, splat_layout  # noqa: E402
-from renderer.surface import Shell, occupancy  # noqa: E402
-from renderer.transform import object_to_world  # noqa: E402
+from renderer.paint import apply_paint
+from renderer.pipeline import object_voxels
+from renderer.scene import Scene
+from renderer.splat import SplatLayout, color_splat, splat_layout
+from renderer.surface import Shell, occupancy
+from renderer.transform import object_to_world
 
 KINDS = {"nvr+": "nvr_plus", "nvr": "nvr"}  # renderer name -> network architecture
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
@@ -178,8 +167,8 @@ class RenderEngine:
     @classmethod
     def load(cls, path: str | Path | None, kind: str = "nvr+", **options: Any) -> RenderEngine:
         """The engine for a weights file (None: the shipped model of `kind`, 'nvr+' or 'nvr')."""
-        from models.checkpoint import load_model
-        from models.evaluate import shipped_model
+        from models.evaluation.evaluate import shipped_model
+        from models.networks.checkpoint import load_model
 
         if kind not in KINDS:
             raise InputError(f"unknown network renderer {kind!r} (choose from {', '.join(KINDS)})")

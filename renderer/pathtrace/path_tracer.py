@@ -25,8 +25,8 @@ import trimesh
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
-from renderer.mitsuba_object import object_shapes
-from renderer.mitsuba_variant import active_variant
+from renderer.pathtrace.mitsuba_object import object_shapes
+from renderer.pathtrace.mitsuba_variant import active_variant
 from renderer.scene import (
     AMBIENT_RADIANCE,
     FLOOR_HALF_SIZE,

@@ -1,6 +1,6 @@
 """Training samples from a data folder made by `nvr data generate` (see renderer/dataset.py).
 
-Each sample gives the network's three inputs and its target, in the convention of models/nvr.py:
+Each sample gives the network's three inputs and its target, in the convention of models/networks/nvr.py:
 voxels (4, D, H, W) in [0, 1], light (3,) in camera coordinates (scaled), splat (3, S, S) and
 target (3, S, S) in sRGB [0, 1]. Object voxels are read once per object and kept; the scene grid
 is resampled per sample (tens of milliseconds), which is cheap next to a training step.
@@ -40,7 +40,7 @@ def image_tensor(path: Path) -> torch.Tensor:
 
 def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size: int) -> tuple[torch.Tensor, torch.Tensor]:
     """The voxel grid (4, D, H, W) and scaled camera-space light (3,) the network reads for a scene."""
-    from models.nvr import light_to_network
+    from models.networks.nvr import light_to_network
     from renderer.grid import scene_grid
 
     grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size=grid_size)

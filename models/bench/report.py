@@ -1,4 +1,4 @@
-"""docs/benchmarks.md from the numbers of one `nvr bench` run (models/bench.py)."""
+"""docs/benchmarks.md from the numbers of one `nvr bench` run (models/bench/benchmark.py)."""
 
 from __future__ import annotations
 
@@ -127,7 +127,7 @@ def _method(r: dict[str, Any]) -> list[str]:
         "voxelised once per scene. Networks run in the precision named in their row: bf16 (bfloat16, the "
         "engine's default where the CPU computes it natively) or fp32.",
         f"- Peak memory: resident memory above the level before each renderer ({r['memory_method']}).",
-        "- Errors: mean over scenes of MSE (0-255), DSSIM and the perceptual distance of models/metrics.py against "
+        "- Errors: mean over scenes of MSE (0-255), DSSIM and the perceptual distance of models/evaluation/metrics.py against "
         f"the {r['reference_spp']}-spp reference, whose own noise is included. Networks with random weights are timed only.",
         "- Pareto front: no other renderer is both at least as fast and at least as accurate (MSE).",
     ]

@@ -16,13 +16,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from models.data import VoxelRenderSet
-from models.metrics import ImageMetrics
-from models.nvr import reads_floor_light
+from models.evaluation.metrics import ImageMetrics
+from models.networks.nvr import reads_floor_light
+from models.training.data import VoxelRenderSet
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 
-ASSET_MODELS = Path(__file__).resolve().parents[1] / "assets" / "models"
+ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_compact.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
 FIGURE_SAMPLES = 6
 
@@ -37,7 +37,7 @@ def shipped_model(renderer: str) -> Path:
 
 def _load_renderer(model_path: str | None, renderer: str):
     """(model, config, extra) of a network renderer, or Nones for the splat baseline."""
-    from models.checkpoint import load_model
+    from models.networks.checkpoint import load_model
 
     if renderer == "splat":
         return None, None, {}

@@ -1,6 +1,6 @@
 """The training loss of equation 2: L1 + beta * perceptual, beta = config.perceptual_weight.
 
-Default beta (2e-3, in models/config.py) balances the two terms by error type, measured on a
+Default beta (2e-3, in models/networks/config.py) balances the two terms by error type, measured on a
 synthetic 256^2 scene: for a slight blur (sigma 1 px) the perceptual term is about 4x the L1
 term (it is what sharpens the output), for a uniform colour shift of 3/255 the L1 term is about
 5x the perceptual one (L1 keeps colours right), for noise they are about equal.
@@ -13,7 +13,7 @@ from pathlib import Path
 import torch
 from torch import nn
 
-from models.perceptual import PerceptualLoss
+from models.training.perceptual import PerceptualLoss
 
 
 class RenderLoss(nn.Module):

@@ -5,7 +5,7 @@ All functions take sRGB image batches (B, 3, H, W) in [0, 1] and return one valu
 - DSSIM = (1 - SSIM) / 2, SSIM after Wang et al. 2004: 11x11 Gaussian window (sigma 1.5), only
   windows fully inside the image, constants C1 = (0.01 L)^2 and C2 = (0.03 L)^2 with L = 1 (the
   data range of [0, 1] images), computed per channel in float64 and averaged over channels.
-- perceptual: the loss term of equation 2 (models/perceptual.py), same layers and weights.
+- perceptual: the loss term of equation 2 (models/training/perceptual.py), same layers and weights.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import torch
 import torch.nn.functional as F
 
-from models.perceptual import PerceptualLoss
+from models.training.perceptual import PerceptualLoss
 
 SSIM_WINDOW = 11
 SSIM_SIGMA = 1.5

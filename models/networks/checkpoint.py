@@ -14,8 +14,8 @@ from typing import Any
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import save_file
 
-from models.config import NVRConfig
-from models.nvr import ARCHITECTURES, NVR, NVRPlus, build_model
+from models.networks.config import NVRConfig
+from models.networks.nvr import ARCHITECTURES, NVR, NVRPlus, build_model
 from renderer.errors import InputError
 from renderer.io import atomic_path
 

