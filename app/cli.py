@@ -42,6 +42,8 @@ def cmd_render(args: argparse.Namespace) -> None:
     start = time.perf_counter()
     if args.renderer == "splat":
         image, detail = _render_splat(scene, size)
+    elif args.renderer == "shaded":
+        image, detail = _render_shaded(scene, size)
     elif args.renderer == "pathtrace":
         image, detail = _render_pathtrace(scene, size, args)
     else:
@@ -57,6 +59,14 @@ def _render_splat(scene, size: int):
 
     rgba, floor_color = painted_voxels(scene, object_voxels(scene))
     return splat_scene(scene, rgba, floor_color, size=size), ""
+
+
+def _render_shaded(scene, size: int):
+    from renderer.pipeline import object_voxels, painted_voxels
+    from renderer.shading import shade_scene
+
+    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+    return shade_scene(scene, rgba, floor_color, size=size).image, ""
 
 
 def _render_pathtrace(scene, size: int, args: argparse.Namespace):
@@ -261,7 +271,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a scene file to a PNG")
     p.add_argument("scene", help="scene file (JSON, version 1)")
     p.add_argument("-o", "--output", required=True, help="PNG to write")
-    p.add_argument("--renderer", choices=["splat", "pathtrace", "nvr", "nvr+"], default="splat")
+    p.add_argument("--renderer", choices=["splat", "shaded", "pathtrace", "nvr", "nvr+"], default="splat",
+                   help="splat: voxel colors; shaded: the voxels lit physically (soft shadows, lit floor); "
+                        "pathtrace: the mesh in Mitsuba 3; nvr, nvr+: the networks")
     p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
     p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
     p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")
@@ -342,7 +354,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("eval", help="table 1 metrics of a model (or the splat baseline) on a test split")
     p.add_argument("--data", required=True, nargs="+", help="test data folders")
     p.add_argument("--model", default=None, help="weights (.safetensors); default: the shipped model")
-    p.add_argument("--renderer", choices=["nvr+", "nvr", "splat"], default="nvr+")
+    p.add_argument("--renderer", choices=["nvr+", "nvr", "shaded", "splat"], default="nvr+")
     p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
     p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
     p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",

@@ -47,21 +47,40 @@ ENVIRONMENT_SCALE = 0.69
 
 def lit_floor_image(camera: Camera, light_position, floor_color) -> np.ndarray:
     """(H, W, 3) float32 sRGB image of the empty floor lit by the light at `light_position` (world)."""
+    geometry = _coarse_geometry(camera)
+    from_light, from_ambient = _coarse_radiance(geometry, light_position, floor_color)
+    floor = _upsample(linear_to_srgb(from_light + from_ambient).astype(np.float32), geometry)  # smooth: sRGB interpolates well
+    background = np.float32(linear_to_srgb(AMBIENT_RADIANCE))
+    return np.where(geometry.floor[..., None], floor, background)
+
+
+def lit_floor_terms(camera: Camera, light_position, floor_color) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The empty floor's linear radiance (H, W, 3) split by source, so a shader can shadow and occlude each:
+    what the area light gives (diffuse and glossy), what the ambient light gives, and the floor mask (H, W).
+    Both are zero off the floor."""
+    geometry = _coarse_geometry(camera)
+    from_light, from_ambient = _coarse_radiance(geometry, light_position, floor_color)
+    mask = geometry.floor[..., None]
+    return (np.where(mask, _upsample(from_light, geometry), 0.0).astype(np.float32),
+            np.where(mask, _upsample(from_ambient, geometry), 0.0).astype(np.float32), geometry.floor)
+
+
+def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:
+    """Linear radiance (h, w, 3) of the coarse floor points: from the area light, from the ambient light."""
     light = np.asarray(light_position, dtype=np.float64)
     color = np.asarray(floor_color, dtype=np.float64)
     if light.shape != (3,) or not np.all(np.isfinite(light)) or light[1] <= 0.0:
         raise InputError(f"light position must be 3 finite values above the floor, got {light_position!r}")
     if color.shape != (3,) or not np.all(np.isfinite(color)):
         raise InputError(f"floor color must be 3 finite sRGB values, got {floor_color!r}")
-    geometry = _coarse_geometry(camera)
+    albedo = srgb_to_linear(color).astype(np.float32)
     diffuse_irradiance, glossy = _light_terms(geometry, light)
-    irradiance = LIGHT_RADIANCE * diffuse_irradiance + AMBIENT_RADIANCE * np.maximum(math.pi - diffuse_irradiance, 0.0)
-    base = irradiance / math.pi * (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel)
-    coat = LIGHT_RADIANCE * glossy + ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel
-    coarse = base[..., None] * srgb_to_linear(color).astype(np.float32) + coat[..., None]  # (h, w, 3) linear
-    floor = _upsample(linear_to_srgb(coarse).astype(np.float32), geometry)  # smooth, so sRGB interpolates well
-    background = np.float32(linear_to_srgb(AMBIENT_RADIANCE))
-    return np.where(geometry.floor[..., None], floor, background)
+    through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
+    light_base = LIGHT_RADIANCE * diffuse_irradiance * through_coat
+    ambient_base = AMBIENT_RADIANCE * np.maximum(math.pi - diffuse_irradiance, 0.0) * through_coat
+    from_light = light_base[..., None] * albedo + (LIGHT_RADIANCE * glossy)[..., None]
+    from_ambient = ambient_base[..., None] * albedo + (ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel)[..., None]
+    return from_light.astype(np.float32), from_ambient.astype(np.float32)
 
 
 # --- per-camera geometry (cached: the editor lights many frames with one camera) ------------

@@ -46,10 +46,12 @@ from models.networks.config import CompactConfig, NVRConfig, PaperConfig
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import build_model, reads_floor_light
 from renderer.errors import InputError
+from renderer.grid import scene_grid
 from renderer.io import save_json
 from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.shading import object_geometry, shade, shade_scene, visible_surface
 from renderer.splat import splat_scene
 
 SIZE = 256
@@ -113,6 +115,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
 
         rows = bench_pathtracing(tracers, settings, memory, score)
         rows.append(bench_splatting(scenes, settings, memory, score))
+        shader_row, shader_light_ms = bench_shading(scenes, settings, memory, score)
+        rows.append(shader_row)
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         for engine in trained:
             rows.append(bench_network(engine, scenes, settings, memory, score))
@@ -132,6 +136,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "nvrplus_light_edit_ms": edits["light"]["ms"],
         "nvrplus_frame_ms": edits["object transform"]["ms"],
         "pathtrace_1spp_oidn_ms": rival.ms,
+        "shader_frame_ms": shader_row.ms,
+        "shader_light_edit_ms": statistics.median(shader_light_ms),
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "quick": settings == QUICK,
         "seconds": time.perf_counter() - started,
@@ -183,6 +189,32 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
         images.append(splat_scene(bench.scene, rgba, floor, size=SIZE))
         times += _time_ms(lambda: splat_scene(bench.scene, rgba, floor, size=SIZE), settings.repeats)  # noqa: B023
     return Row("splatting", "", *_spread(times), memory.peak_mb(), **score(images))
+
+
+def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
+                  score: Callable[[list[np.ndarray]], dict]) -> tuple[Row, list[float]]:
+    """The voxel shader: a frame after an object transform (scene grid and all three stages, the voxels
+    painted once per scene) and, separately, a light edit (the light stage alone)."""
+    memory.start()
+    times, light_times, images = [], [], []
+    for bench in scenes:
+        rgba, floor = painted_voxels(bench.scene, object_voxels(bench.scene))
+        first, second = transform_pair(bench.scene)
+        images.append(shade_scene(bench.scene, rgba, floor, size=SIZE).image)
+        for _ in range(settings.repeats):
+            for scene in (first, second):
+                start = time.perf_counter()
+                shade_scene(scene, rgba, floor, size=SIZE)
+                times.append(_ms_since(start))
+        grid = scene_grid(rgba, bench.scene.object, floor, bench.scene.camera.elevation_deg)
+        geometry = object_geometry(grid, bench.scene.camera.elevation_deg)
+        surface = visible_surface(geometry, SIZE)
+        lights = [bench.scene.light.position, tuple(np.add(bench.scene.light.position, (0.1, 0.0, 0.05)))]
+        for index in range(2 * settings.repeats):
+            start = time.perf_counter()
+            shade(geometry, surface, lights[index % 2], floor)
+            light_times.append(_ms_since(start))
+    return Row("voxel shader", "", *_spread(times), memory.peak_mb(), **score(images)), light_times
 
 
 def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,

@@ -16,7 +16,7 @@ from renderer.io import atomic_path
 
 WIDTH, HEIGHT = 1100, 760
 MARGIN_LEFT, MARGIN_RIGHT, MARGIN_TOP, MARGIN_BOTTOM = 90, 30, 50, 70
-FAMILY_COLORS = {"path tracing": (200, 80, 40), "splatting": (60, 140, 60), "NVR": (70, 110, 200), "NVR+": (130, 60, 170)}
+FAMILY_COLORS = {"path tracing": (200, 80, 40), "splatting": (60, 140, 60), "voxel shader": (200, 150, 0), "NVR": (70, 110, 200), "NVR+": (130, 60, 170)}
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from models.networks.nvr import reads_floor_light
 from models.training.data import VoxelRenderSet
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
+from renderer.scene import GRID_SIZE
 
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_compact.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
@@ -36,10 +37,10 @@ def shipped_model(renderer: str) -> Path:
 
 
 def _load_renderer(model_path: str | None, renderer: str):
-    """(model, config, extra) of a network renderer, or Nones for the splat baseline."""
+    """(model, config, extra) of a network renderer, or Nones for the splat and the shader."""
     from models.networks.checkpoint import load_model
 
-    if renderer == "splat":
+    if renderer in ("splat", "shaded"):
         return None, None, {}
     path = Path(model_path) if model_path else shipped_model(renderer)
     model, config, extra = load_model(path)
@@ -90,7 +91,8 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
 def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics, limit: int,
            object_resolution: int | None = None):
     """Per-setting metric lists, the first figure rows, and the sample count."""
-    grid_size = 8 if config is None else config.grid_size  # the splat baseline reads no voxels
+    # The splat baseline reads no voxels; the shader reads the scene grid.
+    grid_size = GRID_SIZE if renderer == "shaded" else 8 if config is None else config.grid_size
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
@@ -100,7 +102,9 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
         for index in range(count):
             sample = dataset[index]
             target = sample["target"][None]
-            if model is None:
+            if renderer == "shaded":
+                prediction = _shaded(sample["voxels"], dataset.scene(index), target.shape[-1])
+            elif model is None:
                 prediction = sample["splat"][None]
             else:
                 if target.shape[-1] != config.output_size:
@@ -115,6 +119,15 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                 inputs = [sample["splat"]] + ([sample["floor_light"]] if with_floor_light else [])
                 rows.append(torch.cat([*inputs, prediction[0], target[0]], dim=2))
     return scores, rows, count
+
+
+def _shaded(voxels: torch.Tensor, scene, size: int) -> torch.Tensor:
+    """The voxel shader's image (1, 3, S, S) of a sample's grid (4, D, H, W)."""
+    from renderer.shading import shade_grid
+
+    shaded = shade_grid(voxels.numpy().transpose(1, 2, 3, 0), scene.light.position, scene.camera.elevation_deg,
+                        scene.floor.color, size)
+    return torch.from_numpy(np.ascontiguousarray(shaded.image.transpose(2, 0, 1)))[None]
 
 
 def _ground_share(prediction: torch.Tensor, target: torch.Tensor, splat: torch.Tensor, scene) -> float:
@@ -135,7 +148,7 @@ def _write_report(report: Path, figure: Path, columns: str, renderer: str, model
     lines = [
         f"# Evaluation: {renderer}",
         "",
-        f"- model: {model_path or ('shipped' if renderer != 'splat' else 'none (splat baseline)')}"
+        f"- model: {model_path or ('shipped' if renderer not in ('splat', 'shaded') else 'none (' + renderer + ')')}"
         + (f", trained {extra.get('steps', '?')} steps" if extra else "")
         + (f" starting from {extra['init']} (trained {extra.get('init_steps', '?')} steps)" if extra.get("init") else ""),
         f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",

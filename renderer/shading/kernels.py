@@ -1,0 +1,193 @@
+"""Compiled loops of the voxel shader (numba, cached on disk): rays through fields, shadow maps, occlusion.
+
+numpy would need every ray's steps as arrays of (rays x steps); these loops stop each ray where it
+hits and skip empty space by the distance field, so their work follows the object, not the grid.
+Coordinates are a crop's voxel coordinates: voxel (i, j, k) spans [i, i+1) x [j, j+1) x [k, k+1),
+its centre at (i + 0.5, j + 0.5, k + 0.5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+FAR = np.float32(3.0e38)
+
+
+@njit(cache=True, inline="always")
+def sample(field, x, y, z):
+    """Trilinear sample of `field` at crop coordinates (x, y, z); clamped to the crop's edge voxels."""
+    n0, n1, n2 = field.shape
+    x = min(max(x - 0.5, 0.0), n0 - 1.000001)
+    y = min(max(y - 0.5, 0.0), n1 - 1.000001)
+    z = min(max(z - 0.5, 0.0), n2 - 1.000001)
+    i, j, k = int(x), int(y), int(z)
+    fx, fy, fz = x - i, y - j, z - k
+    i1, j1, k1 = min(i + 1, n0 - 1), min(j + 1, n1 - 1), min(k + 1, n2 - 1)
+    c00 = field[i, j, k] * (1 - fz) + field[i, j, k1] * fz
+    c01 = field[i, j1, k] * (1 - fz) + field[i, j1, k1] * fz
+    c10 = field[i1, j, k] * (1 - fz) + field[i1, j, k1] * fz
+    c11 = field[i1, j1, k] * (1 - fz) + field[i1, j1, k1] * fz
+    return (c00 * (1 - fy) + c01 * fy) * (1 - fx) + (c10 * (1 - fy) + c11 * fy) * fx
+
+
+@njit(cache=True, inline="always")
+def _box_interval(ox, oy, oz, dx, dy, dz, n0, n1, n2):
+    """Ray parameters [t0, t1] inside the box [0, n0] x [0, n1] x [0, n2] (t0 > t1: the ray misses it)."""
+    t0, t1 = 0.0, 1.0e30
+    for o, d, n in ((ox, dx, n0), (oy, dy, n1), (oz, dz, n2)):
+        if abs(d) < 1e-12:
+            if o < 0.0 or o > n:
+                return 1.0, 0.0
+        else:
+            a, b = (0.0 - o) / d, (n - o) / d
+            if a > b:
+                a, b = b, a
+            t0, t1 = max(t0, a), min(t1, b)
+    return t0, t1
+
+
+@njit(cache=True, parallel=True)
+def trace_surface(distance, core, level, probe, origin, directions, hits, points, deepest, cores):
+    """Sphere-trace unit `directions` from `origin` to where `distance` (voxels to the nearest occupied
+    voxel) falls to `level`: hits[i] = ray parameter (FAR if none), points[i] = the crop point,
+    deepest[i] = the least distance within `probe` voxels past the hit (how far inside the ray goes:
+    a ray that only grazes a part stays near `level`), cores[i] = `core` at the hit (the least distance
+    of the part around it: 0 inside a thick part, more in a thin one)."""
+    n0, n1, n2 = distance.shape
+    for i in prange(directions.shape[0]):
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        hits[i] = FAR
+        deepest[i] = FAR
+        t, t_end = _box_interval(origin[0], origin[1], origin[2], dx, dy, dz, n0, n1, n2)
+        for _ in range(256):
+            if t > t_end:
+                break
+            x, y, z = origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz
+            gap = sample(distance, x, y, z) - level
+            if gap < 0.02:
+                hits[i] = t
+                points[i, 0], points[i, 1], points[i, 2] = x, y, z
+                least = gap + level
+                for k in range(1, 9):
+                    s = t + probe * k / 8.0
+                    least = min(least, sample(distance, origin[0] + s * dx, origin[1] + s * dy, origin[2] + s * dz))
+                deepest[i] = least
+                cores[i] = sample(core, x, y, z)
+                break
+            t += max(gap, 0.05)
+
+
+@njit(cache=True, parallel=True)
+def surface_normals_and_colors(smooth, occupied, rgb, points, normals, colors):
+    """Per surface point: the unit normal (the gradient of the smoothed distance field) and the color of
+    the nearest occupied voxel (within two voxels; grey if none)."""
+    n0, n1, n2 = occupied.shape
+    for i in prange(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        gx = sample(smooth, x + 1.0, y, z) - sample(smooth, x - 1.0, y, z)
+        gy = sample(smooth, x, y + 1.0, z) - sample(smooth, x, y - 1.0, z)
+        gz = sample(smooth, x, y, z + 1.0) - sample(smooth, x, y, z - 1.0)
+        norm = math.sqrt(gx * gx + gy * gy + gz * gz)
+        if norm > 1e-9:
+            normals[i, 0], normals[i, 1], normals[i, 2] = gx / norm, gy / norm, gz / norm
+        else:
+            normals[i, 0], normals[i, 1], normals[i, 2] = 0.0, 0.0, 0.0
+        best = 1e30
+        colors[i, 0], colors[i, 1], colors[i, 2] = 0.5, 0.5, 0.5
+        ci, cj, ck = int(x), int(y), int(z)
+        for a in range(max(ci - 2, 0), min(ci + 3, n0)):
+            for b in range(max(cj - 2, 0), min(cj + 3, n1)):
+                for c in range(max(ck - 2, 0), min(ck + 3, n2)):
+                    if occupied[a, b, c]:
+                        d2 = (a + 0.5 - x) ** 2 + (b + 0.5 - y) ** 2 + (c + 0.5 - z) ** 2
+                        if d2 < best:
+                            best = d2
+                            colors[i, 0], colors[i, 1], colors[i, 2] = rgb[a, b, c, 0], rgb[a, b, c, 1], rgb[a, b, c, 2]
+
+
+@njit(cache=True, parallel=True)
+def occlusion_along(field, points, directions, distances, weights, out):
+    """out[i] = sum_k weights[k] * field(points[i] + distances[k] * directions[i]): how much occupied space
+    lies along each direction (a cheap ambient-occlusion estimate from smoothed occupancy)."""
+    for i in prange(points.shape[0]):
+        total = 0.0
+        for k in range(distances.shape[0]):
+            s = distances[k]
+            total += weights[k] * sample(field, points[i, 0] + s * directions[i, 0], points[i, 1] + s * directions[i, 1],
+                                         points[i, 2] + s * directions[i, 2])
+        out[i] = total
+
+
+@njit(cache=True, parallel=True)
+def build_shadow_maps(occluders, radius, lights, size, depth, bounds):
+    """One depth map per point on the light, looking straight down: map coordinates
+    a = (x - lx) / (ly - y), b = (z - lz) / (ly - y), depth = ly - y, the nearest occluder (a sphere of
+    `radius` world units around each occupied voxel centre) per texel. bounds[k] = a0, b0, texel size."""
+    count = occluders.shape[0]
+    for k in prange(lights.shape[0]):
+        lx, ly, lz = lights[k, 0], lights[k, 1], lights[k, 2]
+        a_min, a_max, b_min, b_max = 1e30, -1e30, 1e30, -1e30
+        for m in range(count):
+            h = ly - occluders[m, 1]
+            if h <= radius:
+                continue
+            a = (occluders[m, 0] - lx) / h
+            b = (occluders[m, 2] - lz) / h
+            r = radius / h
+            a_min, a_max = min(a_min, a - r), max(a_max, a + r)
+            b_min, b_max = min(b_min, b - r), max(b_max, b + r)
+        for u in range(size):
+            for v in range(size):
+                depth[k, u, v] = FAR
+        if a_min > a_max:
+            bounds[k, 0], bounds[k, 1], bounds[k, 2] = 0.0, 0.0, 0.0
+            continue
+        texel = max(a_max - a_min, b_max - b_min) / (size - 1)
+        bounds[k, 0], bounds[k, 1], bounds[k, 2] = a_min, b_min, texel
+        for m in range(count):
+            h = ly - occluders[m, 1]
+            if h <= radius:
+                continue
+            a = ((occluders[m, 0] - lx) / h - a_min) / texel
+            b = ((occluders[m, 2] - lz) / h - b_min) / texel
+            r = radius / h / texel
+            near = h - radius
+            for u in range(max(int(a - r), 0), min(int(a + r) + 1, size)):
+                for v in range(max(int(b - r), 0), min(int(b + r) + 1, size)):
+                    if (u + 0.5 - a) ** 2 + (v + 0.5 - b) ** 2 <= r * r + 0.5 and near < depth[k, u, v]:
+                        depth[k, u, v] = near
+
+
+@njit(cache=True, parallel=True)
+def light_visibility(receivers, bias, lights, depth, bounds, out):
+    """Share of the light points each receiver (world point) sees past the shadow maps, filtered bilinearly
+    between the four nearest texels."""
+    size = depth.shape[1]
+    count = lights.shape[0]
+    for i in prange(receivers.shape[0]):
+        x, y, z = receivers[i, 0], receivers[i, 1], receivers[i, 2]
+        seen = 0.0
+        for k in range(count):
+            texel = bounds[k, 2]
+            h = lights[k, 1] - y
+            if texel == 0.0 or h <= 0.0:
+                seen += 1.0
+                continue
+            a = ((x - lights[k, 0]) / h - bounds[k, 0]) / texel - 0.5
+            b = ((z - lights[k, 2]) / h - bounds[k, 1]) / texel - 0.5
+            if a < -1.0 or b < -1.0 or a > size or b > size:
+                seen += 1.0
+                continue
+            u, v = math.floor(a), math.floor(b)
+            fu, fv = a - u, b - v
+            lit = 0.0
+            for du, wu in ((0, 1.0 - fu), (1, fu)):
+                for dv, wv in ((0, 1.0 - fv), (1, fv)):
+                    uu, vv = int(u) + du, int(v) + dv
+                    if uu < 0 or vv < 0 or uu >= size or vv >= size or h - bias <= depth[k, uu, vv]:
+                        lit += wu * wv
+            seen += lit
+        out[i] = seen / count

@@ -1,0 +1,375 @@
+"""The voxel shader: a physically based image of the network's inputs, in three cacheable stages.
+
+From exactly what the network reads (the 128^3 camera-aligned RGBA grid, the light position, the
+camera elevation, the floor color) and the scene's fixed constants (renderer/scene.py), it draws
+what the path tracer would, approximately:
+
+1. object_geometry (depends on the grid: the object, its placement, the camera): the object's
+   voxels without the ground, cropped to their box; the distance to the nearest occupied voxel
+   (the surface is where it equals SURFACE_LEVEL, a little inside the voxel hull, which is fatter
+   than the mesh; thin parts stay as tubes); the occupancy smoothed for normals and, more broadly,
+   for ambient occlusion; the occupied voxels' world positions, which cast the shadows.
+2. visible_surface (adds the image size): per pixel, the first surface point a camera ray meets
+   (sphere tracing the distance), anti-aliased at silhouettes by 3 x 3 rays, its normal, albedo
+   and ambient occlusion; the floor points, and how much of their sky the object blocks.
+3. shade (adds the light and the floor color): soft shadows from shadow maps seen from
+   LIGHT_POINTS^2 points on the square light, direct light (Lambert), ambient light with occlusion,
+   light bounced up from the floor, the lit floor (renderer/floor_light.py) times the object's
+   shadow; composited over the background, converted to sRGB.
+
+A light move reruns only `shade`, an object move all three. Known gaps (a network's job): the
+floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
+and the shading already baked into photo-colored voxels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from renderer.camera import Camera
+from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.errors import InputError
+from renderer.floor_light import lit_floor_terms
+from renderer.grid import grid_index_to_world, ground_mask, scene_grid
+from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
+from renderer.shading import kernels
+
+SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
+DISTANCE_SIGMA = 1.0  # voxels: blur of the distance field the surface is drawn from (smooth, not beaded)
+NORMAL_SIGMA = 1.5  # voxels: blur of the distance field the normals come from (no staircases)
+BROAD_SIGMA = 2.5  # voxels: occupancy blur for ambient occlusion
+CLOSING = ndimage.generate_binary_structure(3, 3)  # 3x3x3: closes diagonal gaps
+CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
+LIGHT_POINTS = 6  # per side of the light square: shadow maps and the direct-light sum
+SHADOW_MAP_SIZE = 96  # texels per side
+OCCLUSION_DISTANCES = np.array([1.5, 3.0, 6.0, 12.0], dtype=np.float32)  # voxels along the normal
+OCCLUSION_WEIGHTS = np.array([0.35, 0.3, 0.25, 0.2], dtype=np.float32)
+FLOOR_OCCLUSION_DISTANCES = np.array([2.0, 5.0, 10.0, 20.0], dtype=np.float32)  # voxels straight up
+FLOOR_OCCLUSION_WEIGHTS = np.array([0.3, 0.3, 0.25, 0.2], dtype=np.float32)
+BLOCKED_SKY_LIGHT = 0.35  # share of the ambient light a blocked sky direction still brings (the lit object)
+SUBPIXELS = 3  # rays per side at silhouette pixels
+# A ray covers its pixel by how deep it goes into the part it meets: not at all when it only touches
+# SURFACE_LEVEL, fully when within COVERAGE_PROBE voxels past the surface it gets COVERAGE_FULL of the
+# way from there to the part's core (the least distance around it: 0 in a thick part, more in a thin
+# one). This thins the hull's silhouettes towards the mesh's and keeps thin parts opaque face on.
+CORE_SIZE = 5  # voxels: the neighbourhood a part's core is the least distance of
+COVERAGE_FULL = 0.7
+COVERAGE_PROBE = 4.0
+
+
+@dataclass(frozen=True)
+class ObjectGeometry:
+    """What the shader derives from the grid alone (stage 1)."""
+
+    elevation_deg: float
+    offset: np.ndarray  # (3,) grid index of the crop's first voxel
+    occupied: np.ndarray  # (d, r, c) bool: object voxels (the ground left out)
+    rgb: np.ndarray  # (d, r, c, 3) float32 sRGB
+    distance: np.ndarray  # (d, r, c) float32: voxels from the nearest occupied voxel centre
+    core: np.ndarray  # least `distance` within CORE_SIZE voxels
+    smooth: np.ndarray  # distance blurred by NORMAL_SIGMA: its gradient is the normal
+    broad: np.ndarray  # occupancy blurred by BROAD_SIGMA
+    grid_to_world: np.ndarray  # 4x4, continuous grid index -> world
+    occluders: np.ndarray  # (M, 3) float64 world centres of the occupied voxels
+
+    @property
+    def empty(self) -> bool:
+        return self.occluders.shape[0] == 0
+
+
+@dataclass(frozen=True)
+class VisibleSurface:
+    """What a camera sees of the object and the floor (stage 2); pixel arrays are (H, W, ...)."""
+
+    size: int
+    coverage: np.ndarray  # (H, W) float32: share of the pixel the object covers
+    pixels: np.ndarray  # (N, 2) int: row, column of the pixels with an object point
+    points: np.ndarray  # (N, 3) world
+    normals: np.ndarray  # (N, 3) world, unit
+    albedo: np.ndarray  # (N, 3) linear
+    occlusion: np.ndarray  # (N,) ambient light reaching the point from the sky, 0..1
+    depth: np.ndarray  # (N,) distance along the view axis
+    floor: np.ndarray  # (H, W) bool
+    floor_points: np.ndarray  # (F, 3) world points of the floor pixels, row-major over `floor`
+    floor_occlusion: np.ndarray  # (F,) ambient light reaching the floor point, 0..1
+
+
+@dataclass(frozen=True)
+class ShadedImage:
+    """The shaded image and the buffers a network can read, all (H, W, ...) float32."""
+
+    image: np.ndarray  # sRGB in [0, 1]
+    coverage: np.ndarray  # object share of the pixel
+    albedo: np.ndarray  # linear object albedo (0 where no object)
+    normal: np.ndarray  # world normal (0 where no object)
+    depth: np.ndarray  # view-axis distance of the object point (0 where none)
+    visibility: np.ndarray  # share of the light seen: object points, and floor points
+    occlusion: np.ndarray  # share of the sky seen: object points, and floor points
+
+
+# --- stage 1 ----------------------------------------------------------------------------------
+
+
+def object_geometry(grid: np.ndarray, elevation_deg: float) -> ObjectGeometry:
+    """The object's part of a (D, H, W, 4) camera-aligned grid at `elevation_deg`, ready to shade."""
+    grid = np.asarray(grid)
+    if grid.ndim != 4 or grid.shape[3] != 4 or len(set(grid.shape[:3])) != 1:
+        raise InputError(f"a scene grid must be (N, N, N, 4), got {grid.shape}")
+    n = grid.shape[0]
+    occupied_grid = (grid[..., 3] > 0.5) & ~ground_mask(float(elevation_deg), n)
+    grid_to_world = grid_index_to_world(float(elevation_deg), n)
+    found = np.argwhere(occupied_grid)
+    if found.size == 0:
+        lo = np.zeros(3, dtype=int)
+        hi = np.ones(3, dtype=int)
+    else:
+        lo = np.maximum(found.min(axis=0) - CROP_MARGIN, 0)
+        hi = np.minimum(found.max(axis=0) + CROP_MARGIN + 1, n)
+    box = tuple(slice(a, b) for a, b in zip(lo, hi))
+    occupied = np.ascontiguousarray(occupied_grid[box])
+    # Voxelised surfaces are shells, and a slanted one-voxel shell is only diagonally connected: close
+    # the diagonal gaps a ray could slip through, then count the inside as inside.
+    solid = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, CLOSING, border_value=0) | occupied)
+    as_float = solid.astype(np.float32)
+    raw = (ndimage.distance_transform_edt(~solid).astype(np.float32) if found.size
+           else np.full(occupied.shape, 1e3, dtype=np.float32))
+    distance = ndimage.gaussian_filter(raw, DISTANCE_SIGMA)
+    centres = found + 0.5
+    occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
+    return ObjectGeometry(
+        elevation_deg=float(elevation_deg), offset=lo, occupied=occupied,
+        rgb=np.ascontiguousarray(grid[box][..., :3], dtype=np.float32),
+        distance=distance, core=ndimage.minimum_filter(distance, CORE_SIZE), smooth=ndimage.gaussian_filter(raw, NORMAL_SIGMA), broad=ndimage.gaussian_filter(as_float, BROAD_SIGMA),
+        grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders))
+
+
+# --- stage 2 ----------------------------------------------------------------------------------
+
+
+def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
+    """The object points and floor points a `size`^2 render camera sees, with their occlusion."""
+    camera = Camera(geometry.elevation_deg, width=size, height=size)
+    world_to_grid = np.linalg.inv(geometry.grid_to_world)
+    origin = world_to_grid[:3, :3] @ camera.position + world_to_grid[:3, 3] - geometry.offset
+    coverage = np.zeros((size, size), dtype=np.float32)
+    pixels = np.zeros((0, 2), dtype=np.int64)
+    points_crop = np.zeros((0, 3), dtype=np.float64)
+    if not geometry.empty:
+        rows, cols = _pixel_window(geometry, camera)
+        centre_t, centre_p, centre_cover = _trace(geometry, camera, world_to_grid, origin, rows[:, None] + 0.5,
+                                                  cols[None, :] + 0.5)
+        hit = centre_t < kernels.FAR
+        edge = (hit ^ ndimage.binary_erosion(hit, border_value=0)) | (ndimage.binary_dilation(hit) & ~hit)
+        edge |= hit & (centre_cover < 1.0)
+        cover = centre_cover
+        point = centre_p
+        if edge.any():
+            er, ec = np.nonzero(edge)
+            offsets = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
+            sub_v = rows[er][:, None, None] + offsets[None, :, None] + 0 * offsets[None, None, :]
+            sub_u = cols[ec][:, None, None] + offsets[None, None, :] + 0 * offsets[None, :, None]
+            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_grid, origin, sub_v, sub_u)
+            sub_t, sub_p = sub_t.reshape(len(er), -1), sub_p.reshape(len(er), -1, 3)
+            sub_hit = sub_t < kernels.FAR
+            cover[er, ec] = sub_cover.reshape(len(er), -1).mean(axis=1)
+            # A silhouette pixel whose centre ray misses takes its first hitting subpixel's point.
+            take = ~hit[er, ec] & sub_hit.any(axis=1)
+            first = np.argmax(sub_hit, axis=1)
+            point = point.copy()
+            point[er[take], ec[take]] = sub_p[take, first[take]]
+        shown = cover > 0.0
+        r_idx, c_idx = np.nonzero(shown)
+        pixels = np.stack([rows[r_idx], cols[c_idx]], axis=1)
+        points_crop = point[r_idx, c_idx]
+        coverage[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = cover
+    normals_crop = np.zeros((len(points_crop), 3))
+    colors = np.zeros((len(points_crop), 3), dtype=np.float32)
+    occlusion = np.ones(len(points_crop), dtype=np.float32)
+    if len(points_crop):
+        kernels.surface_normals_and_colors(geometry.smooth, geometry.occupied, geometry.rgb, points_crop, normals_crop, colors)
+        occlusion = _surface_occlusion(geometry, points_crop, normals_crop)
+    linear = geometry.grid_to_world[:3, :3]
+    points_world = (points_crop + geometry.offset) @ linear.T + geometry.grid_to_world[:3, 3]
+    normals_world = normals_crop @ linear.T
+    normals_world /= np.maximum(np.linalg.norm(normals_world, axis=1, keepdims=True), 1e-12)
+    depth = (points_world - camera.position) @ _view_axis(camera)
+
+    floor, floor_points = _floor_points(camera)
+    floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_grid)
+    return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
+                          albedo=srgb_to_linear(np.clip(colors, 0.0, 1.0)).astype(np.float32), occlusion=occlusion,
+                          depth=depth, floor=floor, floor_points=floor_points, floor_occlusion=floor_occlusion)
+
+
+def _pixel_window(geometry: ObjectGeometry, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the image rectangle the crop box projects into (a pixel of margin)."""
+    shape = np.asarray(geometry.occupied.shape)
+    corners = np.array([[a, b, c] for a in (0, shape[0]) for b in (0, shape[1]) for c in (0, shape[2])], dtype=np.float64)
+    world = (corners + geometry.offset) @ geometry.grid_to_world[:3, :3].T + geometry.grid_to_world[:3, 3]
+    u, v, _ = camera.project(world)
+    c0, c1 = (int(np.clip(math.floor(u.min()) - 1, 0, camera.width - 1)), int(np.clip(math.ceil(u.max()) + 1, 0, camera.width - 1)))
+    r0, r1 = (int(np.clip(math.floor(v.min()) - 1, 0, camera.height - 1)), int(np.clip(math.ceil(v.max()) + 1, 0, camera.height - 1)))
+    return np.arange(r0, r1 + 1), np.arange(c0, c1 + 1)
+
+
+def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
+           v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v)."""
+    u, v = np.broadcast_arrays(u, v)
+    _, directions = camera.pixel_rays(u, v)
+    directions = directions.reshape(-1, 3) @ world_to_grid[:3, :3].T
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    t = np.empty(len(directions))
+    points = np.zeros((len(directions), 3))
+    deepest = np.empty(len(directions))
+    cores = np.zeros(len(directions))
+    kernels.trace_surface(geometry.distance, geometry.core, SURFACE_LEVEL, COVERAGE_PROBE, origin,
+                          np.ascontiguousarray(directions), t, points, deepest, cores)
+    reach = np.maximum(SURFACE_LEVEL - np.minimum(cores, SURFACE_LEVEL - 0.05), 1e-3) * COVERAGE_FULL
+    cover = np.clip((SURFACE_LEVEL - deepest) / reach, 0.0, 1.0).astype(np.float32)
+    return t.reshape(u.shape), points.reshape(u.shape + (3,)), cover.reshape(u.shape)
+
+
+def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """Sky light reaching each surface point: 1 minus the broad occupancy found along its normal, less
+    what an open flat surface itself puts there."""
+    found = np.empty(len(points))
+    kernels.occlusion_along(geometry.broad, points, normals, OCCLUSION_DISTANCES, OCCLUSION_WEIGHTS, found)
+    flat = float(np.sum(OCCLUSION_WEIGHTS * _half_space_blur(OCCLUSION_DISTANCES + SURFACE_LEVEL, BROAD_SIGMA)))
+    blocked = np.clip((found - flat) / max(1.0 - flat, 1e-6), 0.0, 1.0)
+    return (1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)).astype(np.float32)
+
+
+def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
+    """Gaussian-blurred occupancy of a filled half space, `distance` voxels outside its boundary."""
+    return 0.5 * np.vectorize(math.erfc)(distance / (sigma * math.sqrt(2.0)))
+
+
+def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """The floor mask and the world points (F, 3) where the floor pixels' centre rays meet y = 0."""
+    from renderer.splat import floor_mask
+
+    floor = floor_mask(camera)
+    rows, cols = np.nonzero(floor)
+    origin, dirs = camera.pixel_rays(cols + 0.5, rows + 0.5)
+    t = -origin[1] / dirs[:, 1]
+    return floor, origin + t[:, None] * dirs
+
+
+def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_to_grid: np.ndarray) -> np.ndarray:
+    """Sky light reaching each floor point: 1 minus the broad occupancy straight above it."""
+    occlusion = np.ones(len(floor_points), dtype=np.float32)
+    if geometry.empty or not len(floor_points):
+        return occlusion
+    crop = floor_points @ world_to_grid[:3, :3].T + world_to_grid[:3, 3] - geometry.offset
+    shape = np.asarray(geometry.occupied.shape)
+    near = np.all((crop >= -CROP_MARGIN) & (crop <= shape + CROP_MARGIN), axis=1)
+    if not near.any():
+        return occlusion
+    up = world_to_grid[:3, :3] @ np.array([0.0, 1.0, 0.0])
+    up /= np.linalg.norm(up)
+    found = np.empty(int(near.sum()))
+    kernels.occlusion_along(geometry.broad, np.ascontiguousarray(crop[near]), np.broadcast_to(up, (int(near.sum()), 3)).copy(),
+                            FLOOR_OCCLUSION_DISTANCES, FLOOR_OCCLUSION_WEIGHTS, found)
+    blocked = np.clip(found, 0.0, 1.0)
+    occlusion[near] = 1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)
+    return occlusion
+
+
+def _view_axis(camera: Camera) -> np.ndarray:
+    return -camera.camera_to_world()[:3, 2]
+
+
+# --- stage 3 ----------------------------------------------------------------------------------
+
+
+def light_points(light_position) -> np.ndarray:
+    """(LIGHT_POINTS^2, 3) world points at the centres of a regular grid over the square light."""
+    offsets = ((np.arange(LIGHT_POINTS) + 0.5) / LIGHT_POINTS - 0.5) * LIGHT_SIZE
+    x, z = np.meshgrid(offsets, offsets, indexing="ij")
+    light = np.asarray(light_position, dtype=np.float64)
+    return np.stack([light[0] + x.ravel(), np.full(x.size, light[1]), light[2] + z.ravel()], axis=1)
+
+
+def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color) -> ShadedImage:
+    """The shaded image of the visible surface under the light at `light_position` (world)."""
+    camera = Camera(geometry.elevation_deg, width=surface.size, height=surface.size)
+    from_light, from_ambient, floor = lit_floor_terms(camera, light_position, floor_color)
+    lights = light_points(light_position)
+    voxel = float(np.linalg.norm(geometry.grid_to_world[:3, 0]))
+    maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
+    bounds = np.zeros((len(lights), 3))
+    kernels.build_shadow_maps(geometry.occluders, 0.75 * voxel, lights, SHADOW_MAP_SIZE, maps, bounds)
+
+    size = surface.size
+    visibility = np.ones((size, size), dtype=np.float32)
+    occlusion = np.ones((size, size), dtype=np.float32)
+    floor_seen = np.ones(len(surface.floor_points))
+    if not geometry.empty:
+        kernels.light_visibility(surface.floor_points, 0.25 * voxel, lights, maps, bounds, floor_seen)
+    visibility[floor] = floor_seen
+    occlusion[floor] = surface.floor_occlusion
+    background = np.float32(AMBIENT_RADIANCE)
+    ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * occlusion[..., None], background)
+
+    albedo = np.zeros((size, size, 3), dtype=np.float32)
+    normal = np.zeros((size, size, 3), dtype=np.float32)
+    depth = np.zeros((size, size), dtype=np.float32)
+    image = ground
+    if len(surface.points):
+        radiance, seen = _object_radiance(surface, lights, maps, bounds, voxel, floor_color)
+        r, c = surface.pixels[:, 0], surface.pixels[:, 1]
+        cover = surface.coverage[r, c][:, None]
+        image = ground.copy()
+        image[r, c] = ground[r, c] * (1.0 - cover) + radiance * cover
+        albedo[r, c], normal[r, c], depth[r, c] = surface.albedo, surface.normals, surface.depth
+        visibility[r, c], occlusion[r, c] = seen, surface.occlusion
+    return ShadedImage(image=np.clip(linear_to_srgb(image), 0.0, 1.0).astype(np.float32), coverage=surface.coverage,
+                       albedo=albedo, normal=normal, depth=depth, visibility=visibility, occlusion=occlusion)
+
+
+def _object_radiance(surface: VisibleSurface, lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray, voxel: float,
+                     floor_color) -> tuple[np.ndarray, np.ndarray]:
+    """Linear radiance (N, 3) of the visible object points and the share of the light each sees."""
+    points, normals = surface.points, surface.normals
+    seen = np.empty(len(points))
+    kernels.light_visibility(points + normals * voxel, 0.5 * voxel, lights, maps, bounds, seen)
+    # Direct light: the area light's points, Lambert at the surface, cosine at the downward-facing light.
+    to_light = lights[None, :, :] - points[:, None, :]
+    distance2 = np.maximum(np.einsum("nkc,nkc->nk", to_light, to_light), 1e-8)
+    inv = 1.0 / np.sqrt(distance2)
+    cos_surface = np.maximum(np.einsum("nkc,nc->nk", to_light, normals) * inv, 0.0)
+    cos_light = np.maximum(to_light[..., 1] * inv, 0.0)
+    area = LIGHT_SIZE**2 / len(lights)
+    direct = LIGHT_RADIANCE * seen * (cos_surface * cos_light / distance2).sum(axis=1) * area
+    # Ambient from the sky above the horizon, and light the floor below sends back up.
+    sky = AMBIENT_RADIANCE * math.pi * 0.5 * (1.0 + normals[:, 1]) * surface.occlusion
+    below = points * np.array([1.0, 0.0, 1.0])
+    to_light_below = lights[None, :, :] - below[:, None, :]
+    d2_below = np.maximum(np.einsum("nkc,nkc->nk", to_light_below, to_light_below), 1e-8)
+    floor_irradiance = (LIGHT_RADIANCE * (to_light_below[..., 1] ** 2 / d2_below**2).sum(axis=1) * area * 0.5
+                        + AMBIENT_RADIANCE * math.pi)
+    floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
+    bounce = (floor_irradiance[:, None] * floor_albedo[None, :] / math.pi) * math.pi * 0.5 * (1.0 - normals[:, 1:2])
+    irradiance = (direct + sky)[:, None] + bounce
+    return (surface.albedo * irradiance / math.pi).astype(np.float32), seen.astype(np.float32)
+
+
+# --- all stages -------------------------------------------------------------------------------
+
+
+def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_color, size: int = 256) -> ShadedImage:
+    """All three stages at once: the shaded image of a camera-aligned grid."""
+    geometry = object_geometry(grid, elevation_deg)
+    return shade(geometry, visible_surface(geometry, size), light_position, floor_color)
+
+
+def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None) -> ShadedImage:
+    """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's)."""
+    grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg)
+    return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, floor_color,
+                      scene.image_size if size is None else size)

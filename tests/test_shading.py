@@ -1,0 +1,161 @@
+"""The voxel shader on scenes with a known answer: shadow geometry, Lambert's law, the empty floor,
+and hard cases; its compiled kernels against plain numpy and scipy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from renderer.camera import Camera
+from renderer.color import srgb_to_linear
+from renderer.floor_light import lit_floor_image
+from renderer.grid import scene_grid
+from renderer.scene import LIGHT_RADIANCE, LIGHT_SIZE, ObjectSpec
+from renderer.shading import kernels, shade_grid
+
+FLOOR = (0.6, 0.6, 0.6)
+SIZE = 96
+
+
+def cube(n: int = 16, color=(0.8, 0.8, 0.8)) -> np.ndarray:
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    rgba[..., :3], rgba[..., 3] = color, 1.0
+    return rgba
+
+
+def ball(n: int = 40, color=(0.8, 0.8, 0.8)) -> np.ndarray:
+    centre = (np.arange(n) + 0.5) / n - 0.5
+    x, y, z = np.meshgrid(centre, centre, centre, indexing="ij")
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    inside = x**2 + y**2 + z**2 <= 0.25
+    rgba[inside, :3], rgba[inside, 3] = color, 1.0
+    return rgba
+
+
+def shaded(rgba, spec: ObjectSpec, light, elevation=30.0, size=SIZE):
+    grid = scene_grid(rgba, spec, FLOOR, elevation)
+    return shade_grid(grid, light, elevation, FLOOR, size)
+
+
+def pixel_of(point, elevation=30.0, size=SIZE) -> tuple[int, int]:
+    u, v, _ = Camera(elevation, width=size, height=size).project(np.asarray(point, dtype=np.float64))
+    return int(v), int(u)
+
+
+@pytest.mark.parametrize("light_x", [1.2, -1.2])
+def test_a_cubes_shadow_lies_where_geometry_puts_it(light_x):
+    # A cube of side 0.3 at the origin, the light to one side: the shadow of its top's centre falls on
+    # the line from the light through it, on the side away from the light; the other side is lit.
+    spec = ObjectSpec(voxels="v.npz", scale=(0.3, 0.3, 0.3))
+    light = np.array([light_x, 2.0, 0.0])
+    out = shaded(cube(), spec, light)
+    top = np.array([0.0, 0.3, 0.0])
+    shadow = light + (top - light) * light[1] / (light[1] - top[1])  # where that line meets y = 0
+    assert np.sign(shadow[0]) == -np.sign(light_x)
+    row, col = pixel_of(shadow)
+    assert out.coverage[row, col] == 0.0 and out.visibility[row, col] < 0.5
+    mirror = np.array([-shadow[0], 0.0, shadow[2]])  # as far from the cube, on the light's side
+    row, col = pixel_of(mirror)
+    assert out.coverage[row, col] == 0.0 and out.visibility[row, col] > 0.95
+
+
+def test_a_spheres_shading_follows_lambert():
+    # A sphere of radius 0.25 lit from the side and above: on its lit, unshadowed points the linear
+    # radiance grows with the direct irradiance computed here from the analytic sphere normal and a
+    # fine grid on the light (cosine at the surface and at the light over r^2), with slope albedo / pi.
+    spec = ObjectSpec(voxels="v.npz", scale=(0.5, 0.5, 0.5))
+    light = np.array([1.5, 2.0, 0.5])
+    albedo = float(srgb_to_linear(0.8))
+    out = shaded(ball(), spec, light, elevation=20.0, size=128)
+    camera = Camera(20.0, width=128, height=128)
+    rows, cols = np.nonzero((out.coverage == 1.0) & (out.visibility > 0.99))
+    origin, dirs = camera.pixel_rays(cols + 0.5, rows + 0.5)
+    centre = np.array([0.0, 0.25, 0.0])
+    # Ray-sphere intersection gives each pixel's true point and normal.
+    oc = origin - centre
+    b = dirs @ oc
+    disc = b**2 - (oc @ oc - 0.25**2)
+    keep = disc > 0.0
+    t = -b[keep] - np.sqrt(disc[keep])
+    points = origin + t[:, None] * dirs[keep]
+    normals = (points - centre) / 0.25
+    # The drawn normals agree with the sphere's (within 12 degrees nearly everywhere).
+    drawn = out.normal[rows[keep], cols[keep]]
+    assert np.quantile(np.sum(drawn * normals, axis=1), 0.1) > np.cos(np.radians(12.0))
+    n = 24
+    offsets = ((np.arange(n) + 0.5) / n - 0.5) * LIGHT_SIZE
+    samples = np.stack(np.meshgrid(light[0] + offsets, [light[1]], light[2] + offsets, indexing="ij"), -1).reshape(-1, 3)
+    to_light = samples[None] - points[:, None]
+    r2 = np.sum(to_light**2, axis=-1)
+    cos_surface = np.maximum(np.einsum("pkc,pc->pk", to_light, normals), 0.0) / np.sqrt(r2)
+    cos_light = to_light[..., 1] / np.sqrt(r2)
+    direct = LIGHT_RADIANCE * np.mean(cos_surface * cos_light / r2, axis=1) * LIGHT_SIZE**2
+    radiance = srgb_to_linear(out.image[rows[keep], cols[keep]]).mean(axis=1)
+    lit = direct > 0.3 * direct.max()
+    slope, intercept = np.polyfit(direct[lit], radiance[lit], 1)
+    assert slope == pytest.approx(albedo / np.pi, rel=0.15)
+    assert np.corrcoef(direct[lit], radiance[lit])[0, 1] > 0.95
+
+
+def test_an_empty_grid_is_the_lit_floor():
+    light = (0.7, 2.7, -0.4)
+    empty = np.zeros((8, 8, 8, 4), dtype=np.float32)
+    for elevation in (5.0, 30.0, 60.0):
+        out = shade_grid(scene_grid(empty, ObjectSpec(voxels="v.npz"), FLOOR, elevation), light, elevation, FLOOR, SIZE)
+        floor = lit_floor_image(Camera(elevation, width=SIZE, height=SIZE), light, FLOOR)
+        # The same shading, interpolated from the same coarse points in linear rather than sRGB values.
+        assert np.abs(out.image - floor).max() < 3.0 / 255.0
+        assert np.all(out.coverage == 0.0) and np.all(out.visibility == 1.0)
+
+
+@pytest.mark.parametrize("case", ["light at a corner", "light outside its box", "light low and far", "elevation 0",
+                                  "elevation 89", "object at the grid border", "object larger than the grid"])
+def test_hard_cases_give_finite_images(case):
+    spec, light, elevation = ObjectSpec(voxels="v.npz", scale=(0.5, 0.5, 0.5)), (1.0, 2.75, 0.5), 30.0
+    if case == "light at a corner":
+        light = (1.5, 2.5, -1.5)
+    elif case == "light outside its box":
+        light = (6.0, 0.05, 6.0)
+    elif case == "light low and far":
+        light = (-40.0, 0.3, 25.0)
+    elif case == "elevation 0":
+        elevation = 0.0
+    elif case == "elevation 89":
+        elevation = 89.0
+    elif case == "object at the grid border":
+        spec = ObjectSpec(voxels="v.npz", translation=(1.1, 0.2), scale=(0.6, 0.6, 0.6))
+    elif case == "object larger than the grid":
+        spec = ObjectSpec(voxels="v.npz", scale=(4.0, 4.0, 4.0))
+    out = shaded(cube(12), spec, light, elevation, size=48)
+    for name in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
+        values = getattr(out, name)
+        assert np.all(np.isfinite(values)), name
+    assert out.image.min() >= 0.0 and out.image.max() <= 1.0
+    assert 0.0 <= out.visibility.min() and out.visibility.max() <= 1.0
+
+
+def test_trilinear_sample_matches_scipy():
+    rng = np.random.default_rng(0)
+    field = rng.random((7, 9, 5)).astype(np.float32)
+    points = rng.uniform(0.5, [6.5, 8.5, 4.5], size=(200, 3))  # voxel centres at i + 0.5
+    expected = ndimage.map_coordinates(field, (points - 0.5).T, order=1)
+    got = np.array([kernels.sample(field, *p) for p in points])
+    np.testing.assert_allclose(got, expected, atol=1e-5)
+
+
+def test_shadow_maps_block_what_lies_between():
+    # One occluder at height 1 straight below a light point at height 3: a receiver on the floor under it
+    # is in shadow, one a metre aside is lit, and with no occluders everything is lit.
+    lights = np.array([[0.0, 3.0, 0.0]])
+    occluders = np.array([[0.0, 1.0, 0.0]])
+    maps = np.empty((1, 16, 16), dtype=np.float32)
+    bounds = np.zeros((1, 3))
+    kernels.build_shadow_maps(occluders, 0.05, lights, 16, maps, bounds)
+    receivers = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
+    seen = np.empty(3)
+    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, seen)
+    assert seen[0] < 0.01 and seen[1] == 1.0 and seen[2] == 1.0  # the last lies between occluder and light
+    kernels.build_shadow_maps(np.zeros((0, 3)), 0.05, lights, 16, maps, bounds)
+    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, seen)
+    assert np.all(seen == 1.0)
