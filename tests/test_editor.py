@@ -276,6 +276,31 @@ def test_export_equals_nvr_render(edit_run, tmp_path, model_file):
     np.testing.assert_array_equal(np.asarray(Image.open(edit_run / "export.png")), np.asarray(Image.open(cli)))
 
 
+def test_the_panel_renders_with_the_chosen_renderer_and_exports_what_it_shows(display, tmp_path, scene_file, model_file):
+    """With --renderer shaded (the default without --model) the panel shows the voxel shader; switching to
+    NVR+ in the window shows (and exports) the network's image; each export equals `nvr render` with that
+    renderer."""
+    out = tmp_path / "out"
+    out.mkdir()
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "export", "path": str(out / "shaded.png")},
+        {"action": "screenshot", "path": str(out / "shaded_window.png")},
+        {"action": "renderer", "name": "nvr+"},
+        {"action": "wait", "frames": 5},
+        {"action": "export", "path": str(out / "network.png")},
+    ], "--model", str(model_file), "--renderer", "shaded")
+    for name, renderer in (("shaded", "shaded"), ("network", "nvr+")):
+        cli = tmp_path / f"cli_{name}.png"
+        subprocess.run([sys.executable, "-m", "app.cli", "render", str(scene_file), "--renderer", renderer,
+                        "--model", str(model_file), "-o", str(cli)], check=True, capture_output=True, timeout=120)
+        np.testing.assert_array_equal(np.asarray(Image.open(out / f"{name}.png")), np.asarray(Image.open(cli)))
+    assert not np.array_equal(np.asarray(Image.open(out / "shaded.png")), np.asarray(Image.open(out / "network.png")))
+    # The panel shows the shader's image: the render panel's pixels match the export, magnified.
+    shown = pixels(out / "shaded_window.png", PANELS.render_image)
+    export = Image.open(out / "shaded.png").resize(shown.shape[1::-1], Image.Resampling.BILINEAR)
+    assert np.abs(shown - np.asarray(export) / 255.0).mean() < 0.01
+
+
 def test_closing_asks_about_unsaved_changes_and_the_next_start_offers_them_back(display, tmp_path, scene_file,
                                                                                 model_file):
     state = tmp_path / "state"

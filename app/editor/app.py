@@ -88,11 +88,11 @@ class FrameStats:
 class EditorApp:
     """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
 
-    def __init__(self, window: Window, document: Document, model_path: str | None = None):
+    def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "shaded"):
         self.window = window
         self.doc = document
         self.voxels = VoxelCache()
-        self.live = LiveRender(self.voxels, model_path)
+        self.live = LiveRender(self.voxels, model_path, renderer)
         self.viewport = ViewportRenderer(window.ctx)
         self.view = HOME
         self.render_texture = None
@@ -241,10 +241,22 @@ class EditorApp:
 
         return self._write_file(target, overwrite or own_file, write)
 
+    def choose_renderer(self, renderer: str) -> None:
+        """Show (and export) `renderer`'s image from now on; the scene is rendered again."""
+        try:
+            self.live.select(renderer)
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            return
+        self.shown_frame = None
+        self._synced = -1  # submit the scene again
+        self.say(f"rendering with {self.live.label}")
+
     def export(self, path: str | Path, overwrite: bool = False) -> bool:
         """Write the neural render of the committed scene as `nvr render --renderer nvr+` would."""
         def write() -> str:
-            return f"exported {path} ({export_render(self.doc.history.current, path, self.live.model_path)})"
+            used = export_render(self.doc.history.current, path, self.live.model_path, self.live.renderer, self.voxels)
+            return f"exported {path} ({used})"
 
         return self._write_file(path, overwrite, write)
 
@@ -254,7 +266,7 @@ class EditorApp:
             if self.job is not None or self._synced != self.doc.revision:
                 raise InputError("the viewport is not up to date yet: export again when the work in progress is done")
             scene = self.doc.history.current
-            render, used = final_render(scene, self.live.model_path)
+            render, used = final_render(scene, self.live.model_path, self.live.renderer, self.voxels)
             height = render.shape[0] * side_by_side.scale_for(render.shape[0])
             viewport = self.viewport.image(height, height, viewport_camera(self.view, height, height), scene,
                                            self.floor_color)

@@ -31,11 +31,14 @@ EXIT_USER_ERROR = 2
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="nvr-editor", description="NVR Studio editor: voxel viewport and live neural render.")
     p.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE), help="scene file (default: the demo scene)")
+    p.add_argument("--renderer", choices=["shaded", "nvr+"], default=None,
+                   help="the render panel's renderer (default: nvr+ when --model is given, else shaded); "
+                        "switch in the panel")
     p.add_argument("--model", default=None, help="NVR+ weights (.safetensors); default: the shipped model")
     p.add_argument("--frames", type=int, default=None, help="headless: draw at least N frames, then exit when idle")
     p.add_argument("--replay", default=None, help="JSON list of actions to perform (see app/editor/replay.py)")
     p.add_argument("--screenshot", default=None, help="with --frames: save the whole window as PNG at the end")
-    p.add_argument("--export", default=None, help="save the neural render as PNG before exiting")
+    p.add_argument("--export", default=None, help="save the render (as the panel's renderer makes it) as PNG before exiting")
     p.add_argument("--export-side-by-side", default=None, metavar="OUT.png",
                    help="save the viewport and the neural render side by side as PNG before exiting")
     p.add_argument("--force", action="store_true", help="overwrite output files that exist")
@@ -81,7 +84,8 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
     from app.editor.panels import Interface
 
     headless = args.frames is not None
-    app = EditorApp(window, document, model_path=args.model)
+    renderer = args.renderer or ("nvr+" if args.model else "shaded")
+    app = EditorApp(window, document, model_path=args.model, renderer=renderer)
     interface = Interface(app)
     frame, started, finishing = 0, time.monotonic(), False
     try:

@@ -18,6 +18,7 @@ from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import PhotoPanel
+from app.editor.render_panel import RENDERERS
 from app.editor.viewport_input import ViewportInput
 
 FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -161,7 +162,9 @@ class Interface:
     def _render_panel(self, rect: Rect, image: Rect) -> None:
         app = self.app
         _place(rect)
-        imgui.begin("Neural render", None, FIXED | imgui.WindowFlags_.no_scrollbar)
+        imgui.begin("Render", None, FIXED | imgui.WindowFlags_.no_scrollbar)
+        self._renderer_choice()
+        imgui.same_line()
         frame = app.shown_frame
         if frame is None:
             imgui.text_colored(AMBER, "rendering...")
@@ -182,6 +185,15 @@ class Interface:
             imgui.set_cursor_screen_pos(imgui.ImVec2(image.x, image.y))
             imgui.image(imgui.ImTextureRef(app.render_texture.glo), imgui.ImVec2(image.width, image.height))
         imgui.end()
+
+    def _renderer_choice(self) -> None:
+        """The renderer of the panel (and of exports): the voxel shader or NVR+."""
+        live = self.app.live
+        names = list(RENDERERS)
+        imgui.set_next_item_width(240)
+        changed, index = imgui.combo("##renderer", names.index(live.renderer), [RENDERERS[n] for n in names])
+        if changed and names[index] != live.renderer:
+            self.app.choose_renderer(names[index])
 
     # --- tools --------------------------------------------------------------------------
 

@@ -1,9 +1,10 @@
-"""The live render beside the viewport: the neural engine off the UI thread, or splatting when there is no model.
+"""The live render beside the viewport, off the UI thread: the voxel shader or the NVR+ network.
 
-All coupling to models/engine/render_engine.py and models/engine/async_render.py lives here. Without a trained
-model (RenderEngine.load raises InputError) a stand-in engine renders the splatted image S
-instead, and the panel says so. The AsyncRenderer renders only the newest scene submitted,
-so a drag never queues up stale frames.
+All coupling to models/engine/render_engine.py and models/engine/async_render.py lives here. The
+user picks the renderer (RENDERERS); the voxel shader (renderer/shading/) keeps its stages like the
+network's engine does. Without a trained model (RenderEngine.load raises InputError) NVR+ falls back
+to the splatted image S, and the panel says so. The AsyncRenderer renders only the newest scene
+submitted, so a drag never queues up stale frames.
 """
 
 from __future__ import annotations
@@ -17,16 +18,20 @@ from pathlib import Path
 
 import numpy as np
 
-from app.editor.voxel_cache import VoxelCache
+from app.editor.voxel_cache import VoxelCache, source_key
 from models.engine.async_render import AsyncRenderer
 from models.engine.render_engine import RenderEngine, RenderReport, default_threads
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import Scene
+from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
 NO_MODEL_LABEL = "no trained model: showing splat"
+# The renderers the panel offers, by the name `nvr render --renderer` uses, with what the panel shows.
+RENDERERS = {"shaded": "voxel shader (physically based)", "nvr+": "NVR+ network"}
+SHADER_LABEL = "voxel shader"
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 
 
@@ -50,6 +55,29 @@ class SplatEngine:
         image = splat_scene(scene, *self._voxels.painted(scene))
         ms = (time.perf_counter() - start) * 1000.0
         self.last_report = RenderReport(("splat",), {"splat": ms}, ms, preview)
+        return image
+
+    def preview(self, scene: Scene) -> np.ndarray:
+        return self.render(scene, preview=True)
+
+
+class ShadedEngine:
+    """The engine's interface over the voxel shader, its stages cached (a light move reruns only the light's)."""
+
+    def __init__(self, voxels: VoxelCache):
+        self._voxels = voxels
+        self._shader = StagedShader()
+        self._lock = threading.Lock()  # exports on the UI thread and the render thread share the stages
+        self.last_report: RenderReport | None = None
+
+    def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
+        start = time.perf_counter()
+        rgba, floor_color = self._voxels.painted(scene)
+        key = (source_key(scene), tuple(op for op in scene.paint if op.target != "floor"))
+        with self._lock:
+            image = self._shader.render(scene, key, rgba, floor_color, scene.image_size).image
+            stages = dict(self._shader.stage_ms)
+        self.last_report = RenderReport(tuple(stages), stages, (time.perf_counter() - start) * 1000.0, preview)
         return image
 
     def preview(self, scene: Scene) -> np.ndarray:
@@ -91,24 +119,55 @@ class LowPriority:
 class LiveRender:
     """Submits scenes to a worker thread and hands each newly finished frame to the UI once."""
 
-    def __init__(self, voxels: VoxelCache, model_path: str | None = None):
+    def __init__(self, voxels: VoxelCache, model_path: str | None = None, renderer: str = "shaded"):
         self.model_path = model_path
-        try:
-            self.engine = RenderEngine.load(model_path, kind="nvr+")
-            self.neural = True
-            self.label = f"NVR+ {self.engine.model_name}"
-            threads = f", {default_threads()} threads" if self.engine.device.type == "cpu" else ""
-            self.device = f"{self.engine.device.type}, {self.engine.precision}{threads}"
-        except InputError as exc:
-            self.engine = SplatEngine(voxels)
-            self.neural = False
-            self.label = NO_MODEL_LABEL
-            self.device = "cpu (splatting)"
-            print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
-        self._renderer = AsyncRenderer(LowPriority(self.engine))
+        self._voxels = voxels
+        self._engines: dict[str, object] = {}
+        self._labels: dict[str, tuple[str, str, bool]] = {}  # renderer -> (what renders, device, as chosen)
+        self.renderer = ""
+        self.select(renderer)
+        self._renderer = AsyncRenderer(LowPriority(_Selected(self)))
         self._scenes: dict[int, Scene] = {}  # submitted and not yet handed out, by sequence number
         self._handed = 0
         self.error: str | None = None
+
+    def select(self, renderer: str) -> None:
+        """Render with `renderer` (a key of RENDERERS) from the next submitted scene on."""
+        if renderer not in RENDERERS:
+            raise InputError(f"unknown renderer {renderer!r} (choose from {', '.join(RENDERERS)})")
+        if renderer not in self._engines:
+            self._engines[renderer], self._labels[renderer] = self._make_engine(renderer)
+        self.renderer = renderer
+
+    @property
+    def engine(self):
+        return self._engines[self.renderer]
+
+    def _make_engine(self, renderer: str) -> tuple[object, tuple[str, str, bool]]:
+        """The engine for `renderer` and its labels: what renders, on what device, and whether it is what was chosen."""
+        if renderer == "shaded":
+            return ShadedEngine(self._voxels), (SHADER_LABEL, "cpu", True)
+        try:
+            engine = RenderEngine.load(self.model_path, kind="nvr+")
+        except InputError as exc:
+            print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
+            return SplatEngine(self._voxels), (NO_MODEL_LABEL, "cpu (splatting)", False)
+        threads = f", {default_threads()} threads" if engine.device.type == "cpu" else ""
+        return engine, (f"NVR+ {engine.model_name}", f"{engine.device.type}, {engine.precision}{threads}", True)
+
+    @property
+    def label(self) -> str:
+        """What renders (the model's name for NVR+)."""
+        return self._labels[self.renderer][0]
+
+    @property
+    def device(self) -> str:
+        return self._labels[self.renderer][1]
+
+    @property
+    def neural(self) -> bool:
+        """False when NVR+ was chosen but no model loaded (the splat stands in)."""
+        return self._labels[self.renderer][2]
 
     def submit(self, scene: Scene, preview: bool = False) -> None:
         """Ask for `scene` (replacing any request not started yet)."""
@@ -137,8 +196,32 @@ class LiveRender:
         self._renderer.close()
 
 
-def final_render(scene: Scene, model_path: str | None = None) -> tuple[np.ndarray, str]:
-    """The image `nvr render SCENE --renderer nvr+` makes (the splat when no model loads), and what made it."""
+class _Selected:
+    """The engine of the renderer the user chose, looked up at each render (the worker thread's view)."""
+
+    def __init__(self, live: LiveRender):
+        self._live = live
+        self._last = None
+
+    @property
+    def last_report(self):
+        return None if self._last is None else self._last.last_report
+
+    def render(self, scene: Scene) -> np.ndarray:
+        self._last = self._live.engine
+        return self._last.render(scene)
+
+    def preview(self, scene: Scene) -> np.ndarray:
+        self._last = self._live.engine
+        return self._last.preview(scene)
+
+
+def final_render(scene: Scene, model_path: str | None = None, renderer: str = "nvr+",
+                 voxels: VoxelCache | None = None) -> tuple[np.ndarray, str]:
+    """The image `nvr render SCENE --renderer RENDERER` makes (for NVR+, the splat when no model loads), and
+    what made it."""
+    if renderer == "shaded":
+        return ShadedEngine(voxels or VoxelCache()).render(scene), SHADER_LABEL
     try:
         engine = RenderEngine.load(model_path, kind="nvr+")
     except InputError:
@@ -152,8 +235,9 @@ def final_render(scene: Scene, model_path: str | None = None) -> tuple[np.ndarra
     return engine.render(scene), f"nvr+ {engine.model_name}"
 
 
-def export_render(scene: Scene, path: str | Path, model_path: str | None = None) -> str:
-    """Write the image `nvr render SCENE --renderer nvr+` makes (the splat when no model loads); returns what was used."""
-    image, used = final_render(scene, model_path)
+def export_render(scene: Scene, path: str | Path, model_path: str | None = None, renderer: str = "nvr+",
+                  voxels: VoxelCache | None = None) -> str:
+    """Write the image `nvr render SCENE --renderer RENDERER` makes; returns what was used."""
+    image, used = final_render(scene, model_path, renderer, voxels)
     save_png(path, image)
     return used

@@ -9,6 +9,7 @@ High-level actions call the same commands as the interface:
     {"action": "undo"} {"action": "redo"}
     {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
+    {"action": "renderer", "name": "nvr+"}                    the render panel's renderer ("shaded" or "nvr+")
     {"action": "load_mesh", "path": ..., "up": "y"}
     {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo; "camera" is optional
     {"action": "align_photo", "from_scratch": false}           Align (refine from this pose) / Align from scratch
@@ -247,6 +248,7 @@ ACTIONS = {
     "save": lambda app, a: app.save(a.get("path")),
     "export": lambda app, a: app.export(a["path"]),
     "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
+    "renderer": lambda app, a: app.choose_renderer(a["name"]),
     "load_mesh": lambda app, a: app.load_mesh(a["path"], up=a.get("up", "y")),
     "load_photo": lambda app, a: app.photo.load(a["photo"], a.get("camera")),
     "align_photo": lambda app, a: app.photo.align(from_scratch=bool(a.get("from_scratch", False))),

@@ -191,3 +191,26 @@ def light_visibility(receivers, bias, lights, depth, bounds, out):
                         lit += wu * wv
             seen += lit
         out[i] = seen / count
+
+
+@njit(cache=True, parallel=True)
+def light_form_factors(points, normals, lights, area, surface, below):
+    """Per point, summed over the light's points (each of `area`, facing down): surface[i] = the cosine at
+    the surface times the cosine at the light over r^2 (Lambert's direct-light factor), below[i] = the
+    same for the floor point straight below it (normal up)."""
+    for i in prange(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        at_surface, at_floor = 0.0, 0.0
+        for k in range(lights.shape[0]):
+            dx, dy, dz = lights[k, 0] - px, lights[k, 1] - py, lights[k, 2] - pz
+            r2 = max(dx * dx + dy * dy + dz * dz, 1e-8)
+            inv = 1.0 / math.sqrt(r2)
+            cos_surface = max((dx * nx + dy * ny + dz * nz) * inv, 0.0)
+            cos_light = max(dy * inv, 0.0)
+            at_surface += cos_surface * cos_light / r2
+            h = lights[k, 1]
+            r2_floor = dx * dx + h * h + dz * dz
+            at_floor += h * h / (r2_floor * r2_floor)
+        surface[i] = at_surface * area
+        below[i] = at_floor * area

@@ -44,13 +44,14 @@ NORMAL_SIGMA = 1.5  # voxels: blur of the distance field the normals come from (
 BROAD_SIGMA = 2.5  # voxels: occupancy blur for ambient occlusion
 CLOSING = ndimage.generate_binary_structure(3, 3)  # 3x3x3: closes diagonal gaps
 CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
-LIGHT_POINTS = 6  # per side of the light square: shadow maps and the direct-light sum
+LIGHT_POINTS = 4  # per side of the light square: shadow maps and the direct-light sum
 SHADOW_MAP_SIZE = 96  # texels per side
 OCCLUSION_DISTANCES = np.array([1.5, 3.0, 6.0, 12.0], dtype=np.float32)  # voxels along the normal
 OCCLUSION_WEIGHTS = np.array([0.35, 0.3, 0.25, 0.2], dtype=np.float32)
 FLOOR_OCCLUSION_DISTANCES = np.array([2.0, 5.0, 10.0, 20.0], dtype=np.float32)  # voxels straight up
 FLOOR_OCCLUSION_WEIGHTS = np.array([0.3, 0.3, 0.25, 0.2], dtype=np.float32)
 BLOCKED_SKY_LIGHT = 0.35  # share of the ambient light a blocked sky direction still brings (the lit object)
+FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object point gets (its shadow falls there)
 SUBPIXELS = 3  # rays per side at silhouette pixels
 # A ray covers its pixel by how deep it goes into the part it meets: not at all when it only touches
 # SURFACE_LEVEL, fully when within COVERAGE_PROBE voxels past the surface it gets COVERAGE_FULL of the
@@ -310,7 +311,10 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     occlusion = np.ones((size, size), dtype=np.float32)
     floor_seen = np.ones(len(surface.floor_points))
     if not geometry.empty:
-        kernels.light_visibility(surface.floor_points, 0.25 * voxel, lights, maps, bounds, floor_seen)
+        near = _in_shadow_reach(surface.floor_points, geometry, lights)
+        seen_near = np.empty(int(near.sum()))
+        kernels.light_visibility(surface.floor_points[near], 0.25 * voxel, lights, maps, bounds, seen_near)
+        floor_seen[near] = seen_near
     visibility[floor] = floor_seen
     occlusion[floor] = surface.floor_occlusion
     background = np.float32(AMBIENT_RADIANCE)
@@ -332,27 +336,38 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                        albedo=albedo, normal=normal, depth=depth, visibility=visibility, occlusion=occlusion)
 
 
+def _in_shadow_reach(floor_points: np.ndarray, geometry: ObjectGeometry, lights: np.ndarray) -> np.ndarray:
+    """Floor points inside the box (x, z) that the object's shadow can reach: its occupied voxels' bounding
+    box cast from the light's corner points onto y = 0. Only these need shadow-map lookups."""
+    lo, hi = geometry.occluders.min(axis=0), geometry.occluders.max(axis=0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    below_light = corners[:, 1] < lights[:, 1].min() - 1e-6
+    if not below_light.all():  # part of the object reaches the light's height: its shadow may fall anywhere
+        return np.ones(len(floor_points), dtype=bool)
+    ends = lights[[0, -1]][:, None, :]  # opposite corners of the grid of light points
+    cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
+    cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
+    margin = 0.05
+    x0, z0 = cast[:, 0].min() - margin, cast[:, 2].min() - margin
+    x1, z1 = cast[:, 0].max() + margin, cast[:, 2].max() + margin
+    x, z = floor_points[:, 0], floor_points[:, 2]
+    return (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
+
+
 def _object_radiance(surface: VisibleSurface, lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray, voxel: float,
                      floor_color) -> tuple[np.ndarray, np.ndarray]:
     """Linear radiance (N, 3) of the visible object points and the share of the light each sees."""
     points, normals = surface.points, surface.normals
     seen = np.empty(len(points))
     kernels.light_visibility(points + normals * voxel, 0.5 * voxel, lights, maps, bounds, seen)
-    # Direct light: the area light's points, Lambert at the surface, cosine at the downward-facing light.
-    to_light = lights[None, :, :] - points[:, None, :]
-    distance2 = np.maximum(np.einsum("nkc,nkc->nk", to_light, to_light), 1e-8)
-    inv = 1.0 / np.sqrt(distance2)
-    cos_surface = np.maximum(np.einsum("nkc,nc->nk", to_light, normals) * inv, 0.0)
-    cos_light = np.maximum(to_light[..., 1] * inv, 0.0)
-    area = LIGHT_SIZE**2 / len(lights)
-    direct = LIGHT_RADIANCE * seen * (cos_surface * cos_light / distance2).sum(axis=1) * area
-    # Ambient from the sky above the horizon, and light the floor below sends back up.
+    form = np.empty(len(points))
+    form_below = np.empty(len(points))
+    kernels.light_form_factors(points, normals, lights, LIGHT_SIZE**2 / len(lights), form, form_below)
+    direct = LIGHT_RADIANCE * seen * form
+    # Ambient from the sky above the horizon, and light the floor below sends back up (the floor there
+    # lies partly in the object's shadow: FLOOR_BELOW_LIT of its direct light).
     sky = AMBIENT_RADIANCE * math.pi * 0.5 * (1.0 + normals[:, 1]) * surface.occlusion
-    below = points * np.array([1.0, 0.0, 1.0])
-    to_light_below = lights[None, :, :] - below[:, None, :]
-    d2_below = np.maximum(np.einsum("nkc,nkc->nk", to_light_below, to_light_below), 1e-8)
-    floor_irradiance = (LIGHT_RADIANCE * (to_light_below[..., 1] ** 2 / d2_below**2).sum(axis=1) * area * 0.5
-                        + AMBIENT_RADIANCE * math.pi)
+    floor_irradiance = LIGHT_RADIANCE * form_below * FLOOR_BELOW_LIT + AMBIENT_RADIANCE * math.pi
     floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
     bounce = (floor_irradiance[:, None] * floor_albedo[None, :] / math.pi) * math.pi * 0.5 * (1.0 - normals[:, 1:2])
     irradiance = (direct + sky)[:, None] + bounce

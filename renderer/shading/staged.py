@@ -1,0 +1,51 @@
+"""The voxel shader for a live editor: each stage kept with the scene parts it was computed from.
+
+    stage      depends on                                                  reruns after
+    grid       object voxels after paint, placement, elevation, floor      paint, object move, camera, floor color
+    geometry   grid                                                        the same
+    surface    geometry, image size                                        the same
+    shade      surface, light position, floor color                        any of the above, a light move
+
+So a light move reruns only `shade`, the light-dependent part. The caller names the painted voxels by
+a key (anything hashable that changes when they do), so the cache never compares voxel arrays.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Hashable
+from typing import Any
+
+import numpy as np
+
+from renderer.grid import scene_grid
+from renderer.scene import Scene
+from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
+
+
+class StagedShader:
+    """Shades scenes one after another, rerunning only the stages an edit changed."""
+
+    def __init__(self) -> None:
+        self._memo: dict[str, tuple[Hashable, Any]] = {}
+        self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
+
+    def render(self, scene: Scene, voxels_key: Hashable, object_rgba: np.ndarray, floor_color, size: int) -> ShadedImage:
+        """The shaded image of `scene` whose painted object voxels are `object_rgba` (named by `voxels_key`)."""
+        self.stage_ms = {}
+        o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
+        grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
+        grid = self._stage("grid", grid_key, lambda: scene_grid(object_rgba, o, floor, elevation))
+        geometry = self._stage("geometry", grid_key, lambda: object_geometry(grid, elevation))
+        surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
+        return self._stage("shade", (grid_key, size, scene.light.position, floor),
+                           lambda: shade(geometry, surface, scene.light.position, floor))
+
+    def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
+        if name in self._memo and self._memo[name][0] == key:
+            return self._memo[name][1]
+        start = time.perf_counter()
+        value = compute()
+        self.stage_ms[name] = (time.perf_counter() - start) * 1000.0
+        self._memo[name] = (key, value)
+        return value
