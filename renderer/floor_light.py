@@ -59,10 +59,9 @@ def lit_floor_terms(camera: Camera, light_position, floor_color) -> tuple[np.nda
     what the area light gives (diffuse and glossy), what the ambient light gives, and the floor mask (H, W).
     Both are zero off the floor."""
     geometry = _coarse_geometry(camera)
-    from_light, from_ambient = _coarse_radiance(geometry, light_position, floor_color)
-    mask = geometry.floor[..., None]
-    return (np.where(mask, _upsample(from_light, geometry), 0.0).astype(np.float32),
-            np.where(mask, _upsample(from_ambient, geometry), 0.0).astype(np.float32), geometry.floor)
+    both = _upsample(np.concatenate(_coarse_radiance(geometry, light_position, floor_color), axis=-1), geometry)
+    both *= geometry.floor[..., None]
+    return np.ascontiguousarray(both[..., :3]), np.ascontiguousarray(both[..., 3:]), geometry.floor
 
 
 def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:

@@ -159,3 +159,27 @@ def test_shadow_maps_block_what_lies_between():
     kernels.build_shadow_maps(np.zeros((0, 3)), 0.05, lights, 16, maps, bounds)
     kernels.light_visibility(receivers, 0.01, lights, maps, bounds, seen)
     assert np.all(seen == 1.0)
+
+
+def test_distance_transform_matches_scipy():
+    rng = np.random.default_rng(1)
+    occupied = rng.random((13, 17, 11)) < 0.02
+    occupied[0, 0, 0] = True
+    np.testing.assert_allclose(kernels.distance_to_occupied(occupied), ndimage.distance_transform_edt(~occupied),
+                               rtol=1e-5, atol=1e-5)
+
+
+def test_closing_and_filling_make_a_shell_solid():
+    from renderer.shading.shader import _dilate_cube, _erode_cube, _solid
+
+    rng = np.random.default_rng(2)
+    mask = rng.random((9, 10, 8)) < 0.3
+    structure = ndimage.generate_binary_structure(3, 3)
+    np.testing.assert_array_equal(_dilate_cube(mask), ndimage.binary_dilation(mask, structure))
+    np.testing.assert_array_equal(_erode_cube(mask), ndimage.binary_erosion(mask, structure, border_value=0))
+    # A hollow box whose shell has diagonal gaps only: solid inside, empty outside.
+    shell = np.zeros((12, 12, 12), dtype=bool)
+    shell[3:9, 3:9, 3:9] = True
+    shell[4:8, 4:8, 4:8] = False
+    solid = _solid(shell)
+    assert solid[3:9, 3:9, 3:9].all() and solid.sum() == 6**3

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy import ndimage
@@ -37,20 +38,24 @@ from renderer.floor_light import lit_floor_terms
 from renderer.grid import grid_index_to_world, ground_mask, scene_grid
 from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import kernels
+from renderer.splat import floor_mask
 
 SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
 DISTANCE_SIGMA = 1.0  # voxels: blur of the distance field the surface is drawn from (smooth, not beaded)
 NORMAL_SIGMA = 1.5  # voxels: blur of the distance field the normals come from (no staircases)
 BROAD_SIGMA = 2.5  # voxels: occupancy blur for ambient occlusion
-CLOSING = ndimage.generate_binary_structure(3, 3)  # 3x3x3: closes diagonal gaps
+BROAD_SCALE = 0.5  # the broad occupancy is stored at half resolution
+BLUR_TRUNCATE = 2.5  # gaussian kernels reach this many sigmas
 CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
 LIGHT_POINTS = 4  # per side of the light square: shadow maps and the direct-light sum
 SHADOW_MAP_SIZE = 96  # texels per side
+FLOOR_SHADOW_STEP = 0.025  # world units between the floor points the shadow maps are read at
 OCCLUSION_DISTANCES = np.array([1.5, 3.0, 6.0, 12.0], dtype=np.float32)  # voxels along the normal
 OCCLUSION_WEIGHTS = np.array([0.35, 0.3, 0.25, 0.2], dtype=np.float32)
 FLOOR_OCCLUSION_DISTANCES = np.array([2.0, 5.0, 10.0, 20.0], dtype=np.float32)  # voxels straight up
 FLOOR_OCCLUSION_WEIGHTS = np.array([0.3, 0.3, 0.25, 0.2], dtype=np.float32)
 BLOCKED_SKY_LIGHT = 0.35  # share of the ambient light a blocked sky direction still brings (the lit object)
+FLOOR_BOUNCE = 1.0  # weight of the light the floor sends back up onto the object (0: none)
 FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object point gets (its shadow falls there)
 SUBPIXELS = 3  # rays per side at silhouette pixels
 # A ray covers its pixel by how deep it goes into the part it meets: not at all when it only touches
@@ -132,19 +137,17 @@ def object_geometry(grid: np.ndarray, elevation_deg: float) -> ObjectGeometry:
         hi = np.minimum(found.max(axis=0) + CROP_MARGIN + 1, n)
     box = tuple(slice(a, b) for a, b in zip(lo, hi))
     occupied = np.ascontiguousarray(occupied_grid[box])
-    # Voxelised surfaces are shells, and a slanted one-voxel shell is only diagonally connected: close
-    # the diagonal gaps a ray could slip through, then count the inside as inside.
-    solid = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, CLOSING, border_value=0) | occupied)
-    as_float = solid.astype(np.float32)
-    raw = (ndimage.distance_transform_edt(~solid).astype(np.float32) if found.size
-           else np.full(occupied.shape, 1e3, dtype=np.float32))
-    distance = ndimage.gaussian_filter(raw, DISTANCE_SIGMA)
+    solid = _solid(occupied)
+    raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
+    distance = ndimage.gaussian_filter(raw, DISTANCE_SIGMA, truncate=BLUR_TRUNCATE)
+    # Normals from the distance blurred by NORMAL_SIGMA in all: blur `distance` by what is missing.
+    smooth = ndimage.gaussian_filter(distance, math.sqrt(NORMAL_SIGMA**2 - DISTANCE_SIGMA**2), truncate=BLUR_TRUNCATE)
     centres = found + 0.5
     occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(
         elevation_deg=float(elevation_deg), offset=lo, occupied=occupied,
         rgb=np.ascontiguousarray(grid[box][..., :3], dtype=np.float32),
-        distance=distance, core=ndimage.minimum_filter(distance, CORE_SIZE), smooth=ndimage.gaussian_filter(raw, NORMAL_SIGMA), broad=ndimage.gaussian_filter(as_float, BROAD_SIGMA),
+        distance=distance, core=ndimage.minimum_filter(distance, CORE_SIZE), smooth=smooth, broad=_broad(solid),
         grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders))
 
 
@@ -221,15 +224,17 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, 
            v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v)."""
     u, v = np.broadcast_arrays(u, v)
-    _, directions = camera.pixel_rays(u, v)
-    directions = directions.reshape(-1, 3) @ world_to_grid[:3, :3].T
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    t = np.empty(len(directions))
-    points = np.zeros((len(directions), 3))
-    deepest = np.empty(len(directions))
-    cores = np.zeros(len(directions))
-    kernels.trace_surface(geometry.distance, geometry.core, SURFACE_LEVEL, COVERAGE_PROBE, origin,
-                          np.ascontiguousarray(directions), t, points, deepest, cores)
+    count = u.size
+    # The camera-space ray through (u, v) is ((u - cx) / f, -(v - cy) / f, -1): affine in (u, v, 1).
+    (cx, cy), f = camera.principal_point, camera.focal_px
+    camera_ray = np.array([[1.0 / f, 0.0, -cx / f], [0.0, -1.0 / f, cy / f], [0.0, 0.0, -1.0]])
+    pixel_to_ray = world_to_grid[:3, :3] @ camera.camera_to_world()[:3, :3] @ camera_ray
+    t = np.empty(count)
+    points = np.zeros((count, 3))
+    deepest = np.empty(count)
+    cores = np.zeros(count)
+    kernels.trace_surface(geometry.distance, geometry.core, SURFACE_LEVEL, COVERAGE_PROBE, origin, pixel_to_ray,
+                          np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points, deepest, cores)
     reach = np.maximum(SURFACE_LEVEL - np.minimum(cores, SURFACE_LEVEL - 0.05), 1e-3) * COVERAGE_FULL
     cover = np.clip((SURFACE_LEVEL - deepest) / reach, 0.0, 1.0).astype(np.float32)
     return t.reshape(u.shape), points.reshape(u.shape + (3,)), cover.reshape(u.shape)
@@ -239,10 +244,50 @@ def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np
     """Sky light reaching each surface point: 1 minus the broad occupancy found along its normal, less
     what an open flat surface itself puts there."""
     found = np.empty(len(points))
-    kernels.occlusion_along(geometry.broad, points, normals, OCCLUSION_DISTANCES, OCCLUSION_WEIGHTS, found)
+    kernels.occlusion_along(geometry.broad, BROAD_SCALE, points, normals, OCCLUSION_DISTANCES, OCCLUSION_WEIGHTS, found)
     flat = float(np.sum(OCCLUSION_WEIGHTS * _half_space_blur(OCCLUSION_DISTANCES + SURFACE_LEVEL, BROAD_SIGMA)))
     blocked = np.clip((found - flat) / max(1.0 - flat, 1e-6), 0.0, 1.0)
     return (1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)).astype(np.float32)
+
+
+def _solid(occupied: np.ndarray) -> np.ndarray:
+    """The occupied voxels with their insides: voxelised surfaces are shells, and a slanted one-voxel shell
+    is only diagonally connected, so the diagonal gaps a ray could slip through are closed first; then
+    everything not connected to the crop's border (6-connected) is inside."""
+    closed = _erode_cube(_dilate_cube(occupied)) | occupied
+    outside, _ = ndimage.label(np.pad(~closed, 1, constant_values=True))
+    return outside[1:-1, 1:-1, 1:-1] != outside[0, 0, 0]
+
+
+def _dilate_cube(mask: np.ndarray) -> np.ndarray:
+    """Binary dilation by the 3x3x3 cube, one axis at a time (the cube is the product of three segments)."""
+    out = mask.copy()
+    for axis in range(3):
+        grown = out.copy()
+        _shifted(grown, axis, 1)[...] |= _shifted(out, axis, -1)
+        _shifted(grown, axis, -1)[...] |= _shifted(out, axis, 1)
+        out = grown
+    return out
+
+
+def _erode_cube(mask: np.ndarray) -> np.ndarray:
+    """Binary erosion by the 3x3x3 cube, outside the array counting as empty."""
+    return ~_dilate_cube(np.pad(~mask, 1, constant_values=True))[1:-1, 1:-1, 1:-1]
+
+
+def _shifted(array: np.ndarray, axis: int, side: int) -> np.ndarray:
+    """The view of `array` without its first (side 1) or last (side -1) slice along `axis`."""
+    index = [slice(None)] * 3
+    index[axis] = slice(1, None) if side == 1 else slice(None, -1)
+    return array[tuple(index)]
+
+
+def _broad(solid: np.ndarray) -> np.ndarray:
+    """The solid occupancy averaged over 2^3 blocks and blurred by BROAD_SIGMA voxels (at half resolution:
+    occlusion is a broad effect), sampled at BROAD_SCALE times the crop's coordinates."""
+    padded = np.pad(solid.astype(np.float32), [(0, n % 2) for n in solid.shape])
+    half = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2, padded.shape[2] // 2, 2).mean(axis=(1, 3, 5))
+    return ndimage.gaussian_filter(half, BROAD_SIGMA * BROAD_SCALE, truncate=BLUR_TRUNCATE)
 
 
 def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
@@ -250,15 +295,18 @@ def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
     return 0.5 * np.vectorize(math.erfc)(distance / (sigma * math.sqrt(2.0)))
 
 
+@lru_cache(maxsize=8)
 def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """The floor mask and the world points (F, 3) where the floor pixels' centre rays meet y = 0."""
-    from renderer.splat import floor_mask
-
+    """The floor mask and the world points (F, 3) where the floor pixels' centre rays meet y = 0 (cached,
+    read-only: an object move keeps the camera)."""
     floor = floor_mask(camera)
     rows, cols = np.nonzero(floor)
     origin, dirs = camera.pixel_rays(cols + 0.5, rows + 0.5)
     t = -origin[1] / dirs[:, 1]
-    return floor, origin + t[:, None] * dirs
+    points = origin + t[:, None] * dirs
+    for array in (floor, points):
+        array.flags.writeable = False
+    return floor, points
 
 
 def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_to_grid: np.ndarray) -> np.ndarray:
@@ -266,15 +314,21 @@ def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_t
     occlusion = np.ones(len(floor_points), dtype=np.float32)
     if geometry.empty or not len(floor_points):
         return occlusion
-    crop = floor_points @ world_to_grid[:3, :3].T + world_to_grid[:3, 3] - geometry.offset
+    # Only floor points under the crop box (its world bounds in x and z) can be occluded.
     shape = np.asarray(geometry.occupied.shape)
-    near = np.all((crop >= -CROP_MARGIN) & (crop <= shape + CROP_MARGIN), axis=1)
+    corners = np.array([[a, b, c] for a in (0, shape[0]) for b in (0, shape[1]) for c in (0, shape[2])], dtype=np.float64)
+    world = (corners + geometry.offset) @ geometry.grid_to_world[:3, :3].T + geometry.grid_to_world[:3, 3]
+    (x0, _, z0), (x1, _, z1) = world.min(axis=0), world.max(axis=0)
+    x, z = floor_points[:, 0], floor_points[:, 2]
+    near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
     if not near.any():
         return occlusion
+    crop = floor_points[near] @ world_to_grid[:3, :3].T + world_to_grid[:3, 3] - geometry.offset
     up = world_to_grid[:3, :3] @ np.array([0.0, 1.0, 0.0])
     up /= np.linalg.norm(up)
     found = np.empty(int(near.sum()))
-    kernels.occlusion_along(geometry.broad, np.ascontiguousarray(crop[near]), np.broadcast_to(up, (int(near.sum()), 3)).copy(),
+    kernels.occlusion_along(geometry.broad, BROAD_SCALE, np.ascontiguousarray(crop),
+                            np.broadcast_to(up, (int(near.sum()), 3)).copy(),
                             FLOOR_OCCLUSION_DISTANCES, FLOOR_OCCLUSION_WEIGHTS, found)
     blocked = np.clip(found, 0.0, 1.0)
     occlusion[near] = 1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)
@@ -311,10 +365,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     occlusion = np.ones((size, size), dtype=np.float32)
     floor_seen = np.ones(len(surface.floor_points))
     if not geometry.empty:
-        near = _in_shadow_reach(surface.floor_points, geometry, lights)
-        seen_near = np.empty(int(near.sum()))
-        kernels.light_visibility(surface.floor_points[near], 0.25 * voxel, lights, maps, bounds, seen_near)
-        floor_seen[near] = seen_near
+        floor_seen = _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, 0.25 * voxel)
     visibility[floor] = floor_seen
     occlusion[floor] = surface.floor_occlusion
     background = np.float32(AMBIENT_RADIANCE)
@@ -336,40 +387,57 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                        albedo=albedo, normal=normal, depth=depth, visibility=visibility, occlusion=occlusion)
 
 
-def _in_shadow_reach(floor_points: np.ndarray, geometry: ObjectGeometry, lights: np.ndarray) -> np.ndarray:
-    """Floor points inside the box (x, z) that the object's shadow can reach: its occupied voxels' bounding
-    box cast from the light's corner points onto y = 0. Only these need shadow-map lookups."""
+def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
+                      bounds: np.ndarray, bias: float) -> np.ndarray:
+    """Share of the light each floor point sees. The shadow maps are read on a grid of FLOOR_SHADOW_STEP
+    over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
+    points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
+    seen = np.ones(len(floor_points))
     lo, hi = geometry.occluders.min(axis=0), geometry.occluders.max(axis=0)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    below_light = corners[:, 1] < lights[:, 1].min() - 1e-6
-    if not below_light.all():  # part of the object reaches the light's height: its shadow may fall anywhere
-        return np.ones(len(floor_points), dtype=bool)
+    if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
+        kernels.light_visibility(floor_points, bias, lights, maps, bounds, seen)
+        return seen
     ends = lights[[0, -1]][:, None, :]  # opposite corners of the grid of light points
     cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
     cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
-    margin = 0.05
-    x0, z0 = cast[:, 0].min() - margin, cast[:, 2].min() - margin
-    x1, z1 = cast[:, 0].max() + margin, cast[:, 2].max() + margin
+    (x0, z0), (x1, z1) = cast[:, [0, 2]].min(axis=0) - FLOOR_SHADOW_STEP, cast[:, [0, 2]].max(axis=0) + FLOOR_SHADOW_STEP
     x, z = floor_points[:, 0], floor_points[:, 2]
-    return (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
+    near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
+    if not near.any():
+        return seen
+    xs = np.arange(x0, x1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
+    zs = np.arange(z0, z1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
+    gx, gz = np.meshgrid(xs, zs, indexing="ij")
+    samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
+    on_grid = np.empty(len(samples))
+    kernels.light_visibility(samples, bias, lights, maps, bounds, on_grid)
+    seen[near] = ndimage.map_coordinates(on_grid.reshape(gx.shape), [(x[near] - x0) / FLOOR_SHADOW_STEP,
+                                                                      (z[near] - z0) / FLOOR_SHADOW_STEP],
+                                         order=1, mode="nearest")
+    return seen
 
 
 def _object_radiance(surface: VisibleSurface, lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray, voxel: float,
                      floor_color) -> tuple[np.ndarray, np.ndarray]:
     """Linear radiance (N, 3) of the visible object points and the share of the light each sees."""
     points, normals = surface.points, surface.normals
-    seen = np.empty(len(points))
-    kernels.light_visibility(points + normals * voxel, 0.5 * voxel, lights, maps, bounds, seen)
     form = np.empty(len(points))
     form_below = np.empty(len(points))
     kernels.light_form_factors(points, normals, lights, LIGHT_SIZE**2 / len(lights), form, form_below)
+    # Shadows matter only where the light reaches the surface at all (points facing away see none of it).
+    seen = np.zeros(len(points))
+    facing = form > 0.0
+    seen_facing = np.empty(int(facing.sum()))
+    kernels.light_visibility(points[facing] + normals[facing] * voxel, 0.5 * voxel, lights, maps, bounds, seen_facing)
+    seen[facing] = seen_facing
     direct = LIGHT_RADIANCE * seen * form
     # Ambient from the sky above the horizon, and light the floor below sends back up (the floor there
     # lies partly in the object's shadow: FLOOR_BELOW_LIT of its direct light).
     sky = AMBIENT_RADIANCE * math.pi * 0.5 * (1.0 + normals[:, 1]) * surface.occlusion
     floor_irradiance = LIGHT_RADIANCE * form_below * FLOOR_BELOW_LIT + AMBIENT_RADIANCE * math.pi
     floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
-    bounce = (floor_irradiance[:, None] * floor_albedo[None, :] / math.pi) * math.pi * 0.5 * (1.0 - normals[:, 1:2])
+    bounce = FLOOR_BOUNCE * floor_irradiance[:, None] * floor_albedo[None, :] * 0.5 * (1.0 - normals[:, 1:2])
     irradiance = (direct + sky)[:, None] + bounce
     return (surface.albedo * irradiance / math.pi).astype(np.float32), seen.astype(np.float32)
 

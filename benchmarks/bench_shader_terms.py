@@ -1,0 +1,77 @@
+"""What each term of the voxel shader buys: MSE and DSSIM on the test split with one term taken out.
+
+Run from the repository root after making the test split (docs/results.md says how):
+    python -m benchmarks.bench_shader_terms [--data data/test_single data/test_default data/test_textured] [--every 1]
+Prints a Markdown table: the full shader, then each ablation, per setting.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections import defaultdict
+from contextlib import contextmanager
+
+import numpy as np
+import torch
+
+import renderer.shading.shader as shader
+from models.evaluation.metrics import dssim, mse_255
+from models.training.data import VoxelRenderSet
+from renderer.shading import kernels
+
+
+def _lit_everywhere(receivers, bias, lights, depth, bounds, out):
+    out[:] = 1.0
+
+
+@contextmanager
+def patched(module, **values):
+    """Set module attributes for the duration of a `with` block."""
+    before = {name: getattr(module, name) for name in values}
+    for name, value in values.items():
+        setattr(module, name, value)
+    try:
+        yield
+    finally:
+        for name, value in before.items():
+            setattr(module, name, value)
+
+
+ABLATIONS = {
+    "full shader": (shader, {}),
+    "no shadows (every point sees the whole light)": (kernels, {"light_visibility": _lit_everywhere}),
+    "hull silhouettes (no thinning towards the mesh)": (shader, {"COVERAGE_FULL": 1e-6}),
+    "no ambient occlusion": (shader, {"OCCLUSION_WEIGHTS": np.zeros(4, np.float32),
+                                      "FLOOR_OCCLUSION_WEIGHTS": np.zeros(4, np.float32)}),
+    "no light bounced from the floor": (shader, {"FLOOR_BOUNCE": 0.0}),
+    "blocky normals (distance blurred by 0.5 voxel)": (shader, {"NORMAL_SIGMA": 0.5}),
+}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--data", nargs="+", default=["data/test_single", "data/test_default", "data/test_textured"])
+    parser.add_argument("--every", type=int, default=1, help="use every N-th sample")
+    args = parser.parse_args()
+    dataset = VoxelRenderSet(args.data)
+    samples = [(dataset[i], dataset.scene(i), dataset.settings[i]) for i in range(0, len(dataset), args.every)]
+    settings = sorted({s for _, _, s in samples})
+    print(f"{len(samples)} test images; MSE (0-255) / DSSIM per setting\n")
+    print("| shader | " + " | ".join(settings) + " |")
+    print("|---|" + "---:|" * len(settings))
+    for name, (module, values) in ABLATIONS.items():
+        scores = defaultdict(list)
+        with patched(module, **values):
+            for item, scene, setting in samples:
+                grid = item["voxels"].numpy().transpose(1, 2, 3, 0)
+                image = shader.shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color,
+                                          item["target"].shape[-1]).image
+                prediction = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
+                target = item["target"][None]
+                scores[setting].append((float(mse_255(prediction, target)[0]), float(dssim(prediction, target)[0])))
+        cells = [f"{np.mean([m for m, _ in scores[s]]):.1f} / {np.mean([d for _, d in scores[s]]):.4f}" for s in settings]
+        print(f"| {name} | " + " | ".join(cells) + " |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
