@@ -23,7 +23,7 @@ from models.engine.render_engine import (
     resolve_precision,
 )
 from models.networks.checkpoint import save_model
-from models.networks.config import CompactConfig, PaperConfig
+from models.networks.config import CompactConfig, PaperConfig, ShaderRefinerConfig
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import build_model
 from renderer.camera import Camera
@@ -32,6 +32,7 @@ from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
 from renderer.objects.demo import DEMO_DIR
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, load_scene
+from renderer.shading import shade_grid
 from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
@@ -432,3 +433,52 @@ def test_cli_renders_with_the_engine(tmp_path, model, scene):
                 "--model", str(tmp_path / "w.safetensors"), "--precision", "fp32"]) == 0
     image, _ = load_image(out)
     np.testing.assert_allclose(image, engine(model).render(scene), atol=1 / 255)
+
+
+# --- NVR+ refining the voxel shader ----------------------------------------------------------------
+
+TINY_REFINER = ShaderRefinerConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16,
+                                   light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
+
+
+def refiner(seed: int = 0, trained: bool = True):
+    """A random refiner; `trained`: its correction layer is random too (a fresh one starts at zero)."""
+    model = random_model(TINY_REFINER, seed=seed)
+    if trained:
+        torch.manual_seed(seed + 1)
+        for parameter in model.rerender.to_rgb.parameters():
+            parameter.data.normal_(0.0, 0.05)
+    else:
+        torch.manual_seed(seed)
+        model = build_model("nvr_plus", TINY_REFINER).eval()
+    return model
+
+
+def test_an_untrained_refiner_renders_the_shaded_image(scene):
+    rgba = load_voxels(scene.voxels_path())
+    grid = scene_grid(rgba, scene.object, scene.floor.color, scene.camera.elevation_deg, grid_size=64)
+    shaded = shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, 64).image
+    np.testing.assert_allclose(engine(refiner(trained=False)).render(scene), shaded, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("edit", EDITS)
+def test_refiner_cached_render_equals_uncached(scene, edit):
+    model = refiner()
+    edited = EDITS[edit][0](scene)
+    live = engine(model)
+    live.render(scene)
+    image = live.render(edited)
+    if edit == "light":  # the object's geometry and what the camera sees of it are kept
+        assert list(live.last_report.stages_run) == ["shade", "splat_branch", "light"]
+    np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
+    assert np.abs(image - live.render(scene)).max() > 1e-4
+
+
+def test_a_saved_refiner_renders_the_same_after_loading(scene, tmp_path):
+    model = refiner()
+    save_model(tmp_path / "refiner.safetensors", model, TINY_REFINER)
+    loaded = RenderEngine.load(tmp_path / "refiner.safetensors", threads=1, precision="fp32")
+    np.testing.assert_array_equal(loaded.render(scene), engine(model).render(scene))
+    # The preview while dragging is the shaded image the full render corrects.
+    preview = loaded.preview(scene.with_changes(object=replace(scene.object, translation=(0.2, 0.1))))
+    assert preview.shape == (64, 64, 3) and np.all(np.isfinite(preview))

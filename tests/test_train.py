@@ -9,6 +9,7 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
+from models.networks.checkpoint import load_model
 from models.training.train import CHECKPOINT, TrainConfig, batch_indices, train
 from renderer.errors import InputError
 from tests.fake_data import make_fake_dataset
@@ -171,3 +172,13 @@ def test_the_training_loop_uses_the_decayed_rate(data, tmp_path):
     assert parameters and all(torch.equal(a[k], b[k]) for k in parameters)
     moved = train(tmp_path / "moved", config(data, steps=3), progress=False)
     assert not all(torch.equal(weights(moved)[k], b[k]) for k in parameters)
+
+
+def test_a_shader_refiner_trains_from_the_shaded_image(data, tmp_path):
+    # Its first loss is the shaded image's own error; training lowers it (the fake targets are no
+    # physical images, so the correction has much to learn).
+    train(tmp_path / "run", config(data, config="shader_refiner", steps=20, batch=4, lr=3e-3), progress=False)
+    losses = [float(line.split(",")[1]) for line in (tmp_path / "run" / "log.csv").read_text().splitlines()[1:]]
+    assert sum(losses[-5:]) / 5 < 0.9 * sum(losses[:5]) / 5
+    model, net_config, _ = load_model(tmp_path / "run" / "model.safetensors")
+    assert net_config.shading_input and net_config.name == "shader_refiner"

@@ -71,7 +71,7 @@ from models.engine.light_merge import split_light_merge
 from models.engine.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, use_onednn_convolutions
 from models.engine.paint_replay import PaintReplay
 from models.networks.inference import prepare_for_inference
-from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light
+from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
@@ -89,6 +89,7 @@ from renderer.grid import (
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
 from renderer.scene import Scene
+from renderer.shading import ShadedImage, network_buffers, object_geometry, shade, visible_surface
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
@@ -132,6 +133,7 @@ class _Keys(NamedTuple):
     layout: tuple
     splat: tuple
     floor_light: tuple
+    shade: tuple
     splat_branch: tuple
 
 
@@ -155,6 +157,7 @@ class RenderEngine:
         self.precision = resolve_precision(precision, self.device)
         self.dtype = PRECISIONS[self.precision]
         self._reads_floor_light = reads_floor_light(model.architecture, self.config)
+        self._reads_shading = reads_shading(model.architecture, self.config)
         inference = prepare_for_inference(model)
         if self.device.type == "cpu":
             inference = use_onednn_convolutions(inference)
@@ -206,6 +209,8 @@ class RenderEngine:
             # Only the light changed: the voxel branch and the splat are kept, the rest is a light edit.
             if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
                 image = self._render(scene)
+            elif self._reads_shading:  # the shaded image, which the full render then corrects
+                image = np.clip(self._shaded(scene, painted, floor, keys).image, 0.0, 1.0)
             else:
                 splat = self._splat(scene, painted, floor, keys)
                 on_object = self._splat_layout(scene, painted, keys).voxel >= 0
@@ -217,16 +222,18 @@ class RenderEngine:
         painted, floor, paint_key = self._painted(scene)
         keys = self._keys(scene, painted, floor, paint_key)
         latent = self._latent(scene, painted, floor, keys)
-        features = None
+        features, shading = None, None
         if self.kind == "nvr+":
             splat = self._splat(scene, painted, floor, keys)
             floor_light = self._floor_light(scene, floor, keys) if self._reads_floor_light else None
+            shading = self._image_tensor(self._shading(scene, painted, floor, keys)) if self._reads_shading else None
             features = self._stage("splat_branch", keys.splat_branch, lambda: self.model.encode_splat(
-                self._image_tensor(splat), None if floor_light is None else self._image_tensor(floor_light)))
+                self._image_tensor(splat), None if floor_light is None else self._image_tensor(floor_light), shading))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
         light = light.to(self.device, self.dtype)
-        key = (keys.grid, keys.splat, scene.light.position)
-        return self._stage("light", key, lambda: _to_image(self.model.render_from_latent(latent, light, features)))
+        key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
+        shaded = None if shading is None else shading[:, :3]
+        return self._stage("light", key, lambda: _to_image(self.model.render_from_latent(latent, light, features, shaded)))
 
     # --- stages ---------------------------------------------------------------------------
 
@@ -250,14 +257,20 @@ class RenderEngine:
         layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
         splat = (paint_key, layout, floor)
         floor_light = (elevation, floor, scene.light.position)
-        splat_branch = (splat, floor_light if self._reads_floor_light else None)
-        return _Keys(pool=(paint_key, factors), placement=placement, grid=(paint_key, placement, floor),
-                     layout=layout, splat=splat, floor_light=floor_light, splat_branch=splat_branch)
+        grid = (paint_key, placement, floor)
+        shade = (grid, scene.light.position)
+        splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
+        return _Keys(pool=(paint_key, factors), placement=placement, grid=grid, layout=layout, splat=splat,
+                     floor_light=floor_light, shade=shade, splat_branch=splat_branch)
 
-    def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
+    def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
+        """The merged voxels and where each grid voxel samples them."""
         n, factors = keys.placement[1:3]
         pooled = self._stage("pool", keys.pool, lambda: self._pool(painted, keys.pool[0][0], factors)).voxels
-        placement = self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
+        return pooled, self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
+
+    def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
+        pooled, placement = self._placed(scene, painted, keys)
         if not self.crop:
             grid = self._stage("gather", keys.grid, lambda: gather(voxel_table(pooled, floor), placement.indices))
             self._recording.grid_fraction = 1.0
@@ -301,6 +314,22 @@ class RenderEngine:
     def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         layout = self._splat_layout(scene, painted, keys)
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
+
+    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> ShadedImage:
+        """The voxel shader's image of the scene, from its three cached stages (renderer/shading/)."""
+        elevation = scene.camera.elevation_deg
+
+        def full_grid() -> np.ndarray:  # the voxel branch itself reads only the object's crop of the grid
+            pooled, placement = self._placed(scene, painted, keys)
+            return gather(voxel_table(pooled, floor), placement.indices)
+
+        geometry = self._stage("shade_geometry", keys.grid, lambda: object_geometry(full_grid(), elevation))
+        surface = self._stage("shade_surface", keys.grid, lambda: visible_surface(geometry, self.output_size))
+        return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor))
+
+    def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+        """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
+        return network_buffers(self._shaded(scene, painted, floor, keys))
 
     def _floor_light(self, scene: Scene, floor: tuple, keys: _Keys) -> np.ndarray:
         return self._stage("floor_light", keys.floor_light, lambda: lit_floor_image(
@@ -445,4 +474,5 @@ def _file_stamp(path: Path) -> tuple:
 
 
 def _to_image(batch: torch.Tensor) -> np.ndarray:
-    return batch[0].permute(1, 2, 0).float().cpu().contiguous().numpy()
+    """(S, S, 3) float32 sRGB in [0, 1] (a network that corrects the shaded image can overshoot it)."""
+    return batch[0].permute(1, 2, 0).float().clamp(0.0, 1.0).cpu().contiguous().numpy()

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from models.evaluation.metrics import ImageMetrics
-from models.networks.nvr import reads_floor_light
+from models.networks.nvr import reads_floor_light, reads_shading
 from models.training.data import VoxelRenderSet
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
@@ -62,7 +62,8 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     if rows:
         save_png(figure, torch.cat(rows, dim=1).permute(1, 2, 0).numpy())
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
-    columns = "splat, lit floor, prediction, target" if with_floor_light else "splat, prediction, target"
+    with_shading = model is not None and reads_shading(model.architecture, config)
+    columns = ", ".join(["splat"] + ["lit floor"] * with_floor_light + ["shaded"] * with_shading + ["prediction", "target"])
     _write_report(report, figure, columns, renderer, model_path, extra, scores, metrics.perceptual.weights_name,
                   count, seconds, data)
     return report
@@ -94,7 +95,9 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     # The splat baseline reads no voxels; the shader reads the scene grid.
     grid_size = GRID_SIZE if renderer == "shaded" else 8 if config is None else config.grid_size
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
-    dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light)
+    with_shading = model is not None and reads_shading(model.architecture, config)
+    dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light,
+                             shading=with_shading)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
     rows = []
@@ -111,12 +114,14 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                     raise InputError(f"test images are {target.shape[-1]}^2 but the model renders {config.output_size}^2")
                 splat = sample["splat"][None] if renderer == "nvr+" else None
                 floor_light = sample["floor_light"][None] if with_floor_light else None
-                prediction = model(sample["voxels"][None], sample["light"][None], splat, floor_light)
+                shading = sample["shading"][None] if with_shading else None
+                prediction = model(sample["voxels"][None], sample["light"][None], splat, floor_light, shading).clamp(0.0, 1.0)
             values = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
             values["ground_share"] = _ground_share(prediction[0], target[0], sample["splat"], dataset.scene(index))
             scores[dataset.settings[index]].append(values)
             if len(rows) < FIGURE_SAMPLES:
-                inputs = [sample["splat"]] + ([sample["floor_light"]] if with_floor_light else [])
+                inputs = ([sample["splat"]] + ([sample["floor_light"]] if with_floor_light else [])
+                          + ([sample["shading"][:3]] if with_shading else []))
                 rows.append(torch.cat([*inputs, prediction[0], target[0]], dim=2))
     return scores, rows, count
 

@@ -29,7 +29,9 @@ class NVRConfig:
     per entry of `decoder_channels` (conv kernel `decoder_kernel`). NVR+: a splat branch of
     `splat_layers` full-resolution convs of `splat_channels`, and a U-Net with one level per
     entry of `unet_channels` and `unet_mid_blocks` residual blocks in its middle.
-    With `floor_light_input` the splat branch reads the splat and the lit empty floor (6 channels).
+    With `floor_light_input` the splat branch reads the splat and the lit empty floor (6 channels);
+    with `shading_input` also the voxel shader's image and buffers, and the output is the shaded image
+    corrected (models/networks/nvr.py).
     """
 
     name: ClassVar[str] = ""
@@ -55,6 +57,9 @@ class NVRConfig:
     unet_kernel: int
     floor_light_input: bool  # NVR+ only: the splat branch also reads the lit empty floor (renderer/floor_light.py)
     perceptual_weight: float  # beta of the loss L1 + beta * perceptual
+    # NVR+ only: the splat branch also reads the voxel shader's image and buffers (renderer/shading/), and the
+    # network's output corrects the shaded image instead of drawing the image itself.
+    shading_input: bool = False
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -106,8 +111,9 @@ class NVRConfig:
                     "decoder_kernel", "splat_channels", "splat_kernel", "unet_kernel"):
             if getattr(self, key) < 1:
                 raise ValueError(f"config field {key} must be at least 1")
-        if not isinstance(self.floor_light_input, bool):
-            raise ValueError(f"config field floor_light_input must be true or false, got {self.floor_light_input!r}")
+        for key in ("floor_light_input", "shading_input"):
+            if not isinstance(getattr(self, key), bool):
+                raise ValueError(f"config field {key} must be true or false, got {getattr(self, key)!r}")
         if not self.perceptual_weight >= 0.0:
             raise ValueError(f"perceptual_weight must be >= 0, got {self.perceptual_weight!r}")
 
@@ -122,11 +128,12 @@ class NVRConfig:
     @staticmethod
     def from_dict(data: dict[str, Any]) -> NVRConfig:
         """Rebuild a configuration from `to_dict` output; unknown names or fields raise ValueError."""
-        classes = {cls.name: cls for cls in (PaperConfig, CompactConfig)}
+        classes = {cls.name: cls for cls in (PaperConfig, CompactConfig, ShaderRefinerConfig)}
         if not isinstance(data, dict) or data.get("name") not in classes:
             raise ValueError(f"unknown configuration name {data.get('name') if isinstance(data, dict) else data!r}")
         cls = classes[data["name"]]
-        data = {"floor_light_input": False, **data}  # files written before the field existed had no such input
+        # Files written before these fields existed had no such inputs.
+        data = {"floor_light_input": False, "shading_input": False, **data}
         fields = {f.name for f in dataclasses.fields(cls)}
         given = set(data) - {"name"}
         if given != fields:
@@ -211,3 +218,17 @@ class CompactConfig(NVRConfig):
     unet_kernel: int = 3
     floor_light_input: bool = True
     perceptual_weight: float = 0.002
+
+
+@dataclass(frozen=True)
+class ShaderRefinerConfig(CompactConfig):
+    """The compact NVR+ refining the voxel shader: its splat branch reads the splat and the shader's image
+    and buffers (renderer/shading/: soft shadows, the lit floor, normals, albedo), and it outputs a
+    per-pixel correction of the shaded image, so an untrained network renders the shaded image and
+    training spends the network on what the shader misses. The shaded image holds the lit floor, so the
+    separate lit-floor input is off."""
+
+    name: ClassVar[str] = "shader_refiner"
+
+    floor_light_input: bool = False
+    shading_input: bool = True

@@ -11,8 +11,14 @@ Input/output convention (the one place it is written down):
   image of the same scene and camera.
 - floor_light (NVR+ with config.floor_light_input only): (B, 3, S, S) float32 sRGB in [0, 1], the
   lit empty floor of the same scene (renderer.floor_light.lit_floor_image); it depends on the light.
+- shading (NVR+ with config.shading_input only): (B, SHADING_CHANNELS, S, S) float32, the voxel
+  shader's image and buffers (renderer.shading.network_buffers, channels first); channels 0-2 are
+  the shaded image, sRGB. It depends on the light.
 - output: (B, 3, S, S) float32 sRGB, squashed into (0, 1) by a sigmoid (never clamped, so every
-  pixel keeps a gradient).
+  pixel keeps a gradient). With shading_input: the shaded image corrected, shaded * exp(gain) +
+  offset, gain and offset per pixel and channel from the network (not squashed: clamp for display);
+  their layer starts at zero, so an untrained network renders the shaded image exactly, and a
+  multiplicative correction keeps the texture the shaded image already has.
 
 Stages, so a live engine can cache what an edit does not change:
 `encode_voxels(voxels) -> latent` does not depend on the light, nor does
@@ -39,8 +45,10 @@ from models.networks.layers import (
 )
 from renderer.camera import Camera
 from renderer.scene import CAMERA_DISTANCE
+from renderer.shading import BUFFER_CHANNELS
 
 LIGHT_SCALE = CAMERA_DISTANCE
+SHADING_CHANNELS = len(BUFFER_CHANNELS)
 
 
 def light_to_network(light_world: np.ndarray, elevation_deg: float) -> np.ndarray:
@@ -95,12 +103,17 @@ class LightDecoder(nn.Module):
         return self.decoder(self.blocks(x))
 
 
+def splat_branch_channels(config: NVRConfig) -> int:
+    """Input channels of NVR+'s splat branch: the splat, and the lit floor and the shader's buffers if read."""
+    return IMAGE_CHANNELS * (2 if config.floor_light_input else 1) + (SHADING_CHANNELS if config.shading_input else 0)
+
+
 class SplatEncoder(nn.Module):
     """Splatting processing network: full-resolution conv blocks (no downsampling)."""
 
     def __init__(self, config: NVRConfig):
         super().__init__()
-        layers, c_in = [], IMAGE_CHANNELS * (2 if config.floor_light_input else 1)
+        layers, c_in = [], splat_branch_channels(config)
         for _ in range(config.splat_layers):
             layers.append(conv_block_2d(c_in, config.splat_channels, config.splat_kernel))
             c_in = config.splat_channels
@@ -126,7 +139,12 @@ class RerenderUNet(nn.Module):
         self.up = nn.ModuleList(up_block_2d(w, w // 2) for w in widths)
         self.fuse = nn.ModuleList(conv_block_2d(w // 2 + s, s, config.unet_kernel) for s, w in zip(skips, widths))
         self.out = conv_block_2d(config.splat_channels, config.splat_channels, config.unet_kernel)
-        self.to_rgb = conv_2d(config.splat_channels, IMAGE_CHANNELS, config.unet_kernel)
+        # A correction of the shaded image (gain and offset per channel) starts at zero: no correction.
+        outputs = 2 * IMAGE_CHANNELS if config.shading_input else IMAGE_CHANNELS
+        self.to_rgb = conv_2d(config.splat_channels, outputs, config.unet_kernel)
+        if config.shading_input:
+            for parameter in self.to_rgb.parameters():
+                nn.init.zeros_(parameter)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         skips = []
@@ -174,11 +192,11 @@ class NVR(_VoxelRenderer):
         c = config.decoder_channels[-1]
         self.to_rgb = conv_2d(c, IMAGE_CHANNELS, config.decoder_kernel)
 
-    def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
-                           splat_features: torch.Tensor | None = None) -> torch.Tensor:
-        """Image (B, 3, S, S) from a cached latent and the light; NVR takes no splat."""
-        if splat_features is not None:
-            raise ValueError("NVR takes no splat; use NVRPlus")
+    def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor, splat_features: torch.Tensor | None = None,
+                           shaded: torch.Tensor | None = None) -> torch.Tensor:
+        """Image (B, 3, S, S) from a cached latent and the light; NVR takes no splat and no shaded image."""
+        if splat_features is not None or shaded is not None:
+            raise ValueError("NVR takes no splat or shaded image; use NVRPlus")
         return torch.sigmoid(self.to_rgb(self._features(latent, light)))
 
     def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None,
@@ -199,32 +217,48 @@ class NVRPlus(_VoxelRenderer):
         self.splat_encoder = SplatEncoder(config)
         self.rerender = RerenderUNet(config)
 
-    def encode_splat(self, splat: torch.Tensor, floor_light: torch.Tensor | None = None) -> torch.Tensor:
-        """Features (B, splat_channels, S, S) of the splatted image (and of the lit floor, if the config reads it)."""
+    def encode_splat(self, splat: torch.Tensor, floor_light: torch.Tensor | None = None,
+                     shading: torch.Tensor | None = None) -> torch.Tensor:
+        """Features (B, splat_channels, S, S) of the splatted image, and of the lit floor and the shader's
+        buffers if the config reads them."""
         s = self.config.output_size
         _check_shape("splat", splat, (IMAGE_CHANNELS, s, s))
-        if not self.config.floor_light_input:
-            if floor_light is not None:
-                raise ValueError("this network reads no lit floor (config.floor_light_input is false)")
-            return self.splat_encoder(splat)
-        if floor_light is None:
-            raise ValueError("this network reads the lit floor too (config.floor_light_input): pass floor_light")
-        _check_shape("floor_light", floor_light, (IMAGE_CHANNELS, s, s))
-        return self.splat_encoder(torch.cat([splat, floor_light], dim=1))
+        inputs = [splat]
+        for name, label, tensor, wanted, channels in (
+                ("floor_light", "lit floor", floor_light, self.config.floor_light_input, IMAGE_CHANNELS),
+                ("shading", "shader buffers", shading, self.config.shading_input, SHADING_CHANNELS)):
+            if not wanted:
+                if tensor is not None:
+                    raise ValueError(f"this network reads no {label} (config.{name}_input is false)")
+                continue
+            if tensor is None:
+                raise ValueError(f"this network reads the {label} too (config.{name}_input): pass {name}")
+            _check_shape(name, tensor, (channels, s, s))
+            inputs.append(tensor)
+        return self.splat_encoder(inputs[0] if len(inputs) == 1 else torch.cat(inputs, dim=1))
 
     def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
-                           splat_features: torch.Tensor | None = None) -> torch.Tensor:
-        """Image (B, 3, S, S) from a cached latent, the light and cached splat features."""
+                           splat_features: torch.Tensor | None = None, shaded: torch.Tensor | None = None) -> torch.Tensor:
+        """Image (B, 3, S, S) from a cached latent, the light and cached splat features; with shading_input
+        also the shaded image (B, 3, S, S) the output corrects."""
         if splat_features is None:
             raise ValueError("NVRPlus needs splat features (encode_splat)")
         features = self.to_features(self._features(latent, light)) + splat_features
-        return torch.sigmoid(self.rerender(features))
+        out = self.rerender(features)
+        if not self.config.shading_input:
+            return torch.sigmoid(out)
+        if shaded is None:
+            raise ValueError("this network corrects the shaded image (config.shading_input): pass shaded")
+        gain, offset = out[:, :IMAGE_CHANNELS], out[:, IMAGE_CHANNELS:]
+        return shaded * torch.exp(gain) + offset
 
     def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None,
-                floor_light: torch.Tensor | None = None) -> torch.Tensor:
+                floor_light: torch.Tensor | None = None, shading: torch.Tensor | None = None) -> torch.Tensor:
         if splat is None:
             raise ValueError("NVRPlus needs a splat image")
-        return self.render_from_latent(self.encode_voxels(voxels), light, self.encode_splat(splat, floor_light))
+        features = self.encode_splat(splat, floor_light, shading)
+        shaded = shading[:, :IMAGE_CHANNELS] if shading is not None else None
+        return self.render_from_latent(self.encode_voxels(voxels), light, features, shaded)
 
 
 ARCHITECTURES: dict[str, type[_VoxelRenderer]] = {NVR.architecture: NVR, NVRPlus.architecture: NVRPlus}
@@ -234,6 +268,11 @@ SHARED_BRANCHES = ("voxel_encoder.", "light_decoder.")  # state-dict prefixes of
 def reads_floor_light(architecture: str, config: NVRConfig | None) -> bool:
     """Whether a network of this architecture and config takes the lit empty floor as an input."""
     return architecture == NVRPlus.architecture and config is not None and config.floor_light_input
+
+
+def reads_shading(architecture: str, config: NVRConfig | None) -> bool:
+    """Whether a network of this architecture and config reads the voxel shader's buffers (and corrects its image)."""
+    return architecture == NVRPlus.architecture and config is not None and config.shading_input
 
 
 def build_model(architecture: str, config: NVRConfig) -> NVR | NVRPlus:

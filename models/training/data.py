@@ -53,7 +53,7 @@ class VoxelRenderSet(Dataset):
     """Samples of one or several data folders, as network-ready tensors."""
 
     def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128, voxel_cache: int = 256,
-                 object_resolution: int | None = None, floor_light: bool = False):
+                 object_resolution: int | None = None, floor_light: bool = False, shading: bool = False):
         folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
         self.items: list[tuple[Path, dict]] = []
         self.settings: list[str] = []
@@ -68,6 +68,7 @@ class VoxelRenderSet(Dataset):
         self.grid_size = grid_size
         self.object_resolution = object_resolution  # coarser object voxels, for the resolution study
         self.floor_light = floor_light  # add the lit empty floor (NVR+ with config.floor_light_input)
+        self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
         self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
 
     def _load_voxels(self, path: str) -> np.ndarray:
@@ -105,6 +106,8 @@ class VoxelRenderSet(Dataset):
         }
         if self.floor_light:
             item["floor_light"] = floor_light_tensor(scene, scene.floor.color, splat.shape[-1])
+        if self.shading:
+            item["shading"] = shading_tensor(voxels, scene, splat.shape[-1])
         return item
 
 
@@ -115,3 +118,13 @@ def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
 
     image = lit_floor_image(Camera.from_scene(scene, size), scene.light.position, floor_color)
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
+
+
+def shading_tensor(voxels: torch.Tensor, scene: Scene, size: int) -> torch.Tensor:
+    """The voxel shader's image and buffers (renderer/shading/) of a sample's grid (4, D, H, W), as the
+    network's (SHADING_CHANNELS, size, size) input."""
+    from renderer.shading import network_buffers, shade_grid
+
+    shaded = shade_grid(voxels.numpy().transpose(1, 2, 3, 0), scene.light.position, scene.camera.elevation_deg,
+                        scene.floor.color, size)
+    return torch.from_numpy(np.ascontiguousarray(network_buffers(shaded).transpose(2, 0, 1)))

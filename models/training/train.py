@@ -115,9 +115,9 @@ class Distributed:
 
 def network_config(train: TrainConfig):
     """The network config a run trains (a named configuration, with any overrides)."""
-    from models.networks.config import CompactConfig, PaperConfig
+    from models.networks.config import CompactConfig, PaperConfig, ShaderRefinerConfig
 
-    classes = {"compact": CompactConfig, "paper": PaperConfig}
+    classes = {c.name: c for c in (CompactConfig, PaperConfig, ShaderRefinerConfig)}
     if train.config not in classes:
         raise InputError(f"unknown network config {train.config!r} (choose from {', '.join(classes)})")
     try:
@@ -194,7 +194,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     from tqdm import tqdm
 
     from models.networks.checkpoint import save_model
-    from models.networks.nvr import build_model, reads_floor_light
+    from models.networks.nvr import build_model, reads_floor_light, reads_shading
     from models.training.data import VoxelRenderSet
     from models.training.loss import RenderLoss
 
@@ -213,7 +213,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         _prepare_run(out, config, resume, net_config)
 
     dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size,
-                             floor_light=reads_floor_light(config.architecture, net_config))
+                             floor_light=reads_floor_light(config.architecture, net_config),
+                             shading=reads_shading(config.architecture, net_config))
     torch.manual_seed(config.seed)  # identical initial weights on every rank
     model = build_model(config.architecture, net_config)
     if config.init and not resume:
@@ -245,7 +246,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         indices = batch_indices(config.seed, step, config.batch, len(dataset))[dist_info.rank :: dist_info.world]
         batch = collate([dataset[int(i)] for i in indices], device)
         splat = batch["splat"] if config.architecture == "nvr_plus" else None
-        prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"))
+        prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"), batch.get("shading"))
         loss, parts = loss_fn(prediction, batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
         optimizer.zero_grad(set_to_none=True)
         loss.backward()

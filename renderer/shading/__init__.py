@@ -1,9 +1,11 @@
 """The voxel shader: a physically based image of the voxel scene (see shader.py)."""
 
 from renderer.shading.shader import (
+    BUFFER_CHANNELS,
     ObjectGeometry,
     ShadedImage,
     VisibleSurface,
+    network_buffers,
     object_geometry,
     shade,
     shade_grid,
@@ -11,5 +13,5 @@ from renderer.shading.shader import (
     visible_surface,
 )
 
-__all__ = ["ObjectGeometry", "ShadedImage", "VisibleSurface", "object_geometry", "shade", "shade_grid", "shade_scene",
+__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "object_geometry", "shade", "network_buffers", "shade_grid", "shade_scene",
            "visible_surface"]

@@ -36,7 +36,7 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import grid_index_to_world, ground_mask, scene_grid
-from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
+from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import kernels
 from renderer.splat import floor_mask
 
@@ -440,6 +440,23 @@ def _object_radiance(surface: VisibleSurface, lights: np.ndarray, maps: np.ndarr
     bounce = FLOOR_BOUNCE * floor_irradiance[:, None] * floor_albedo[None, :] * 0.5 * (1.0 - normals[:, 1:2])
     irradiance = (direct + sky)[:, None] + bounce
     return (surface.albedo * irradiance / math.pi).astype(np.float32), seen.astype(np.float32)
+
+
+# --- what a network reads ---------------------------------------------------------------------
+
+BUFFER_CHANNELS = ("image r", "image g", "image b", "albedo r", "albedo g", "albedo b", "normal x", "normal y",
+                   "normal z", "depth", "visibility", "occlusion", "coverage")
+
+
+def network_buffers(shaded: ShadedImage) -> np.ndarray:
+    """(H, W, len(BUFFER_CHANNELS)) float32, each channel in about [-1, 1]: the shaded image (sRGB), the object's
+    albedo (sRGB), its world normal, its depth (0 at the look-at distance, +-1 at the grid's faces), the
+    share of the light and of the sky each point sees, and the object's coverage; 0 where there is no object."""
+    on_object = shaded.coverage > 0.0
+    depth = np.where(on_object, (shaded.depth - CAMERA_DISTANCE) / (0.5 * GRID_EXTENT), 0.0)
+    return np.concatenate([shaded.image, linear_to_srgb(shaded.albedo), shaded.normal, depth[..., None],
+                           shaded.visibility[..., None], shaded.occlusion[..., None], shaded.coverage[..., None]],
+                          axis=-1).astype(np.float32)
 
 
 # --- all stages -------------------------------------------------------------------------------
