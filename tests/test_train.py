@@ -182,3 +182,21 @@ def test_a_shader_refiner_trains_from_the_shaded_image(data, tmp_path):
     assert sum(losses[-5:]) / 5 < 0.9 * sum(losses[:5]) / 5
     model, net_config, _ = load_model(tmp_path / "run" / "model.safetensors")
     assert net_config.shading_input and net_config.name == "shader_refiner"
+
+
+def test_a_shader_refiner_started_from_a_compact_nvr_plus_still_renders_the_shaded_image(tmp_path):
+    from models.networks.checkpoint import save_model
+    from models.networks.config import CompactConfig, ShaderRefinerConfig
+    from models.networks.nvr import build_model
+    from models.training.train import initialize_from
+
+    torch.manual_seed(0)
+    source = build_model("nvr_plus", CompactConfig(grid_size=16, output_size=32)).eval()
+    save_model(tmp_path / "compact.safetensors", source, source.config)
+    model = build_model("nvr_plus", ShaderRefinerConfig(grid_size=16, output_size=32)).eval()
+    initialize_from(model, tmp_path / "compact.safetensors")
+    torch.testing.assert_close(model.voxel_encoder.state_dict(), source.voxel_encoder.state_dict())
+    voxels, light = torch.rand(1, 4, 16, 16, 16), torch.rand(1, 3)
+    splat, shading = torch.rand(1, 3, 32, 32), torch.rand(1, 13, 32, 32)
+    with torch.no_grad():
+        torch.testing.assert_close(model(voxels, light, splat, None, shading), shading[:, :3])

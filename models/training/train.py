@@ -284,6 +284,8 @@ def initialize_from(model: nn.Module, path: Path) -> None:
 
     NVR may start from NVR+ (the other way round has nothing to gain): the branches both have,
     voxel encoder and light decoder, come over, and NVR's own output layer keeps its fresh weights.
+    An NVR+ that corrects the shaded image (config.shading_input) may start from one that does not:
+    everything but its correction layer comes over, so it starts out rendering the shaded image.
     """
     from models.networks.checkpoint import load_model
     from models.networks.nvr import SHARED_BRANCHES
@@ -298,6 +300,10 @@ def initialize_from(model: nn.Module, path: Path) -> None:
         keys = [key for key in new if key.startswith(SHARED_BRANCHES)]
     else:
         raise InputError(f"holds a {source.architecture} network, not {model.architecture}", path)
+    if model.config.shading_input and not source.config.shading_input:
+        # A network that corrects the shaded image keeps its correction layer at zero (no correction), so it
+        # starts out rendering the shaded image; the rest of the image branch comes over.
+        keys = [key for key in keys if not key.startswith("rerender.to_rgb.")]
     for key in keys:
         value, target = old[key], new[key]
         if value.shape == target.shape:
