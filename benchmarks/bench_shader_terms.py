@@ -44,7 +44,7 @@ ABLATIONS = {
     "no ambient occlusion": (shader, {"OCCLUSION_WEIGHTS": np.zeros(4, np.float32),
                                       "FLOOR_OCCLUSION_WEIGHTS": np.zeros(4, np.float32)}),
     "no light bounced from the floor": (shader, {"FLOOR_BOUNCE": 0.0}),
-    "blocky normals (distance blurred by 0.5 voxel)": (shader, {"NORMAL_SIGMA": 0.5}),
+    "less smooth normals (from the surface's own field)": (shader, {"NORMAL_SIGMA": shader.DISTANCE_SIGMA}),
 }
 
 

@@ -262,34 +262,27 @@ def _lower_envelope(f, n, out, v, z):
 
 
 @njit(cache=True, parallel=True)
-def _distance_pass(grid, axis):
-    """One separable pass of the squared distance transform along `axis`, in place."""
-    shape = grid.shape
-    n = shape[axis]
-    others = (shape[1], shape[2]) if axis == 0 else (shape[0], shape[2]) if axis == 1 else (shape[0], shape[1])
-    for line in prange(others[0] * others[1]):
-        a, b = line // others[1], line % others[1]
-        f = np.empty(n)
+def _distance_pass(grid):
+    """One separable pass of the squared distance transform along the last (contiguous) axis, in place."""
+    rows, n = grid.shape[0] * grid.shape[1], grid.shape[2]
+    lines = grid.reshape(rows, n)
+    for line in prange(rows):
         out = np.empty(n)
         v = np.empty(n, dtype=np.int64)
         z = np.empty(n + 1)
+        _lower_envelope(lines[line].astype(np.float64), n, out, v, z)
         for q in range(n):
-            f[q] = grid[q, a, b] if axis == 0 else grid[a, q, b] if axis == 1 else grid[a, b, q]
-        _lower_envelope(f, n, out, v, z)
-        for q in range(n):
-            if axis == 0:
-                grid[q, a, b] = out[q]
-            elif axis == 1:
-                grid[a, q, b] = out[q]
-            else:
-                grid[a, b, q] = out[q]
+            lines[line, q] = out[q]
 
 
 def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
     """Euclidean distance (float32, in voxels) from every voxel centre to the nearest occupied one: the
-    exact separable transform (Felzenszwalb and Huttenlocher 2012), compiled; scipy's
-    distance_transform_edt gives the same but also computes the nearest voxel's index, 4x slower here."""
-    grid = np.where(occupied, 0.0, 1e20)
+    exact separable transform (Felzenszwalb and Huttenlocher 2012), compiled, one axis at a time along
+    contiguous lines; scipy's distance_transform_edt gives the same but also computes the nearest
+    voxel's index, 3x slower here."""
+    grid = np.where(occupied, np.float32(0.0), np.float32(1e20))
     for axis in range(3):
-        _distance_pass(grid, axis)
+        lines = np.ascontiguousarray(np.moveaxis(grid, axis, -1))
+        _distance_pass(lines)
+        grid = np.moveaxis(lines, -1, axis)
     return np.sqrt(grid).astype(np.float32)

@@ -141,7 +141,8 @@ def object_geometry(grid: np.ndarray, elevation_deg: float) -> ObjectGeometry:
     raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
     distance = ndimage.gaussian_filter(raw, DISTANCE_SIGMA, truncate=BLUR_TRUNCATE)
     # Normals from the distance blurred by NORMAL_SIGMA in all: blur `distance` by what is missing.
-    smooth = ndimage.gaussian_filter(distance, math.sqrt(NORMAL_SIGMA**2 - DISTANCE_SIGMA**2), truncate=BLUR_TRUNCATE)
+    extra = math.sqrt(max(NORMAL_SIGMA**2 - DISTANCE_SIGMA**2, 0.0))
+    smooth = ndimage.gaussian_filter(distance, extra, truncate=BLUR_TRUNCATE) if extra > 0.0 else distance
     centres = found + 0.5
     occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(

@@ -1,7 +1,8 @@
 """The voxel shader for a live editor: each stage kept with the scene parts it was computed from.
 
     stage      depends on                                                  reruns after
-    grid       object voxels after paint, placement, elevation, floor      paint, object move, camera, floor color
+    pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
+    grid       pool, placement, elevation, floor color                     paint, object move, camera, floor color
     geometry   grid                                                        the same
     surface    geometry, image size                                        the same
     shade      surface, light position, floor color                        any of the above, a light move
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from renderer.grid import scene_grid
+from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, voxel_table
 from renderer.scene import Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
 
@@ -34,8 +35,12 @@ class StagedShader:
         """The shaded image of `scene` whose painted object voxels are `object_rgba` (named by `voxels_key`)."""
         self.stage_ms = {}
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
+        n = object_rgba.shape[0]
+        factors = pool_factors(n, o.scale)
+        pooled = self._stage("pool", (voxels_key, factors), lambda: pool_voxels(object_rgba, factors))
         grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
-        grid = self._stage("grid", grid_key, lambda: scene_grid(object_rgba, o, floor, elevation))
+        grid = self._stage("grid", grid_key, lambda: gather(voxel_table(pooled, floor),
+                                                            sample_indices(n, factors, o, elevation)))
         geometry = self._stage("geometry", grid_key, lambda: object_geometry(grid, elevation))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         return self._stage("shade", (grid_key, size, scene.light.position, floor),
