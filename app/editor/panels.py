@@ -190,7 +190,7 @@ class Interface:
         """The renderer of the panel (and of exports): the voxel shader or NVR+."""
         live = self.app.live
         names = list(RENDERERS)
-        imgui.set_next_item_width(240)
+        imgui.set_next_item_width(150)
         changed, index = imgui.combo("##renderer", names.index(live.renderer), [RENDERERS[n] for n in names])
         if changed and names[index] != live.renderer:
             self.app.choose_renderer(names[index])

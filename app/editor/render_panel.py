@@ -30,7 +30,7 @@ from renderer.splat import splat_scene
 
 NO_MODEL_LABEL = "no trained model: showing splat"
 # The renderers the panel offers, by the name `nvr render --renderer` uses, with what the panel shows.
-RENDERERS = {"shaded": "voxel shader (physically based)", "nvr+": "NVR+ network"}
+RENDERERS = {"shaded": "voxel shader", "nvr+": "NVR+ network"}
 SHADER_LABEL = "voxel shader"
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 

@@ -49,11 +49,18 @@ def _box_interval(ox, oy, oz, dx, dy, dz, n0, n1, n2):
     return t0, t1
 
 
+@njit(cache=True, inline="always")
+def _gap(distance, core, level, thin, x, y, z):
+    """How far (in voxels of distance) a point lies outside the surface; negative inside."""
+    return sample(distance, x, y, z) - max(level, sample(core, x, y, z) + thin)
+
+
 @njit(cache=True, parallel=True)
-def trace_surface(distance, core, level, probe, origin, pixel_to_ray, pixels, hits, points, deepest, cores):
+def trace_surface(distance, core, level, thin, probe, origin, pixel_to_ray, pixels, hits, points, deepest, cores):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
-    nearest occupied voxel) falls to `level`. A pixel's ray direction is pixel_to_ray @ (u, v, 1), made
-    unit. hits[i] = ray parameter (FAR if none), points[i] = the crop point, deepest[i] = the least
+    nearest occupied voxel) falls to the surface level: `level`, or `thin` above the part's core where that
+    is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
+    direction is pixel_to_ray @ (u, v, 1), made unit. hits[i] = ray parameter (FAR if none), points[i] = the crop point, deepest[i] = the least
     distance within `probe` voxels past the hit (how far inside the ray goes: a ray that only grazes a
     part stays near `level`), cores[i] = `core` at the hit (the least distance of the part around it:
     0 inside a thick part, more in a thin one)."""
@@ -73,23 +80,24 @@ def trace_surface(distance, core, level, probe, origin, pixel_to_ray, pixels, hi
             if t > t_end:
                 break
             x, y, z = origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz
-            gap = sample(distance, x, y, z) - level
+            gap = _gap(distance, core, level, thin, x, y, z)
             if gap < 0.0 and t > previous:
                 # Stepped past the surface: bisect between the last point outside and this one.
                 inside = t
                 for _ in range(6):
                     middle = 0.5 * (previous + inside)
-                    if sample(distance, origin[0] + middle * dx, origin[1] + middle * dy, origin[2] + middle * dz) < level:
+                    if _gap(distance, core, level, thin, origin[0] + middle * dx, origin[1] + middle * dy,
+                            origin[2] + middle * dz) < 0.0:
                         inside = middle
                     else:
                         previous = middle
                 t = inside
                 x, y, z = origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz
-                gap = sample(distance, x, y, z) - level
+                gap = _gap(distance, core, level, thin, x, y, z)
             if gap < 0.02:
                 hits[i] = t
                 points[i, 0], points[i, 1], points[i, 2] = x, y, z
-                least = gap + level
+                least = sample(distance, x, y, z)
                 for k in range(1, 9):
                     s = t + probe * k / 8.0
                     least = min(least, sample(distance, origin[0] + s * dx, origin[1] + s * dy, origin[2] + s * dz))

@@ -40,6 +40,7 @@ from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, LIGHT
 from renderer.shading import kernels
 from renderer.splat import floor_mask
 
+THIN_LEVEL = 0.35  # voxels above a thin part's core where its surface is drawn (if more than SURFACE_LEVEL)
 SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
 DISTANCE_SIGMA = 1.0  # voxels: blur of the distance field the surface is drawn from (smooth, not beaded)
 NORMAL_SIGMA = 1.5  # voxels: blur of the distance field the normals come from (no staircases)
@@ -234,10 +235,11 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, 
     points = np.zeros((count, 3))
     deepest = np.empty(count)
     cores = np.zeros(count)
-    kernels.trace_surface(geometry.distance, geometry.core, SURFACE_LEVEL, COVERAGE_PROBE, origin, pixel_to_ray,
-                          np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points, deepest, cores)
-    reach = np.maximum(SURFACE_LEVEL - np.minimum(cores, SURFACE_LEVEL - 0.05), 1e-3) * COVERAGE_FULL
-    cover = np.clip((SURFACE_LEVEL - deepest) / reach, 0.0, 1.0).astype(np.float32)
+    kernels.trace_surface(geometry.distance, geometry.core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, origin,
+                          pixel_to_ray, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points,
+                          deepest, cores)
+    level = np.maximum(SURFACE_LEVEL, cores + THIN_LEVEL)  # the surface level where each ray stopped
+    cover = np.clip((level - deepest) / ((level - cores) * COVERAGE_FULL), 0.0, 1.0).astype(np.float32)
     return t.reshape(u.shape), points.reshape(u.shape + (3,)), cover.reshape(u.shape)
 
 
