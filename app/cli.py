@@ -190,10 +190,6 @@ def cmd_data_merge(args: argparse.Namespace) -> None:
 def cmd_train(args: argparse.Namespace) -> None:
     from models.training.train import TrainConfig, train
 
-    if args.steps < 1 or args.batch < 1:
-        raise InputError("--steps and --batch must be at least 1")
-    if not (args.lr > 0 and args.lr_decay_steps >= 0 and 0 <= args.lr_final_fraction <= 1):
-        raise InputError("--lr must be positive, --lr-decay-steps at least 0, --lr-final-fraction between 0 and 1")
     config = TrainConfig(
         data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
         steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,

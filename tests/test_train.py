@@ -200,3 +200,27 @@ def test_a_shader_refiner_started_from_a_compact_nvr_plus_still_renders_the_shad
     splat, shading = torch.rand(1, 3, 32, 32), torch.rand(1, 13, 32, 32)
     with torch.no_grad():
         torch.testing.assert_close(model(voxels, light, splat, None, shading), shading[:, :3])
+
+
+@pytest.mark.parametrize("option, value, named", [
+    ("--lr", "inf", "--lr"), ("--lr", "1e30", "--lr"), ("--lr", "nan", "--lr"), ("--lr", "0", "--lr"),
+    ("--steps", "-1", "--steps"), ("--batch", "-3", "--batch"), ("--threads", "-1", "--threads"),
+    ("--device", "quantum", "--device"), ("--perceptual-crop", "-5", "--perceptual-crop"),
+    ("--perceptual-crop", "7", "--perceptual-crop"), ("--seed", "-1", "--seed"),
+    ("--lr-final-fraction", "2", "--lr-final-fraction"), ("--checkpoint-minutes", "0", "--checkpoint-minutes"),
+])
+def test_impossible_training_options_are_one_line_refusals(data, tmp_path, capsys, option, value, named):
+    from app.cli import run
+
+    out = tmp_path / "run"
+    code = run(["train", "--data", str(data), "--out", str(out), option, value])
+    assert code == 2 and not out.exists()  # refused before anything was written or built
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and named in lines[0], lines
+
+
+def test_training_option_refusals_name_the_option_and_its_limits():
+    with pytest.raises(InputError, match=r"--lr must be a number above 0 and at most 1\.0, got inf"):
+        TrainConfig(data=("d",), lr=float("inf"))
+    with pytest.raises(InputError, match=r"--threads must be from 0 .* to 1024, got -1"):
+        TrainConfig(data=("d",), threads=-1)

@@ -16,7 +16,9 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import math
 import os
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +32,12 @@ from renderer.errors import InputError
 from renderer.io import atomic_path, load_json, save_json
 
 RUN_FORMAT = 1
+# Limits of the training options: beyond them a run cannot be meant (or would not fit in memory).
+MAX_STEPS = 10_000_000
+MAX_BATCH = 1024
+MAX_LR = 1.0  # Adam's step is about the rate: above 1 every weight jumps by more than its size
+MAX_THREADS = 1024
+MIN_CROP, MAX_CROP = 16, 4096  # the perceptual crop: VGG16's block 2 needs 16 pixels; at most the image
 CHECKPOINT = "checkpoint.safetensors"
 FINAL_MODEL = "model.safetensors"
 
@@ -55,6 +63,37 @@ class TrainConfig:
     perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
     config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
     init: str | None = None  # weights file to start from (models/networks/checkpoint.py format); see `initialize_from`
+
+    def __post_init__(self) -> None:
+        self.check()
+
+    def check(self) -> None:
+        """Refuse values no run can use, naming the option and its limits (before any data or network is built)."""
+        def need(ok: bool, message: str) -> None:
+            if not ok:
+                raise InputError(message)
+
+        def finite(value: Any) -> bool:
+            return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+        def whole(value: Any, low: int, high: int) -> bool:
+            return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
+
+        need(whole(self.steps, 0, MAX_STEPS), f"--steps must be a whole number from 0 to {MAX_STEPS}, got {self.steps!r}")
+        need(whole(self.batch, 1, MAX_BATCH), f"--batch must be a whole number from 1 to {MAX_BATCH}, got {self.batch!r}")
+        need(finite(self.lr) and 0.0 < self.lr <= MAX_LR, f"--lr must be a number above 0 and at most {MAX_LR}, got {self.lr!r}")
+        need(whole(self.lr_decay_steps, 0, MAX_STEPS), f"--lr-decay-steps must be from 0 to {MAX_STEPS}, got {self.lr_decay_steps!r}")
+        need(finite(self.lr_final_fraction) and 0.0 <= self.lr_final_fraction <= 1.0,
+             f"--lr-final-fraction must be between 0 and 1, got {self.lr_final_fraction!r}")
+        need(whole(self.seed, 0, 2**32 - 1), f"--seed must be a whole number from 0 to 2^32 - 1, got {self.seed!r}")
+        need(isinstance(self.device, str) and re.fullmatch(r"cpu|cuda(:\d+)?", self.device) is not None,
+             f"--device must be cpu, cuda or cuda:N, got {self.device!r}")
+        need(whole(self.threads, 0, MAX_THREADS), f"--threads must be from 0 (torch's default) to {MAX_THREADS}, got {self.threads!r}")
+        need(finite(self.checkpoint_minutes) and self.checkpoint_minutes > 0.0,
+             f"--checkpoint-minutes must be a number above 0, got {self.checkpoint_minutes!r}")
+        need(whole(self.log_every, 1, MAX_STEPS), f"log_every must be at least 1, got {self.log_every!r}")
+        need(whole(self.perceptual_crop, 0, MAX_CROP) and self.perceptual_crop not in range(1, MIN_CROP),
+             f"--perceptual-crop must be 0 (the whole image) or from {MIN_CROP} to {MAX_CROP}, got {self.perceptual_crop!r}")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
