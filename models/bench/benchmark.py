@@ -39,7 +39,7 @@ from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.scenes import BenchScene, data_scenes, procedural_scenes
 from models.bench.system import PeakMemory, cpu_snapshot, machine_description, other_load
 from models.engine.render_engine import RenderEngine, resolve_precision
-from models.evaluation.evaluate import ASSET_MODELS
+from models.evaluation.evaluate import ASSET_MODELS, SHIPPED_MODELS
 from models.evaluation.metrics import ImageMetrics
 from models.networks.checkpoint import load_model
 from models.networks.config import CompactConfig, NVRConfig, PaperConfig
@@ -122,7 +122,10 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         timing_only = _random_engines(settings, trained)
         for engine in timing_only:
             rows.append(bench_network(engine, scenes, settings, memory, None))
-        live = next((e for e in trained + timing_only if e.kind == "nvr+" and e.config.name == "compact"), None)
+        # The edit latencies are the shipped NVR+'s when it is benched (else any compact NVR+).
+        shipped = f"({SHIPPED_MODELS['nvr+'].name})"
+        live = next((e for e in trained if e.kind == "nvr+" and e.model_name.endswith(shipped)), None) or next(
+            (e for e in trained + timing_only if e.kind == "nvr+" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         networks = bench_networks(settings)
     peak = matmul_peak_gflops(settings.matmul_size)

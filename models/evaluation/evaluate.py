@@ -24,7 +24,8 @@ from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE
 
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
-SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_compact.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
+# NVR+ is the network that refines the voxel shader; nvrplus_compact.safetensors, the NVR+ before it, stays for comparison.
+SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_shader_refiner.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
 FIGURE_SAMPLES = 6
 
 
