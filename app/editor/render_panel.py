@@ -31,7 +31,6 @@ from renderer.splat import splat_scene
 NO_MODEL_LABEL = "no trained model: showing splat"
 # The renderers the panel offers, by the name `nvr render --renderer` uses, with what the panel shows.
 RENDERERS = {"shaded": "voxel shader", "nvr+": "NVR+ network"}
-SHADER_LABEL = "voxel shader"
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 
 
@@ -146,7 +145,7 @@ class LiveRender:
     def _make_engine(self, renderer: str) -> tuple[object, tuple[str, str, bool]]:
         """The engine for `renderer` and its labels: what renders, on what device, and whether it is what was chosen."""
         if renderer == "shaded":
-            return ShadedEngine(self._voxels), (SHADER_LABEL, "cpu", True)
+            return ShadedEngine(self._voxels), (RENDERERS["shaded"], "cpu", True)
         try:
             engine = RenderEngine.load(self.model_path, kind="nvr+")
         except InputError as exc:
@@ -221,7 +220,7 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
     """The image `nvr render SCENE --renderer RENDERER` makes (for NVR+, the splat when no model loads), and
     what made it."""
     if renderer == "shaded":
-        return ShadedEngine(voxels or VoxelCache()).render(scene), SHADER_LABEL
+        return ShadedEngine(voxels or VoxelCache()).render(scene), RENDERERS["shaded"]
     try:
         engine = RenderEngine.load(model_path, kind="nvr+")
     except InputError:

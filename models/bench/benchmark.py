@@ -1,6 +1,7 @@
 """`nvr bench`: every renderer of the project on the same scenes in one process, speed against error.
 
-Renderers: path tracing at 1, 4, 16, 64 and 256 spp, raw and denoised by OIDN; splatting; NVR
+Renderers: path tracing at 1, 4, 16, 64 and 256 spp, raw and denoised by OIDN; splatting; the voxel
+shader (its stages cached as in the editor); NVR
 and NVR+ through the live engine for every weights file (--model, else assets/models/*.safetensors);
 for timing only, the compact networks when they have no weights yet and the paper configuration,
 with random weights. For each: median time per frame at 256^2 and its interquartile range over
@@ -11,7 +12,8 @@ per frame of each network configuration, and the share of a measured fp32 matmul
 
 A network's time per frame is a re-render after an object transform (resampling, voxel branch,
 splat and shading; the mesh is voxelised once per scene); path tracing's is sampling plus
-denoising with the Mitsuba scene already built; splatting's is the splat of painted voxels.
+denoising with the Mitsuba scene already built; splatting's is the splat of painted voxels; the
+shader's, like a network's, a re-render after an object transform.
 """
 
 from __future__ import annotations

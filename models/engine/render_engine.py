@@ -56,6 +56,7 @@ which are CPU kernels; the stages and their caching are the same.
 
 from __future__ import annotations
 
+import functools
 import os
 import time
 from collections.abc import Callable
@@ -222,18 +223,24 @@ class RenderEngine:
         painted, floor, paint_key = self._painted(scene)
         keys = self._keys(scene, painted, floor, paint_key)
         latent = self._latent(scene, painted, floor, keys)
-        features, shading = None, None
+        # The shader's buffers as a tensor, made only if a stage that reads them reruns.
+        shading = functools.cache(lambda: self._image_tensor(self._shading(scene, painted, floor, keys))
+                                  if self._reads_shading else None)
+        features = None
         if self.kind == "nvr+":
             splat = self._splat(scene, painted, floor, keys)
             floor_light = self._floor_light(scene, floor, keys) if self._reads_floor_light else None
-            shading = self._image_tensor(self._shading(scene, painted, floor, keys)) if self._reads_shading else None
             features = self._stage("splat_branch", keys.splat_branch, lambda: self.model.encode_splat(
-                self._image_tensor(splat), None if floor_light is None else self._image_tensor(floor_light), shading))
+                self._image_tensor(splat), None if floor_light is None else self._image_tensor(floor_light), shading()))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
         light = light.to(self.device, self.dtype)
         key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
-        shaded = None if shading is None else shading[:, :3]
-        return self._stage("light", key, lambda: _to_image(self.model.render_from_latent(latent, light, features, shaded)))
+
+        def render() -> np.ndarray:
+            shaded = None if shading() is None else shading()[:, :3]
+            return _to_image(self.model.render_from_latent(latent, light, features, shaded))
+
+        return self._stage("light", key, render)
 
     # --- stages ---------------------------------------------------------------------------
 

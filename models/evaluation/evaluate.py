@@ -129,11 +129,10 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
 
 def _shaded(voxels: torch.Tensor, scene, size: int) -> torch.Tensor:
     """The voxel shader's image (1, 3, S, S) of a sample's grid (4, D, H, W)."""
-    from renderer.shading import shade_grid
+    from models.training.data import shaded_sample
 
-    shaded = shade_grid(voxels.numpy().transpose(1, 2, 3, 0), scene.light.position, scene.camera.elevation_deg,
-                        scene.floor.color, size)
-    return torch.from_numpy(np.ascontiguousarray(shaded.image.transpose(2, 0, 1)))[None]
+    image = shaded_sample(voxels, scene, size).image
+    return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
 
 
 def _ground_share(prediction: torch.Tensor, target: torch.Tensor, splat: torch.Tensor, scene) -> float:

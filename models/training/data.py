@@ -120,11 +120,18 @@ def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
 
 
-def shading_tensor(voxels: torch.Tensor, scene: Scene, size: int) -> torch.Tensor:
-    """The voxel shader's image and buffers (renderer/shading/) of a sample's grid (4, D, H, W), as the
-    network's (SHADING_CHANNELS, size, size) input."""
-    from renderer.shading import network_buffers, shade_grid
+def shaded_sample(voxels: torch.Tensor, scene: Scene, size: int):
+    """The voxel shader's ShadedImage (renderer/shading/) of a sample's grid (4, D, H, W)."""
+    from renderer.shading import shade_grid
 
-    shaded = shade_grid(voxels.numpy().transpose(1, 2, 3, 0), scene.light.position, scene.camera.elevation_deg,
-                        scene.floor.color, size)
-    return torch.from_numpy(np.ascontiguousarray(network_buffers(shaded).transpose(2, 0, 1)))
+    return shade_grid(voxels.numpy().transpose(1, 2, 3, 0), scene.light.position, scene.camera.elevation_deg,
+                      scene.floor.color, size)
+
+
+def shading_tensor(voxels: torch.Tensor, scene: Scene, size: int) -> torch.Tensor:
+    """The voxel shader's image and buffers of a sample's grid (4, D, H, W), as the network's
+    (SHADING_CHANNELS, size, size) input."""
+    from renderer.shading import network_buffers
+
+    buffers = network_buffers(shaded_sample(voxels, scene, size))
+    return torch.from_numpy(np.ascontiguousarray(buffers.transpose(2, 0, 1)))

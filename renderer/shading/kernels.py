@@ -60,10 +60,10 @@ def trace_surface(distance, core, level, thin, probe, origin, pixel_to_ray, pixe
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
     nearest occupied voxel) falls to the surface level: `level`, or `thin` above the part's core where that
     is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
-    direction is pixel_to_ray @ (u, v, 1), made unit. hits[i] = ray parameter (FAR if none), points[i] = the crop point, deepest[i] = the least
-    distance within `probe` voxels past the hit (how far inside the ray goes: a ray that only grazes a
-    part stays near `level`), cores[i] = `core` at the hit (the least distance of the part around it:
-    0 inside a thick part, more in a thin one)."""
+    direction is pixel_to_ray @ (u, v, 1), made unit. hits[i] = ray parameter (FAR if none),
+    points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
+    far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
+    the hit (the least distance of the part around it: 0 inside a thick part, more in a thin one)."""
     n0, n1, n2 = distance.shape
     for i in prange(pixels.shape[0]):
         u, v = pixels[i, 0], pixels[i, 1]

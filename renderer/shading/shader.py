@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy import ndimage
+from scipy import ndimage, special
 
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
@@ -176,8 +176,8 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
         if edge.any():
             er, ec = np.nonzero(edge)
             offsets = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
-            sub_v = rows[er][:, None, None] + offsets[None, :, None] + 0 * offsets[None, None, :]
-            sub_u = cols[ec][:, None, None] + offsets[None, None, :] + 0 * offsets[None, :, None]
+            sub_v = rows[er][:, None, None] + offsets[None, :, None]  # (edges, SUBPIXELS, 1)
+            sub_u = cols[ec][:, None, None] + offsets[None, None, :]  # (edges, 1, SUBPIXELS): _trace broadcasts
             sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_grid, origin, sub_v, sub_u)
             sub_t, sub_p = sub_t.reshape(len(er), -1), sub_p.reshape(len(er), -1, 3)
             sub_hit = sub_t < kernels.FAR
@@ -213,13 +213,17 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
 
 def _pixel_window(geometry: ObjectGeometry, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """Rows and columns of the image rectangle the crop box projects into (a pixel of margin)."""
-    shape = np.asarray(geometry.occupied.shape)
-    corners = np.array([[a, b, c] for a in (0, shape[0]) for b in (0, shape[1]) for c in (0, shape[2])], dtype=np.float64)
-    world = (corners + geometry.offset) @ geometry.grid_to_world[:3, :3].T + geometry.grid_to_world[:3, 3]
-    u, v, _ = camera.project(world)
+    u, v, _ = camera.project(_crop_corners(geometry))
     c0, c1 = (int(np.clip(math.floor(u.min()) - 1, 0, camera.width - 1)), int(np.clip(math.ceil(u.max()) + 1, 0, camera.width - 1)))
     r0, r1 = (int(np.clip(math.floor(v.min()) - 1, 0, camera.height - 1)), int(np.clip(math.ceil(v.max()) + 1, 0, camera.height - 1)))
     return np.arange(r0, r1 + 1), np.arange(c0, c1 + 1)
+
+
+def _crop_corners(geometry: ObjectGeometry) -> np.ndarray:
+    """World positions (8, 3) of the corners of the crop box."""
+    shape = geometry.occupied.shape
+    corners = np.array([[a, b, c] for a in (0, shape[0]) for b in (0, shape[1]) for c in (0, shape[2])], dtype=np.float64)
+    return (corners + geometry.offset) @ geometry.grid_to_world[:3, :3].T + geometry.grid_to_world[:3, 3]
 
 
 def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
@@ -295,7 +299,7 @@ def _broad(solid: np.ndarray) -> np.ndarray:
 
 def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
     """Gaussian-blurred occupancy of a filled half space, `distance` voxels outside its boundary."""
-    return 0.5 * np.vectorize(math.erfc)(distance / (sigma * math.sqrt(2.0)))
+    return 0.5 * special.erfc(distance / (sigma * math.sqrt(2.0)))
 
 
 @lru_cache(maxsize=8)
@@ -318,9 +322,7 @@ def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_t
     if geometry.empty or not len(floor_points):
         return occlusion
     # Only floor points under the crop box (its world bounds in x and z) can be occluded.
-    shape = np.asarray(geometry.occupied.shape)
-    corners = np.array([[a, b, c] for a in (0, shape[0]) for b in (0, shape[1]) for c in (0, shape[2])], dtype=np.float64)
-    world = (corners + geometry.offset) @ geometry.grid_to_world[:3, :3].T + geometry.grid_to_world[:3, 3]
+    world = _crop_corners(geometry)
     (x0, _, z0), (x1, _, z1) = world.min(axis=0), world.max(axis=0)
     x, z = floor_points[:, 0], floor_points[:, 2]
     near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
@@ -366,10 +368,8 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     size = surface.size
     visibility = np.ones((size, size), dtype=np.float32)
     occlusion = np.ones((size, size), dtype=np.float32)
-    floor_seen = np.ones(len(surface.floor_points))
-    if not geometry.empty:
-        floor_seen = _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, 0.25 * voxel)
-    visibility[floor] = floor_seen
+    visibility[floor] = (1.0 if geometry.empty else
+                         _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, 0.25 * voxel))
     occlusion[floor] = surface.floor_occlusion
     background = np.float32(AMBIENT_RADIANCE)
     ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * occlusion[..., None], background)
