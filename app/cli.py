@@ -11,8 +11,16 @@ import time
 from pathlib import Path
 
 from renderer.errors import InputError
+from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 
 EXIT_USER_ERROR = 2
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line (the problem and where help is), exit 2, like every other refusal."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(EXIT_USER_ERROR, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
 
 
 def _output_path(path: str, force: bool) -> Path:
@@ -33,12 +41,12 @@ def cmd_render(args: argparse.Namespace) -> None:
     from renderer.io import save_png
     from renderer.scene import load_scene, range_warnings
 
+    if args.size is not None and not MIN_IMAGE_SIZE <= args.size <= MAX_IMAGE_SIZE:
+        raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
     scene = load_scene(args.scene)
     out = _output_path(args.output, args.force)
     _warn(range_warnings(scene))
     size = args.size or scene.image_size
-    if args.size is not None and args.size < 16:
-        raise InputError(f"--size must be at least 16, got {args.size}")
     start = time.perf_counter()
     if args.renderer == "splat":
         image, detail = _render_splat(scene, size)
@@ -220,17 +228,27 @@ def _parse_overrides(items: list[str]) -> list[tuple[str, object]]:
 def cmd_eval(args: argparse.Namespace) -> None:
     from models.evaluation.evaluate import evaluate
 
+    if args.limit < 0:
+        raise InputError(f"--limit must be 0 (all samples) or a positive number of samples, got {args.limit}")
+    resolutions = _parse_resolutions(args.resolution_study) if args.resolution_study else None
     out = _output_path(args.report, args.force)
-    if args.resolution_study:
+    if resolutions:
         from models.evaluation.evaluate import resolution_study
 
-        try:
-            resolutions = [int(r) for r in args.resolution_study.split(",")]
-        except ValueError:
-            raise InputError(f"--resolution-study takes a list like 100,75,50,25, got {args.resolution_study!r}") from None
         print(f"wrote {resolution_study(args.data, args.model, args.renderer, resolutions, out, limit=args.limit)}")
         return
     print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit)}")
+
+
+def _parse_resolutions(text: str) -> list[int]:
+    """--resolution-study's list, e.g. "100,75,50,25": object voxels per side, each a possible resolution."""
+    try:
+        resolutions = [int(r) for r in text.split(",")]
+    except ValueError:
+        raise InputError(f"--resolution-study takes a list like 100,75,50,25, got {text!r}") from None
+    if not all(MIN_RESOLUTION <= r <= MAX_RESOLUTION for r in resolutions):
+        raise InputError(f"--resolution-study resolutions must be from {MIN_RESOLUTION} to {MAX_RESOLUTION}, got {text!r}")
+    return resolutions
 
 
 # --- nvr bench ------------------------------------------------------------------------------
@@ -261,7 +279,7 @@ def cmd_bench(args: argparse.Namespace) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="nvr", description="NVR Studio: neural voxel rendering tools.")
+    parser = OneLineParser(prog="nvr", description="NVR Studio: neural voxel rendering tools.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("render", help="render a scene file to a PNG")

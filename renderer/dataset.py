@@ -33,7 +33,8 @@ from typing import Any
 import numpy as np
 
 from renderer.errors import InputError
-from renderer.io import atomic_path, load_json, save_json, save_png
+from renderer.io import atomic_path, load_json, remove_stale_temporaries, save_json, save_png
+from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 from renderer.scene import (
     ELEVATION_RANGE,
     LIGHT_XZ_RANGE,
@@ -48,6 +49,11 @@ from renderer.scene import (
 )
 
 DATA_FORMAT = 1
+# Option limits: far above any use (the paper's set is 2,000 objects x 20 views), low enough to catch a typo.
+MAX_OBJECTS = 1_000_000
+MAX_VIEWS = 1000
+MAX_SPP = 65536
+MAX_WORKERS = 256
 SETTINGS = ("single", "default", "textured")
 SPLITS = ("train", "test")
 TEST_ELEVATION_RANGE = (15.0, 45.0)
@@ -71,15 +77,17 @@ class DataConfig:
     resolution: int = 100
 
     def check(self) -> None:
+        """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
         if self.setting not in SETTINGS:
             raise InputError(f"unknown setting {self.setting!r} (choose from {', '.join(SETTINGS)})")
         if self.split not in SPLITS:
             raise InputError(f"unknown split {self.split!r} (choose from {', '.join(SPLITS)})")
-        for name in ("objects", "views", "spp"):
-            if getattr(self, name) < 1:
-                raise InputError(f"--{name} must be at least 1, got {getattr(self, name)}")
-        if self.size < 16:
-            raise InputError(f"--size must be at least 16, got {self.size}")
+        for name, low, high in (("objects", 1, MAX_OBJECTS), ("views", 1, MAX_VIEWS), ("spp", 1, MAX_SPP),
+                                ("size", MIN_IMAGE_SIZE, MAX_IMAGE_SIZE), ("seed", 0, 2**32 - 1),
+                                ("res", MIN_RESOLUTION, MAX_RESOLUTION)):
+            value = getattr(self, "resolution" if name == "res" else name)
+            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+                raise InputError(f"--{name} must be a whole number from {low} to {high}, got {value!r}")
         if not self.categories:
             raise InputError("at least one object category is needed")
 
@@ -216,6 +224,8 @@ def prepare_folder(out: Path, config: DataConfig) -> None:
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
+    for folder in (out, *(out / sub for sub in ("objects", "images", "splats", "records"))):
+        remove_stale_temporaries(folder)  # half-written files of a killed run
     config_file = out / "config.json"
     if config_file.exists():
         stored = load_json(config_file).get("config")
@@ -320,6 +330,8 @@ def generate_dataset(out: str | Path, config: DataConfig, shard: tuple[int, int]
     from tqdm import tqdm
 
     out = Path(out)
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= MAX_WORKERS:
+        raise InputError(f"--workers must be a whole number from 1 to {MAX_WORKERS}, got {workers!r}")
     prepare_folder(out, config)
     todo = pending_objects(out, config, shard)
     bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"{config.split}/{config.setting}")

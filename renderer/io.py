@@ -9,6 +9,8 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
+import sys
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -19,10 +21,19 @@ from PIL import Image, ImageOps
 
 from renderer.color import to_uint8
 from renderer.errors import InputError
+from renderer.limits import (
+    MAX_JSON_BYTES,
+    MAX_JSON_DEPTH,
+    MAX_NAME_BYTES,
+    MAX_NUMBER_DIGITS,
+    MAX_PATH_CHARACTERS,
+    MAX_PHOTO_PIXELS,
+    MAX_PHOTO_SIDE,
+)
 
-# Photos far larger than any use here are downscaled on load so they never exhaust memory.
-MAX_IMAGE_SIDE = 4096
-Image.MAX_IMAGE_PIXELS = 400_000_000  # refuse decompression bombs beyond this
+Image.MAX_IMAGE_PIXELS = MAX_PHOTO_PIXELS  # PIL refuses decompression bombs beyond this
+# The temporary names atomic_path makes: "." + target name + "." + mkstemp's 8 random characters + ".tmp".
+_TEMPORARY_NAME = re.compile(r"^\..+\.[a-z0-9_]{8}\.tmp(\.[^.]*)?$")
 
 
 @contextlib.contextmanager
@@ -71,19 +82,127 @@ def save_json(path: str | Path, data: Any) -> None:
         raise InputError(f"cannot write: {exc.strerror}", path) from None
 
 
-def load_json(path: str | Path) -> Any:
-    """Read a JSON file; missing, unreadable or malformed files raise InputError naming the line."""
+def remove_stale_temporaries(folder: str | Path) -> int:
+    """Delete the temporary files a killed writer left in `folder` (atomic_path's names); returns how many.
+
+    Only for folders one process writes at a time (a data set, a run); never call it while a writer runs.
+    """
+    removed = 0
+    for entry in Path(folder).iterdir() if Path(folder).is_dir() else ():
+        if entry.is_file() and _TEMPORARY_NAME.match(entry.name):
+            entry.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
+def load_json(path: str | Path, max_bytes: int = MAX_JSON_BYTES) -> Any:
+    """Read a JSON file; missing, unreadable, malformed or oversized files raise InputError naming the problem.
+
+    Sizes, nesting and number lengths are bounded (renderer/limits.py) so that no file can exhaust memory
+    or the interpreter's stack; NaN and Infinity, which JSON does not have, are refused.
+    """
     path = Path(path)
     try:
-        text = path.read_text()
+        size = path.stat().st_size
+        if size > max_bytes:
+            raise InputError(f"file is {size / 2**20:.0f} MB; JSON files are read up to {max_bytes // 2**20} MB", path)
+        text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise InputError("file not found", path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", path) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file (it is not UTF-8)", path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
+    return parse_json(text, path)
+
+
+def parse_json(text: str, path: str | Path | None = None) -> Any:
+    """JSON text as Python values, with the bounds of load_json."""
     try:
-        return json.loads(text)
+        data = json.loads(text, parse_int=_bounded_int, parse_float=_bounded_float, parse_constant=_no_constant)
     except json.JSONDecodeError as exc:
         raise InputError(f"broken JSON at line {exc.lineno} column {exc.colno}: {exc.msg}", path) from None
+    except RecursionError:
+        raise InputError(f"JSON nested too deeply (at most {MAX_JSON_DEPTH} levels)", path) from None
+    except ValueError as exc:  # raised by the hooks below
+        raise InputError(str(exc), path) from None
+    if _depth(data) > MAX_JSON_DEPTH:
+        raise InputError(f"JSON nested too deeply (at most {MAX_JSON_DEPTH} levels)", path)
+    return data
+
+
+def _bounded_int(text: str) -> int:
+    if len(text) > MAX_NUMBER_DIGITS:
+        raise ValueError(f"a number with {len(text)} digits (at most {MAX_NUMBER_DIGITS})")
+    return int(text)
+
+
+def _bounded_float(text: str) -> float:
+    if len(text) > MAX_NUMBER_DIGITS:
+        raise ValueError(f"a number with {len(text)} characters (at most {MAX_NUMBER_DIGITS})")
+    return float(text)
+
+
+def _no_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _depth(value: Any) -> int:
+    """How deeply lists and objects nest (a number is 0, [1] is 1)."""
+    depth, level = 0, [value]
+    while level:
+        depth += 1
+        level = [v for item in level if isinstance(item, (list, dict))
+                 for v in (item.values() if isinstance(item, dict) else item)]
+        if depth > MAX_JSON_DEPTH + 1:
+            break
+    return depth - 1
+
+
+def check_path_text(text: str) -> str | None:
+    """Why `text` cannot be a file path on this system (too long, a name too long, unencodable
+    characters, a NUL), or None when it can."""
+    if len(text) > MAX_PATH_CHARACTERS:
+        return f"path is {len(text)} characters long (at most {MAX_PATH_CHARACTERS})"
+    if "\0" in text:
+        return "path holds a NUL character"
+    try:
+        encoded = os.fsencode(text)
+    except UnicodeError:
+        return "path holds characters no file name can have"
+    longest = max((len(part) for part in encoded.split(b"/")), default=0)
+    if longest > MAX_NAME_BYTES:
+        return f"a file name in the path is {longest} bytes long (at most {MAX_NAME_BYTES})"
+    return None
+
+
+@contextlib.contextmanager
+def quiet_native_output(captured: list[str]) -> Iterator[None]:
+    """Silence everything written to the terminal inside the block, including by C and C++ libraries
+    (mesh readers print their own errors to file descriptors 1 and 2); the text is appended to `captured`.
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile(mode="w+b") as sink:
+        saved = [os.dup(1), os.dup(2)]
+        try:
+            os.dup2(sink.fileno(), 1)
+            os.dup2(sink.fileno(), 2)
+            yield
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            sink.seek(0)
+            text = sink.read(65536).decode("utf-8", "replace")
+            captured.extend(line for line in (_strip_ansi(t).strip() for t in text.splitlines()) if line)
+
+
+def _strip_ansi(text: str) -> str:
+    return re.sub(r"\x1b\[[0-9;]*m", "", text)
 
 
 def save_png(path: str | Path, image: np.ndarray) -> None:
@@ -98,7 +217,7 @@ def save_png(path: str | Path, image: np.ndarray) -> None:
         raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
 
 
-def load_image(path: str | Path, max_side: int = MAX_IMAGE_SIDE) -> tuple[np.ndarray, np.ndarray | None]:
+def load_image(path: str | Path, max_side: int = MAX_PHOTO_SIDE) -> tuple[np.ndarray, np.ndarray | None]:
     """Load any still image as float32 sRGB (H x W x 3) in [0, 1] and its alpha (H x W) or None.
 
     Honours EXIF rotation; accepts grayscale, palette, 16-bit and RGBA images; images larger

@@ -19,6 +19,9 @@ from PIL import Image
 
 from renderer.color import linear_to_srgb, srgb_to_linear, to_uint8
 from renderer.errors import InputError
+from renderer.io import quiet_native_output
+from renderer.limits import MAX_MESH_FACES, MAX_MESH_VERTICES
+from renderer.mesh_header import MeshHeader, check_mesh_file
 from renderer.scene import OBJECT_SIZE
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -30,7 +33,11 @@ Z_UP_TO_Y_UP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 def load_mesh(path: str | Path, up: str = "y") -> trimesh.Trimesh:
-    """Read a mesh file as one cleaned y-up mesh (scene parts flattened, colors and textures kept)."""
+    """Read a mesh file as one cleaned y-up mesh (scene parts flattened, colors and textures kept).
+
+    The header is checked against the limits first (renderer/mesh_header.py); the readers run
+    quietly, and a file that holds less than its header promises is refused, never read in part.
+    """
     path = Path(path)
     if up not in ("y", "z"):
         raise InputError(f'up axis must be "y" or "z", got {up!r}', path)
@@ -38,10 +45,13 @@ def load_mesh(path: str | Path, up: str = "y") -> trimesh.Trimesh:
         raise InputError(f"unsupported mesh format {path.suffix or '(none)'!r}; use one of {', '.join(MESH_EXTENSIONS)}", path)
     if not path.is_file():
         raise InputError("file not found", path)
-    mesh = clean_mesh(_read_mesh(path))
+    header = check_mesh_file(path)
+    mesh = _read_mesh(path)
+    _check_complete(mesh, header, path)
+    mesh = clean_mesh(mesh)
     if len(mesh.faces) == 0:
         raise InputError("mesh has no usable faces", path)
-    if np.ptp(mesh.vertices, axis=0).max() <= 0.0:
+    if not (mesh.vertices.max(axis=0) > mesh.vertices.min(axis=0)).any():
         raise InputError("mesh has zero size", path)
     if up == "z":
         mesh.vertices = mesh.vertices @ Z_UP_TO_Y_UP.T
@@ -51,36 +61,54 @@ def load_mesh(path: str | Path, up: str = "y") -> trimesh.Trimesh:
 def _read_mesh(path: Path) -> trimesh.Trimesh:
     """All triangle geometry of a file as one mesh, parts moved to their scene positions.
 
-    trimesh reads first; where it fails or finds no faces, open3d's readers get a try, since
-    they accept some PLY and OFF variants that trimesh does not.
+    trimesh reads first; where it fails or finds no faces, open3d's readers get a try on PLY and
+    OFF files, since they accept some variants that trimesh does not. What the libraries print is
+    kept out of the terminal; its first line goes into the refusal.
     """
+    said: list[str] = []
     try:
-        scene = trimesh.load_scene(path, process=False)
-        parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh)]
+        with quiet_native_output(said):
+            scene = trimesh.load_scene(path, process=False)
+            parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh)]
     except Exception as exc:  # trimesh raises many exception types for corrupt files
         parts, problem = [], f"cannot read mesh ({type(exc).__name__}: {exc})"
     else:
         problem = "mesh has no faces"
     if not parts:
-        fallback = _read_with_open3d(path)
+        fallback = _read_with_open3d(path, said) if path.suffix.lower() in (".ply", ".off") else None
         if fallback is None:
             raise InputError(problem, path)
         return fallback
     return parts[0] if len(parts) == 1 else _concatenate(parts)
 
 
-def _read_with_open3d(path: Path) -> trimesh.Trimesh | None:
+def _read_with_open3d(path: Path, said: list[str]) -> trimesh.Trimesh | None:
     """The file's triangles (and vertex colors) through open3d, or None when it has none either."""
     try:
         import open3d
     except (ImportError, OSError):  # open3d needs system libraries that may be missing
         return None
-    o3d_mesh = open3d.io.read_triangle_mesh(str(path), print_progress=False)
-    faces = np.asarray(o3d_mesh.triangles)
-    if len(faces) == 0:
+    try:
+        with quiet_native_output(said):
+            o3d_mesh = open3d.io.read_triangle_mesh(str(path), print_progress=False)
+    except Exception:  # open3d raises on undecodable header text, among others
         return None
+    faces = np.asarray(o3d_mesh.triangles)
+    if len(faces) == 0 or any("fail" in line.lower() or "error" in line.lower() for line in said):
+        return None  # open3d returns what it read before an error: a partial mesh is no mesh
     colors = to_uint8(np.asarray(o3d_mesh.vertex_colors)) if o3d_mesh.has_vertex_colors() else None
     return trimesh.Trimesh(np.asarray(o3d_mesh.vertices), faces, vertex_colors=colors, process=False)
+
+
+def _check_complete(mesh: trimesh.Trimesh, header: MeshHeader, path: Path) -> None:
+    """Refuse a mesh with fewer vertices or faces than its header promised, or more than the limits."""
+    vertices, faces = len(mesh.vertices), len(mesh.faces)
+    if (header.vertices is not None and vertices < header.vertices) or (header.faces is not None and faces < header.faces):
+        raise InputError(f"file is cut: its header promises {header.vertices or '?'} vertices and {header.faces or '?'} "
+                         f"faces, the file holds {vertices} and {faces}", path)
+    if vertices > MAX_MESH_VERTICES or faces > MAX_MESH_FACES:
+        raise InputError(f"mesh has {vertices:,} vertices and {faces:,} faces; meshes are read up to "
+                         f"{MAX_MESH_VERTICES:,} and {MAX_MESH_FACES:,}", path)
 
 
 def _concatenate(parts: list[trimesh.Trimesh]) -> trimesh.Trimesh:
@@ -121,9 +149,10 @@ def clean_mesh(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
         return mesh
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     keep = np.isfinite(vertices).all(axis=1)[faces].all(axis=1)
+    vertices = vertices / _magnitude(vertices)  # areas of meshes near the float limit would overflow
     finite = vertices[faces[keep].ravel()]
     diag2 = float(np.sum(np.ptp(finite, axis=0) ** 2)) if len(finite) else 0.0
-    tri = np.nan_to_num(vertices[faces])
+    tri = np.nan_to_num(vertices[faces], nan=0.0, posinf=0.0, neginf=0.0)  # their faces are dropped already
     area2 = np.sum(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) ** 2, axis=1)  # (2 * area)^2
     keep &= area2 > (2.0 * DEGENERATE_AREA * diag2) ** 2
     # Duplicates: the same three positions, whatever the vertex indices or their order.
@@ -137,11 +166,19 @@ def clean_mesh(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     return mesh
 
 
+def _magnitude(vertices: np.ndarray) -> float:
+    """The largest finite coordinate's size (1 when there is none): dividing by it keeps sums finite."""
+    finite = np.abs(vertices[np.isfinite(vertices)])
+    largest = float(finite.max()) if finite.size else 0.0
+    return largest if largest > 0.0 else 1.0
+
+
 def normalise_mesh(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
     """A copy in object coordinates (renderer/transform.py): longest side OBJECT_SIZE, centred on x and z, min y = 0."""
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     if len(mesh.faces) == 0 or not np.isfinite(vertices).all():
         raise InputError("mesh has no faces or non-finite vertices; clean it first")
+    vertices = vertices / _magnitude(vertices)  # sides of meshes near the float limit would overflow
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
     size = float((hi - lo).max())
     if size <= 0.0:

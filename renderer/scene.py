@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from renderer.errors import InputError
-from renderer.io import load_json, save_json
+from renderer.io import check_path_text, load_json, save_json
+from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 
 SCENE_VERSION = 1
 
@@ -44,11 +45,7 @@ LIGHT_XZ_RANGE = (-1.5, 1.5)
 LIGHT_Y_RANGE = (2.5, 3.0)
 SCALE_RANGE = (0.75, 1.25)
 
-# Hard limits; values outside them are impossible and rejected.
-MIN_IMAGE_SIZE = 16
-MAX_IMAGE_SIZE = 4096
-MIN_RESOLUTION = 4
-MAX_RESOLUTION = 256
+# Hard limits; values outside them are impossible and rejected (sizes: renderer/limits.py).
 MAX_ABS_POSITION = 100.0
 
 
@@ -192,6 +189,15 @@ class _Reader:
             raise self.fail(name, f"must be a string, got {json_type(value)}")
         return value
 
+    def file_path(self, data: dict, key: str, name: str) -> str | None:
+        """A file path: a string the file system can hold (length, characters), or None."""
+        value = self.string(data, key, name, None)
+        if value is not None:
+            problem = check_path_text(value)
+            if problem:
+                raise self.fail(name, problem)
+        return value
+
 
 def json_type(value: Any) -> str:
     return {dict: "object", list: "list", str: "string", bool: "boolean", type(None): "null"}.get(
@@ -215,14 +221,14 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     up = r.string(o, "up", "object.up", "y")
     color = None if o.get("color") is None else r.vector(o, "color", "object.color", 3, (0, 0, 0))
     obj = ObjectSpec(
-        mesh=r.string(o, "mesh", "object.mesh", None),
+        mesh=r.file_path(o, "mesh", "object.mesh"),
         up=up,
         resolution=resolution,
         color=color,
         translation=r.vector(o, "translation", "object.translation", 2, (0.0, 0.0)),
         rotation_deg=r.number(o, "rotation_deg", "object.rotation_deg", 0.0),
         scale=r.vector(o, "scale", "object.scale", 3, (1.0, 1.0, 1.0)),
-        voxels=r.string(o, "voxels", "object.voxels", None),
+        voxels=r.file_path(o, "voxels", "object.voxels"),
     )
     floor = FloorSpec(r.vector(r.section(data, "floor"), "color", "floor.color", 3, FloorSpec().color))
     light = LightSpec(r.vector(r.section(data, "light"), "position", "light.position", 3, LightSpec().position))
@@ -242,6 +248,9 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
         if seed is not None:
             if not isinstance(seed, list) or len(seed) != 3 or not all(isinstance(s, int) and not isinstance(s, bool) for s in seed):
                 raise r.fail(f"{name}.seed", "must be a list of 3 integers")
+            side = resolution if o.get("voxels") is None else MAX_RESOLUTION
+            if not all(0 <= s < side for s in seed):
+                raise r.fail(f"{name}.seed", f"must be voxel indices from 0 to {side - 1}, got {seed}")
             seed = tuple(seed)
         paint.append(
             PaintOp(

@@ -35,8 +35,9 @@ import trimesh
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import atomic_path
+from renderer.limits import MAX_RESOLUTION, MAX_VOXEL_FILE_BYTES, MIN_RESOLUTION
 from renderer.mesh import mesh_colors_at
-from renderer.scene import MAX_RESOLUTION, MIN_RESOLUTION, OBJECT_SIZE
+from renderer.scene import OBJECT_SIZE
 from renderer.transform import OBJECT_BOX_MIN
 
 VOXEL_EPS = 1e-4  # growth of each voxel box, in voxels, against rounding on exact boundaries
@@ -199,32 +200,49 @@ def save_voxels(path: str | Path, rgba: np.ndarray) -> None:
 
 
 def load_voxels(path: str | Path) -> np.ndarray:
-    """Read object voxels (N, N, N, 4) float32 from a .npz with key `rgba` (uint8 or floats in [0, 1])."""
+    """Read object voxels (N, N, N, 4) float32 from a .npz with key `rgba` (uint8 or floats in [0, 1]).
+
+    The array's shape and type are read from its header first, so an oversized grid is refused unread.
+    """
     path = Path(path)
     if not path.is_file():
         raise InputError("file not found", path)
+    if path.stat().st_size > MAX_VOXEL_FILE_BYTES:
+        raise InputError(f"file is {path.stat().st_size / 2**20:.0f} MB; voxel files are read up to "
+                         f"{MAX_VOXEL_FILE_BYTES // 2**20} MB", path)
     try:
         with np.load(path, allow_pickle=False) as npz:
             if "rgba" not in npz.files:
                 raise InputError(f"no 'rgba' array (found {', '.join(npz.files) or 'nothing'})", path)
+            shape, dtype = _npz_array_header(npz, "rgba")
+            n = shape[0] if len(shape) == 4 else 0
+            if shape != (n, n, n, 4) or not MIN_RESOLUTION <= n <= MAX_RESOLUTION:
+                raise InputError(f"rgba must have shape (N, N, N, 4) with N in [{MIN_RESOLUTION}, {MAX_RESOLUTION}], "
+                                 f"got {shape}", path)
+            if dtype != np.uint8 and dtype.kind != "f":
+                raise InputError(f"rgba must be uint8 or float, got {dtype}", path)
             raw = npz["rgba"]
     except InputError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise InputError(f"not a readable .npz voxel file ({exc})", path) from None
-    n = raw.shape[0] if raw.ndim == 4 else 0
-    if raw.shape != (n, n, n, 4) or not MIN_RESOLUTION <= n <= MAX_RESOLUTION:
-        raise InputError(f"rgba must have shape (N, N, N, 4) with N in [{MIN_RESOLUTION}, {MAX_RESOLUTION}], got {raw.shape}", path)
     if raw.dtype == np.uint8:
         rgba = raw.astype(np.float32) / 255.0
-    elif raw.dtype.kind == "f":
-        rgba = np.nan_to_num(raw.astype(np.float32), nan=0.0, posinf=1.0, neginf=0.0).clip(0.0, 1.0)
     else:
-        raise InputError(f"rgba must be uint8 or float, got {raw.dtype}", path)
+        rgba = np.nan_to_num(raw.astype(np.float32), nan=0.0, posinf=1.0, neginf=0.0).clip(0.0, 1.0)
     occupied = rgba[..., 3] >= 0.5
     rgba[..., 3] = occupied
     rgba[~occupied, :3] = 0.0
     return rgba
+
+
+def _npz_array_header(npz: np.lib.npyio.NpzFile, key: str) -> tuple[tuple[int, ...], np.dtype]:
+    """The shape and type of an array in a .npz, read from its .npy header without loading the data."""
+    with npz.zip.open(f"{key}.npy") as member:
+        version = np.lib.format.read_magic(member)
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(member)
+    return tuple(shape), dtype
 
 
 def downsample_voxels(rgba: np.ndarray, resolution: int) -> np.ndarray:

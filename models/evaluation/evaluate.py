@@ -18,7 +18,7 @@ import torch
 
 from models.evaluation.metrics import ImageMetrics
 from models.networks.nvr import reads_floor_light, reads_shading
-from models.training.data import VoxelRenderSet
+from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE
@@ -74,6 +74,11 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
                      report: str | Path, limit: int = 0) -> Path:
     """The paper's table 2: the same test set with object voxels at coarser resolutions."""
     report = Path(report)
+    for folder in data:
+        stored = read_manifest(folder).get("config", {}).get("resolution")
+        if isinstance(stored, int) and max(resolutions) > stored:
+            raise InputError(f"holds {stored}^3 object voxels; --resolution-study can only go down from there, "
+                             f"got {max(resolutions)}", folder)
     model, config, extra = _load_renderer(model_path, renderer)
     lines = [f"# Voxel resolution study: {renderer}", "",
              f"- model: {model_path or 'shipped'}; data: {', '.join(map(str, data))}",

@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import torch
 from safetensors import SafetensorError, safe_open
 from safetensors.torch import save_file
 
@@ -18,9 +19,13 @@ from models.networks.config import NVRConfig
 from models.networks.nvr import ARCHITECTURES, NVR, NVRPlus, build_model
 from renderer.errors import InputError
 from renderer.io import atomic_path
+from renderer.limits import MAX_WEIGHT_PARAMETERS
 
 FORMAT_NAME = "nvr-studio-weights"
 FORMAT_VERSION = 1
+# safetensors' type names for the tensor types a network holds (float weights, integer BatchNorm counters).
+SAFETENSORS_DTYPES = {"F32": torch.float32, "F16": torch.float16, "BF16": torch.bfloat16, "F64": torch.float64,
+                      "I64": torch.int64, "I32": torch.int32, "U8": torch.uint8, "BOOL": torch.bool}
 
 
 def save_model(path: str | Path, model: NVR | NVRPlus, config: NVRConfig, extra_metadata: dict[str, Any] | None = None) -> None:
@@ -43,7 +48,27 @@ def save_model(path: str | Path, model: NVR | NVRPlus, config: NVRConfig, extra_
 
 
 def load_model(path: str | Path) -> tuple[NVR | NVRPlus, NVRConfig, dict[str, Any]]:
-    """Read a weights file: (model in eval mode, its config, the extra metadata)."""
+    """Read a weights file: (model in eval mode, its config, the extra metadata).
+
+    Everything is checked before a layer is allocated (check_weights_file), so a file whose stored
+    config asks for a network of many gigabytes is refused in a few megabytes.
+    """
+    path = Path(path)
+    architecture, config, extra = check_weights_file(path)
+    model = build_model(architecture, config)
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            state = {key: f.get_tensor(key) for key in f.keys()}
+    except (SafetensorError, OSError) as exc:
+        raise InputError(f"not a safetensors weights file ({' '.join(str(exc).split())})", path) from None
+    model.load_state_dict(state)
+    return model.eval(), config, extra
+
+
+def check_weights_file(path: str | Path) -> tuple[str, NVRConfig, dict[str, Any]]:
+    """Validate a weights file without loading its tensors: format, metadata, a size bound on the
+    network its config describes, and every tensor's name, shape and type against that network
+    (built on torch's meta device, which allocates nothing). Returns (architecture, config, extra)."""
     path = Path(path)
     if not path.is_file():
         raise InputError("file not found", path)
@@ -52,21 +77,23 @@ def load_model(path: str | Path) -> tuple[NVR | NVRPlus, NVRConfig, dict[str, An
             metadata = f.metadata() or {}
             _check_format(metadata, path)
             architecture, config, extra = _parse_metadata(metadata, path)
-            model = build_model(architecture, config)
-            expected = model.state_dict()
+            with torch.device("meta"):
+                expected = build_model(architecture, config).state_dict()
+            parameters = sum(t.numel() for t in expected.values())
+            if parameters > MAX_WEIGHT_PARAMETERS:
+                raise InputError(f"its config describes a network of {parameters:,} parameters "
+                                 f"(at most {MAX_WEIGHT_PARAMETERS:,})", path)
             keys = set(f.keys())
             _check_keys(keys, set(expected), architecture, config, path)
-            state = {}
-            for key in keys:
-                tensor = f.get_tensor(key)
-                if tensor.shape != expected[key].shape or tensor.dtype != expected[key].dtype:
-                    raise InputError(f"tensor {key} is {tensor.dtype} {tuple(tensor.shape)}, the network expects "
+            for key in sorted(keys):
+                stored = f.get_slice(key)
+                shape, dtype = tuple(stored.get_shape()), SAFETENSORS_DTYPES.get(stored.get_dtype())
+                if shape != tuple(expected[key].shape) or dtype != expected[key].dtype:
+                    raise InputError(f"tensor {key} is {stored.get_dtype()} {shape}, the network expects "
                                      f"{expected[key].dtype} {tuple(expected[key].shape)}", path)
-                state[key] = tensor
     except (SafetensorError, OSError) as exc:
         raise InputError(f"not a safetensors weights file ({' '.join(str(exc).split())})", path) from None
-    model.load_state_dict(state)
-    return model.eval(), config, extra
+    return architecture, config, extra
 
 
 def _check_format(metadata: dict[str, str], path: Path) -> None:

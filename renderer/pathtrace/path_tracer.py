@@ -25,6 +25,7 @@ import trimesh
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
+from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 from renderer.pathtrace.mitsuba_object import object_shapes
 from renderer.pathtrace.mitsuba_variant import active_variant
 from renderer.scene import (
@@ -34,8 +35,6 @@ from renderer.scene import (
     FLOOR_ROUGHNESS,
     LIGHT_RADIANCE,
     LIGHT_SIZE,
-    MAX_IMAGE_SIZE,
-    MIN_IMAGE_SIZE,
     Scene,
 )
 
