@@ -152,6 +152,10 @@ def cmd_info(args: argparse.Namespace) -> None:
     from renderer.scene import load_scene, range_warnings
 
     scene = load_scene(args.scene)
+    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+    grid = scene_grid_for(scene, rgba, floor_color)
+    object_count = int((rgba[..., 3] > 0.5).sum())
+    grid_count = int((grid[..., 3] > 0.5).sum())
     o = scene.object
     print(f"scene      {args.scene}")
     print(f"object     {o.voxels or o.mesh} (up {o.up}, {o.resolution}^3 voxels)")
@@ -160,10 +164,6 @@ def cmd_info(args: argparse.Namespace) -> None:
     print(f"floor      color {list(scene.floor.color)}")
     print(f"light      position {list(scene.light.position)}")
     print(f"camera     elevation {scene.camera.elevation_deg:g} deg; image {scene.image_size}x{scene.image_size}")
-    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    grid = scene_grid_for(scene, rgba, floor_color)
-    object_count = int((rgba[..., 3] > 0.5).sum())
-    grid_count = int((grid[..., 3] > 0.5).sum())
     print(f"voxels     object {object_count} of {rgba.shape[0]}^3; scene grid {grid_count} of {grid.shape[0]}^3 occupied")
     warnings = range_warnings(scene)
     print("training   all values inside the training ranges" if not warnings else "training   outside the training ranges:")

@@ -43,21 +43,31 @@ class Outcome:
     written: list[str]
 
 
-def run_case(case: Case, folder: Path, timeout: float = 120.0) -> Outcome:
-    """Write the case's files into `folder`, run the command there, and report what it did."""
+ADDRESS_SPACE_LIMIT = 4 << 30  # a regression that allocates gigabytes fails fast instead of swamping the machine
+
+
+def _limit_address_space() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE_LIMIT, ADDRESS_SPACE_LIMIT))
+
+
+def run_case(case: Case, folder: Path, display: str | None = None) -> Outcome:
+    """Write the case's files into `folder`, run the command there (the command line under an address-space
+    limit; the editor without, as software OpenGL maps much), and report what it did."""
     for name, data in case.files.items():
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
         (folder / name).write_bytes(data)
     before = {p: p.stat().st_mtime_ns for p in folder.rglob("*")}
     program = [sys.executable, "-m", "app.cli"] if case.program == "nvr" else [sys.executable, "-m", "app.editor.main"]
-    env = {**os.environ, "PYTHONPATH": str(REPO), "XDG_STATE_HOME": str(folder / ".state")}
+    env = {**os.environ, "PYTHONPATH": str(REPO), "XDG_STATE_HOME": str(folder / ".state"), "NVR_EDITOR_TIMEOUT": "100"}
+    if display:
+        env["DISPLAY"] = display
+    limit = _limit_address_space if case.program == "nvr" else None
     with open(folder / ".stdout", "w+") as out, open(folder / ".stderr", "w+") as err:
-        proc = subprocess.Popen(program + case.argv, cwd=folder, stdout=out, stderr=err, env=env)
-        try:
-            _, status, usage = os.wait4(proc.pid, 0)  # the rusage of exactly this child
-        finally:
-            if proc.returncode is None:
-                proc.returncode = os.waitstatus_to_exitcode(status) if "status" in locals() else -9
+        proc = subprocess.Popen(program + case.argv, cwd=folder, stdout=out, stderr=err, env=env, preexec_fn=limit)
+        _, status, usage = os.wait4(proc.pid, 0)  # the resource usage of exactly this child
+        proc.returncode = os.waitstatus_to_exitcode(status)
         out.seek(0)
         err.seek(0)
         stdout, stderr = out.read(), err.read()
@@ -321,8 +331,8 @@ if __name__ == "__main__":  # survey: run every case and print what it did
         if only and not any(o in case.name for o in only):
             continue
         with tempfile.TemporaryDirectory() as tmp:
-            o = run_case(case, Path(tmp))
-        lines = [line for line in o.stderr.splitlines() if line.strip()]
+            o = run_case(case, Path(tmp), os.environ.get("DISPLAY"))
+        lines = [line for line in (o.stdout + o.stderr).splitlines() if line.strip()]
         ok = o.code == 2 and len(lines) == 1 and not o.written and o.peak_rss_mb < 1024
         print(f"{'ok ' if ok else 'BAD'} {case.name:40s} exit {o.code} lines {len(lines)} rss {o.peak_rss_mb:6.0f} MB "
               f"written {o.written} | {lines[-1][:150] if lines else ''}", flush=True)

@@ -224,3 +224,72 @@ def test_training_option_refusals_name_the_option_and_its_limits():
         TrainConfig(data=("d",), lr=float("inf"))
     with pytest.raises(InputError, match=r"--threads must be from 0 .* to 1024, got -1"):
         TrainConfig(data=("d",), threads=-1)
+
+
+# --- refusals before anything is written, and a kill during a checkpoint write ----------------------------
+
+
+def test_a_network_too_large_to_build_is_refused_before_the_run_folder_exists(data, tmp_path):
+    with pytest.raises(InputError, match=r"network of [\d,]+ parameters \(at most"):
+        train(tmp_path / "run", config(data, config_overrides=TINY + (("latent_channels", 1_000_000),)), progress=False)
+    assert not (tmp_path / "run").exists()
+
+
+def test_data_of_another_image_size_is_refused_before_the_run_folder_exists(tmp_path):
+    larger = make_fake_dataset(tmp_path / "set", samples=2, size=64)  # the TINY network renders 32 x 32
+    with pytest.raises(InputError, match="is 64x64; the network renders 32x32"):
+        train(tmp_path / "run", config(larger), progress=False)
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_broken_sample_is_refused_by_name_before_training(tmp_path):
+    broken = make_fake_dataset(tmp_path / "set", samples=3)
+    (broken / "images" / "s1.png").write_bytes(b"\x89PNG\r\n\x1a\n cut here")
+    with pytest.raises(InputError, match=r"s1.png: sample s1: its target image is missing or unreadable"):
+        train(tmp_path / "run", config(broken), progress=False)
+    assert not (tmp_path / "run").exists()
+
+
+KILLED_DURING_THIRD_CHECKPOINT = """
+import importlib, os, signal, sys
+from models.training.train import TrainConfig, train
+
+train_module = importlib.import_module("models.training.train")  # the module (the package exports the function)
+
+calls = 0
+real_save = train_module.save_file
+
+def save_and_die_on_the_third(tensors, filename, metadata=None):
+    global calls
+    calls += 1
+    if calls < 3:
+        return real_save(tensors, filename, metadata=metadata)
+    real_save(tensors, filename, metadata=metadata)
+    with open(filename, "r+b") as f:
+        f.truncate(os.path.getsize(filename) // 2)  # half of the file is on disk
+    os.kill(os.getpid(), signal.SIGKILL)
+
+train_module.save_file = save_and_die_on_the_third
+config = TrainConfig(data=(sys.argv[1],), steps=4, batch=2, threads=1, perceptual_crop=0, log_every=1,
+                     checkpoint_minutes=1e-9, config_overrides=(("grid_size", 16), ("output_size", 32)))
+train(sys.argv[2], config, progress=False)
+"""
+
+
+def test_a_run_killed_during_a_checkpoint_write_resumes_from_the_last_good_one(data, tmp_path):
+    run = tmp_path / "run"
+    env = dict(os.environ, PYTHONPATH=str(ROOT), OMP_NUM_THREADS="1")
+    killed = subprocess.run([sys.executable, "-c", KILLED_DURING_THIRD_CHECKPOINT, str(data), str(run)], env=env,
+                            capture_output=True, timeout=300)
+    assert killed.returncode == -9  # SIGKILL, mid-write of the third checkpoint (after step 3)
+    leftovers = [p for p in run.iterdir() if p.name.startswith(f".{CHECKPOINT}.")]
+    assert len(leftovers) == 1  # the half-written temporary; the real name still holds checkpoint 2
+    from safetensors import safe_open
+
+    with safe_open(str(run / CHECKPOINT), framework="pt") as f:
+        assert f.metadata()["step"] == "2"
+    train(run, config(data, steps=4, checkpoint_minutes=1e-9), resume=True, progress=False)
+    assert not [p for p in run.iterdir() if p.name.startswith(f".{CHECKPOINT}.")]  # cleaned up
+    train(tmp_path / "whole", config(data, steps=4), progress=False)
+    a, b = weights(tmp_path / "whole" / CHECKPOINT), weights(run / CHECKPOINT)
+    assert a.keys() == b.keys() and all(torch.equal(a[key], b[key]) for key in a)

@@ -21,7 +21,7 @@ from app.editor.orbit_view import HOME, viewport_camera
 from app.editor.photo_tool import PhotoTool
 from app.editor.render_panel import LiveRender, RenderedFrame, export_render, final_render
 from app.editor.viewport import ViewportRenderer
-from app.editor.voxel_cache import VoxelCache
+from app.editor.voxel_cache import VoxelCache, source_key
 from app.editor.window import Window, upload_image
 from renderer.color import to_uint8
 from renderer.errors import InputError
@@ -115,6 +115,7 @@ class EditorApp:
         self._autosaved = document.revision
         self._autosave_time = time.monotonic()
         self._screenshots: list[Path] = []
+        self.unloadable_source = None  # the object (mesh or voxels file) that failed to load, if any
         self._offer_recovery()
 
     # --- messages and prompts ---------------------------------------------------------------
@@ -371,9 +372,12 @@ class EditorApp:
         """Show the document's scene: upload its voxels (voxelising in the background first if needed), render it."""
         scene = self.doc.scene
         if not self.voxels.has_object(scene):
-            if self.job is None:
+            if source_key(scene) == self.unloadable_source:  # its error is shown; retried only once the object changes
+                self._synced = self.doc.revision
+            elif self.job is None:
+                self.unloadable_source = source_key(scene)  # until the job succeeds
                 self.start_job(f"Voxelising {Path(scene.object.voxels or scene.object.mesh).name}",
-                               lambda progress: self.voxels.object_rgba(scene, progress), lambda _: None)
+                               lambda progress: self.voxels.object_rgba(scene, progress), self._object_loaded)
             return
         try:
             rgba, self.floor_color = self.voxels.painted(scene)
@@ -386,6 +390,9 @@ class EditorApp:
             self.shown_rgba = rgba
         self.live.submit(scene, preview=self.doc.previewing)
         self._synced = self.doc.revision
+
+    def _object_loaded(self, _rgba) -> None:
+        self.unloadable_source = None
 
     def _autosave(self) -> None:
         now = time.monotonic()

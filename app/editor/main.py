@@ -29,7 +29,9 @@ EXIT_USER_ERROR = 2
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="nvr-editor", description="NVR Studio editor: voxel viewport and live neural render.")
+    from app.cli import OneLineParser
+
+    p = OneLineParser(prog="nvr-editor", description="NVR Studio editor: voxel viewport and live neural render.")
     p.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE), help="scene file (default: the demo scene)")
     p.add_argument("--renderer", choices=["shaded", "nvr+"], default=None,
                    help="the render panel's renderer (default: nvr+ when --model is given, else shaded); "
@@ -76,6 +78,10 @@ def _load_inputs(args: argparse.Namespace):
         if output:
             check_writable(output, overwrite=args.force)
     replay = Replay(load_replay(args.replay)) if args.replay else None
+    if args.model:
+        from models.networks.checkpoint import check_weights_file
+
+        check_weights_file(args.model)  # a refused model file ends the start, rather than a silent fallback
     return Document.open(args.scene), replay
 
 
@@ -107,6 +113,8 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
                 app.request_quit()
             if app.quit_requested or finishing:
                 break
+            if headless and app.unloadable_source is not None and app.job is None:
+                return EXIT_USER_ERROR  # the start-up scene's object cannot be loaded; its error is printed
             if headless and frame >= args.frames and (replay is None or replay.done) and not app.busy:
                 finishing = True  # one more frame, with everything finished, for the screenshot
                 if args.screenshot:

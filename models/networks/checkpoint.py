@@ -77,23 +77,29 @@ def check_weights_file(path: str | Path) -> tuple[str, NVRConfig, dict[str, Any]
             metadata = f.metadata() or {}
             _check_format(metadata, path)
             architecture, config, extra = _parse_metadata(metadata, path)
-            with torch.device("meta"):
-                expected = build_model(architecture, config).state_dict()
-            parameters = sum(t.numel() for t in expected.values())
-            if parameters > MAX_WEIGHT_PARAMETERS:
-                raise InputError(f"its config describes a network of {parameters:,} parameters "
-                                 f"(at most {MAX_WEIGHT_PARAMETERS:,})", path)
+            expected = network_shapes(architecture, config, path)
             keys = set(f.keys())
             _check_keys(keys, set(expected), architecture, config, path)
             for key in sorted(keys):
                 stored = f.get_slice(key)
                 shape, dtype = tuple(stored.get_shape()), SAFETENSORS_DTYPES.get(stored.get_dtype())
                 if shape != tuple(expected[key].shape) or dtype != expected[key].dtype:
-                    raise InputError(f"tensor {key} is {stored.get_dtype()} {shape}, the network expects "
+                    raise InputError(f"tensor {key} is {dtype or stored.get_dtype()} {shape}, the network expects "
                                      f"{expected[key].dtype} {tuple(expected[key].shape)}", path)
     except (SafetensorError, OSError) as exc:
         raise InputError(f"not a safetensors weights file ({' '.join(str(exc).split())})", path) from None
     return architecture, config, extra
+
+
+def network_shapes(architecture: str, config: NVRConfig, path: str | Path | None = None) -> dict[str, torch.Tensor]:
+    """The state dict a config describes, built on torch's meta device (shapes only, no memory),
+    refused when the network would be larger than the product's limit."""
+    with torch.device("meta"):
+        expected = build_model(architecture, config).state_dict()
+    parameters = sum(t.numel() for t in expected.values())
+    if parameters > MAX_WEIGHT_PARAMETERS:
+        raise InputError(f"the config describes a network of {parameters:,} parameters (at most {MAX_WEIGHT_PARAMETERS:,})", path)
+    return expected
 
 
 def _check_format(metadata: dict[str, str], path: Path) -> None:

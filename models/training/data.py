@@ -71,6 +71,29 @@ class VoxelRenderSet(Dataset):
         self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
         self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
 
+    def check_samples(self, image_size: int) -> None:
+        """Refuse the set before training when a sample's files are missing or unreadable, or its images
+        are not `image_size` pixels square (the network's output size). Reads image headers only."""
+        from PIL import Image
+
+        voxel_files = set()
+        for index, (folder, sample) in enumerate(self.items):
+            scene = self.scene(index)
+            voxel_files.add(scene.voxels_path())
+            for key in ("target", "splat"):
+                path = folder / str(sample.get(key))
+                try:
+                    with Image.open(path) as image:
+                        size = image.size
+                except (OSError, ValueError, SyntaxError):
+                    raise InputError(f"sample {sample.get('id', index)}: its {key} image is missing or unreadable", path) from None
+                if size != (image_size, image_size):
+                    raise InputError(f"sample {sample.get('id', index)}: its {key} image is {size[0]}x{size[1]}; "
+                                     f"the network renders {image_size}x{image_size}", path)
+        for path in voxel_files:
+            if path is None or not path.is_file():
+                raise InputError("object voxels of a sample are missing", path)
+
     def _load_voxels(self, path: str) -> np.ndarray:
         from renderer.voxels import downsample_voxels, load_voxels
 

@@ -29,7 +29,7 @@ from safetensors.torch import load_file, save_file
 from torch import nn
 
 from renderer.errors import InputError
-from renderer.io import atomic_path, load_json, save_json
+from renderer.io import atomic_path, load_json, remove_stale_temporaries, save_json
 
 RUN_FORMAT = 1
 # Limits of the training options: beyond them a run cannot be meant (or would not fit in memory).
@@ -159,10 +159,17 @@ def network_config(train: TrainConfig):
     classes = {c.name: c for c in (CompactConfig, PaperConfig, ShaderRefinerConfig)}
     if train.config not in classes:
         raise InputError(f"unknown network config {train.config!r} (choose from {', '.join(classes)})")
+    from models.networks.checkpoint import network_shapes
+
     try:
-        return classes[train.config](**dict(train.config_overrides))
+        config = classes[train.config](**dict(train.config_overrides))
     except (TypeError, ValueError) as exc:
         raise InputError(f"network config: {exc}") from None
+    try:
+        network_shapes(train.architecture, config)
+    except InputError as exc:
+        raise InputError(f"network config: {exc}") from None  # too large to build
+    return config
 
 
 # --- checkpoints for resuming ---------------------------------------------------------------
@@ -248,12 +255,13 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     device = torch.device(config.device if dist_info.world == 1 or not config.device.startswith("cuda")
                           else f"cuda:{dist_info.rank % torch.cuda.device_count()}")
     net_config = network_config(config)
-    if dist_info.is_main:
-        _prepare_run(out, config, resume, net_config)
-
     dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size,
                              floor_light=reads_floor_light(config.architecture, net_config),
                              shading=reads_shading(config.architecture, net_config))
+    dataset.check_samples(net_config.output_size)  # a broken or mis-sized sample is refused before step 0
+    if dist_info.is_main:
+        _prepare_run(out, config, resume, net_config)
+        remove_stale_temporaries(out)  # a checkpoint half-written when a run was killed
     torch.manual_seed(config.seed)  # identical initial weights on every rank
     model = build_model(config.architecture, net_config)
     if config.init and not resume:
