@@ -77,7 +77,8 @@ def _read_mesh(path: Path) -> trimesh.Trimesh:
     if not parts:
         fallback = _read_with_open3d(path, said) if path.suffix.lower() in (".ply", ".off") else None
         if fallback is None:
-            raise InputError(problem, path)
+            reader_said = f"; the reader said: {said[0][:200]}" if said else ""
+            raise InputError(problem + reader_said, path)
         return fallback
     return parts[0] if len(parts) == 1 else _concatenate(parts)
 

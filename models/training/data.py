@@ -60,7 +60,13 @@ class VoxelRenderSet(Dataset):
         for folder in map(Path, folders):
             manifest = read_manifest(folder)
             setting = manifest.get("config", {}).get("setting", "unknown")
-            for sample in manifest["samples"]:
+            samples = manifest["samples"]
+            if not isinstance(samples, list):
+                raise InputError("manifest.json: samples must be a list", folder)
+            for index, sample in enumerate(samples):
+                if not (isinstance(sample, dict) and isinstance(sample.get("scene"), dict)
+                        and all(isinstance(sample.get(key), str) for key in ("target", "splat"))):
+                    raise InputError(f"manifest.json: sample {index} needs a scene and target and splat file names", folder)
                 self.items.append((folder, sample))
                 self.settings.append(setting)
         if not self.items:
