@@ -44,12 +44,7 @@ class Outcome:
 
 
 ADDRESS_SPACE_LIMIT = 4 << 30  # a regression that allocates gigabytes fails fast instead of swamping the machine
-
-
-def _limit_address_space() -> None:
-    import resource
-
-    resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE_LIMIT, ADDRESS_SPACE_LIMIT))
+MEASURE = Path(__file__).resolve().parent / "run_measured.py"
 
 
 def run_case(case: Case, folder: Path, display: str | None = None) -> Outcome:
@@ -63,18 +58,15 @@ def run_case(case: Case, folder: Path, display: str | None = None) -> Outcome:
     env = {**os.environ, "PYTHONPATH": str(REPO), "XDG_STATE_HOME": str(folder / ".state"), "NVR_EDITOR_TIMEOUT": "100"}
     if display:
         env["DISPLAY"] = display
-    limit = _limit_address_space if case.program == "nvr" else None
-    with open(folder / ".stdout", "w+") as out, open(folder / ".stderr", "w+") as err:
-        proc = subprocess.Popen(program + case.argv, cwd=folder, stdout=out, stderr=err, env=env, preexec_fn=limit)
-        _, status, usage = os.wait4(proc.pid, 0)  # the resource usage of exactly this child
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        stdout, stderr = out.read(), err.read()
-    after = {p: p.stat().st_mtime_ns for p in folder.rglob("*") if not p.name.startswith((".stdout", ".stderr"))}
-    written = sorted(str(p.relative_to(folder)) for p, t in after.items()
-                     if before.get(p) != t and ".state" not in p.parts and p.is_file())
-    return Outcome(proc.returncode, stderr, stdout, usage.ru_maxrss / 1024.0, written)
+    limit = ["--limit", str(ADDRESS_SPACE_LIMIT)] if case.program == "nvr" else []
+    result = folder / ".measured.json"
+    completed = subprocess.run([sys.executable, str(MEASURE), str(result), *limit, "--", *program, *case.argv],
+                               cwd=folder, capture_output=True, text=True, env=env, errors="replace")
+    measured = json.loads(result.read_text())
+    ours = (".state", ".measured.json")
+    written = sorted(str(p.relative_to(folder)) for p in folder.rglob("*")
+                     if p.is_file() and before.get(p) != p.stat().st_mtime_ns and p.relative_to(folder).parts[0] not in ours)
+    return Outcome(measured["code"], completed.stderr, completed.stdout, measured["peak_rss_mb"], written)
 
 
 # --- hostile files ------------------------------------------------------------------------------------

@@ -24,7 +24,7 @@ from renderer.scene import CameraSpec, ObjectSpec, Scene, load_scene, save_scene
 from tests import test_editor
 from tests.test_editor import PANELS, pixels, run_editor
 
-display, model_file = test_editor.display, test_editor.model_file  # the window tests' fixtures: an Xvfb, a tiny NVR+
+model_file = test_editor.model_file  # the window tests' tiny NVR+ (the Xvfb display comes from conftest.py)
 
 TRUTH = PhotoPose(Camera(25.0, 120, 100), rotation_deg=-35.0, translation=(0.1, -0.05))  # where the photo was taken
 START = ObjectSpec(mesh="chair.obj", resolution=24, rotation_deg=20.0)  # the scene before: turned and seen otherwise
