@@ -23,6 +23,7 @@ from PIL import Image
 
 from app.editor.layout import layout_for
 from app.editor.orbit_view import HOME, viewport_camera
+from app.editor.picking import ray_at_height
 from app.editor.viewport_input import LIGHT_HEIGHT_PER_PIXEL
 from models.networks.checkpoint import save_model
 from models.networks.config import CompactConfig
@@ -207,6 +208,12 @@ def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene
     scene = load_scene(scene_file)
     light = screen_position(scene.light.position)
     target = [light[0] - 120, light[1] + 40]
+    # Where the light will be: the floor point under it moves with the mouse (so the square itself moves less).
+    v = PANELS.viewport
+    under = np.add(screen_position((scene.light.position[0], 0.0, scene.light.position[2])), np.subtract(target, light))
+    origin, direction = viewport_camera(HOME, v.width, v.height).pixel_rays(np.array(under[0] - v.x), np.array(under[1] - v.y))
+    floor_point = ray_at_height(origin, np.asarray(direction), 0.0)
+    light_after = screen_position((floor_point[0], scene.light.position[1], floor_point[2]))
     # The centre of the red block's front face (voxel (8, 5, 11), its +z side) as placed in the world.
     front = apply_transform(object_to_world(scene.object), voxel_centers_at(np.array([[8, 5, 11]]), 16) + [0, 0, 0.5 / 16])[0]
     middle = [PANELS.viewport.x + PANELS.viewport.width / 2, PANELS.viewport.y + PANELS.viewport.height / 2]
@@ -217,8 +224,9 @@ def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene
         {"action": "mouse_move", "pos": target},
         {"action": "mouse_up", "button": 0},
         {"action": "save", "path": str(tmp_path / "light.json")},
+        {"action": "mouse_move", "pos": light_after},
         {"action": "mouse_down", "button": 0, "mods": ["shift"]},  # Shift + drag: height only
-        {"action": "mouse_move", "pos": [target[0] + 30, target[1] - 20]},
+        {"action": "mouse_move", "pos": [light_after[0] + 30, light_after[1] - 20]},
         {"action": "mouse_up", "button": 0},
         {"action": "save", "path": str(tmp_path / "raised.json")},
         {"action": "tool", "name": "paint"},
@@ -234,10 +242,12 @@ def test_mouse_drags_the_light_clicks_paint_and_g_grabs(display, tmp_path, scene
         {"action": "mouse_up", "button": 0},
         {"action": "save", "path": str(tmp_path / "grabbed.json")},
     ], "--model", str(model_file))
-    # The light followed the mouse on its own plane: the point under the mouse now is the light's centre.
+    # The light moved by what the mouse covered on the floor: the floor point under it moved with the mouse.
     moved = load_scene(tmp_path / "light.json").light.position
     assert moved[1] == scene.light.position[1]
-    np.testing.assert_allclose(screen_position(moved), target, atol=1.5)
+    under_before = screen_position((scene.light.position[0], 0.0, scene.light.position[2]))
+    under_after = screen_position((moved[0], 0.0, moved[2]))
+    np.testing.assert_allclose(np.subtract(under_after, under_before), np.subtract(target, light), atol=1.5)
     raised = load_scene(tmp_path / "raised.json").light.position
     assert raised[0] == moved[0] and raised[2] == moved[2]
     assert raised[1] == pytest.approx(moved[1] + 20 * LIGHT_HEIGHT_PER_PIXEL)  # 20 pixels up
@@ -566,3 +576,103 @@ def test_r_turns_the_object_by_the_angle_the_mouse_sweeps_and_s_x_scales_x_only(
     small = load_scene(tmp_path / "small.json").object
     assert small.scale == pytest.approx((150 / 60 * 0.5, 0.5, 0.5), abs=1e-6)
     assert load_scene(tmp_path / "cancelled.json").object == small
+
+
+def test_resizing_the_window_keeps_the_editor_alive_and_the_layout_follows(display, tmp_path, scene_file, model_file):
+    """Enlarge, shrink, enlarge again and restore the real window (Mesa's software OpenGL under Xvfb): the
+    editor lives on, and each screenshot has the new size with the menu bar once at the top, the viewport's
+    floor right under it, the render where the layout puts it and the status bar at the bottom."""
+    sizes = [(1400, 900), (1000, 700), (1500, 950), (900, 600), (1280, 800)]
+    actions = []
+    for i, size in enumerate(sizes):
+        actions += [{"action": "resize", "size": list(size)}, {"action": "wait", "frames": 3},
+                    {"action": "screenshot", "path": str(tmp_path / f"size{i}.png")}]
+    result = run_editor(display, tmp_path, scene_file, actions, "--model", str(model_file), "--renderer", "nvr+")
+    assert result.returncode == 0, result.stderr[-2000:]
+    for i, (width, height) in enumerate(sizes):
+        image = np.asarray(Image.open(tmp_path / f"size{i}.png").convert("RGB"), dtype=np.float64) / 255.0
+        assert image.shape == (height, width, 3)
+        panels = layout_for(width, height)
+        menu_color = image[2, width // 2]
+        rows_like_menu = np.all(np.abs(image[:, width // 3] - menu_color) < 0.02, axis=-1)
+        assert rows_like_menu[1: panels.viewport.y - 2].all()  # the menu bar at the top ...
+        assert not rows_like_menu[panels.viewport.y + 4: panels.viewport.y + 120].any()  # ... and only there
+        floor = FloorSpec((0.5, 0.6, 0.7)).color
+        bottom = image[panels.viewport.y + panels.viewport.height - 60: panels.viewport.y + panels.viewport.height - 40,
+                       panels.viewport.x + 10: panels.viewport.x + panels.viewport.width - 10]
+        assert share_of(bottom, floor) > 0.5  # the viewport's near floor reaches its bottom edge
+        render = image[panels.render_image.y: panels.render_image.y + panels.render_image.height,
+                       panels.render_image.x: panels.render_image.x + panels.render_image.width]
+        assert render.std() > 0.02  # the network's image fills its place, not the panel background
+        status = image[panels.status.y + 2: panels.status.y + panels.status.height - 2, :]
+        assert np.abs(status - status[0, 0]).max(axis=-1).mean() < 0.2  # the status bar's own band, text aside
+
+
+def _tools_point(dx: float, dy: float) -> list[float]:
+    """A window pixel in the tools panel, from its top-left corner (its tabs at dy 39; fields from dy 64, 25 apart)."""
+    return [PANELS.tools.x + dx, PANELS.tools.y + dy]
+
+
+OBJECT_TAB, PAINT_TAB, SCALE_X_FIELD = _tools_point(30, 39), _tools_point(177, 39), _tools_point(52, 114)
+
+
+def test_what_a_user_meets_first_dragging_far_leaving_paint_typing_a_bad_value(display, tmp_path, scene_file, model_file):
+    """Drag the light square far upwards: it moves over the floor, stays inside the floor's square and says it
+    left the training range. Leave the Paint tab and click the object: nothing is painted. Type -1 into scale:
+    refused with a message under the field, the scale stays."""
+    scene = load_scene(scene_file)
+    light = screen_position(scene.light.position)
+    front = apply_transform(object_to_world(scene.object), voxel_centers_at(np.array([[8, 5, 11]]), 16) + [0, 0, 0.5 / 16])[0]
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "mouse_move", "pos": light},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_move", "pos": [light[0], light[1] - 100]},
+        {"action": "mouse_move", "pos": [light[0], light[1] - 300]},
+        {"action": "mouse_up", "button": 0},
+        {"action": "screenshot", "path": str(tmp_path / "far.png")},
+        {"action": "save", "path": str(tmp_path / "far.json")},
+        {"action": "undo"},
+        {"action": "tool", "name": "paint"},  # opens the Paint tab with the bucket
+        {"action": "mouse_move", "pos": OBJECT_TAB},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_up", "button": 0},
+        {"action": "mouse_move", "pos": screen_position(front)},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "clicked.json")},
+        {"action": "mouse_move", "pos": SCALE_X_FIELD},
+        {"action": "mouse_down", "button": 0, "mods": ["ctrl"]},  # Ctrl+click: type into the field
+        {"action": "mouse_up", "button": 0},
+        {"action": "key", "key": "a", "mods": ["ctrl"]},
+        {"action": "type", "text": "-1"},
+        {"action": "key", "key": "enter"},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "typed.png")},
+        {"action": "save", "path": str(tmp_path / "typed.json")},
+    ], "--model", str(model_file))
+    assert result.returncode == 0, result.stderr[-2000:]
+    far = load_scene(tmp_path / "far.json").light.position
+    assert far[1] == scene.light.position[1] and all(math.isfinite(c) for c in far)
+    assert max(abs(far[0]), abs(far[2])) <= 10.0 and far != scene.light.position  # moved, but stayed over the floor
+    amber = share_of(pixels(tmp_path / "far.png", replace(PANELS.viewport, y=PANELS.viewport.y + PANELS.viewport.height - 40,
+                                                                 height=30)), (1.0, 0.75, 0.3))
+    assert amber > 0.002  # "Outside the training range: light.position..." at the bottom of the viewport
+    assert load_scene(tmp_path / "clicked.json").paint == ()  # the bucket is off outside the Paint tab
+    assert load_scene(tmp_path / "typed.json").object.scale == scene.object.scale
+    assert "scale must be from 0.05 to 20, got -1" in result.stderr
+    below_field = pixels(tmp_path / "typed.png", replace(PANELS.tools, y=int(SCALE_X_FIELD[1]) + 10, height=22))
+    assert share_of(below_field, (1.0, 0.42, 0.38)) > 0.01  # the message in red under the field
+
+
+def test_ctrl_s_on_the_shipped_demo_scene_leaves_it_alone_and_asks_for_a_name(display, tmp_path):
+    demo = REPOSITORY / "assets" / "demo" / "scene.json"
+    before = demo.read_bytes(), demo.stat().st_mtime_ns
+    result = run_editor(display, tmp_path, demo, [
+        {"action": "set_elevation", "deg": 20},
+        {"action": "key", "key": "s", "mods": ["ctrl"]},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "after.png")},
+    ])
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert (demo.read_bytes(), demo.stat().st_mtime_ns) == before
+    assert "ships with NVR Studio and is not saved over" in result.stderr

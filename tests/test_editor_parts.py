@@ -74,13 +74,25 @@ def test_document_preview_is_not_an_undo_step_and_dirty_follows_saves(box_scene,
 # --- edits ----------------------------------------------------------------------------------------
 
 
-def test_edits_clamp_to_what_a_scene_may_hold(box_scene):
-    assert edits.move_light(box_scene, (0.0, -3.0, 0.0)).light.position[1] == edits.MIN_LIGHT_HEIGHT
-    assert edits.set_elevation(box_scene, 95.0).camera.elevation_deg == edits.MAX_ELEVATION
-    assert edits.set_elevation(box_scene, -5.0).camera.elevation_deg == 0.0
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda s: edits.move_light(s, (0.0, -3.0, 0.0)), "light height must be from 0.05 to 10, got -3"),
+    (lambda s: edits.move_light(s, (-50.0, 2.75, -50.0)), "light x and z must be from -10 to 10, got -50, -50"),
+    (lambda s: edits.set_elevation(s, 95.0), "camera elevation must be from 0 to 89, got 95"),
+    (lambda s: edits.place_object(s, scale=(-1.0, 1.0, 1.0)), "scale must be from 0.05 to 20, got -1, 1, 1"),
+    (lambda s: edits.place_object(s, translation=(float("nan"), 0.0)), "position must be from -10 to 10, got nan, 0"),
+    (lambda s: edits.set_floor_color(s, (1.5, 0.5, -1.0)), "floor color must be from 0 to 1, got 1.5, 0.5, -1"),
+])
+def test_edits_refuse_values_outside_their_bounds_naming_them(box_scene, edit, message):
+    with pytest.raises(InputError) as refused:
+        edit(box_scene)
+    assert str(refused.value) == message
+
+
+def test_edits_inside_their_bounds_are_taken_as_given(box_scene):
+    assert edits.move_light(box_scene, (10.0, 0.05, -10.0)).light.position == (10.0, 0.05, -10.0)
+    assert edits.set_elevation(box_scene, 89.0).camera.elevation_deg == 89.0
     assert edits.place_object(box_scene, rotation_deg=190.0).object.rotation_deg == pytest.approx(-170.0)
-    assert edits.place_object(box_scene, scale=(0.0, 1.0, 2.0)).object.scale == (edits.MIN_SCALE, 1.0, 2.0)
-    assert edits.set_floor_color(box_scene, (1.5, 0.5, -1.0)).floor.color == (1.0, 0.5, 0.0)
+    assert edits.place_object(box_scene, scale=(0.05, 1.0, 20.0)).object.scale == (0.05, 1.0, 20.0)
 
 
 def test_a_new_object_keeps_placement_and_floor_strokes_only(box_scene, tmp_path):

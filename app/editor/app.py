@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ from renderer.scene import PaintOp, Scene, save_scene
 AUTOSAVE_SECONDS = 5.0
 FRAME_SECONDS = 1.0 / 60.0  # the loop sleeps to this pace so the render thread gets the CPU it needs
 MESSAGE_SECONDS = 8.0
+SHIPPED_ASSETS = Path(__file__).resolve().parents[2] / "assets"  # the demo scene and models: Save writes elsewhere
 PALETTE = (
     (0.90, 0.30, 0.25), (0.95, 0.60, 0.20), (0.95, 0.85, 0.30), (0.45, 0.75, 0.35), (0.25, 0.60, 0.55),
     (0.30, 0.50, 0.85), (0.55, 0.40, 0.80), (0.85, 0.45, 0.65), (0.55, 0.38, 0.25), (0.95, 0.95, 0.93),
@@ -64,12 +66,23 @@ class FrameStats:
     work: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})
     drawn_work: dict[bool, list[float]] = field(default_factory=lambda: {True: [], False: []})  # frames that changed
     renders: list[float] = field(default_factory=list)  # seconds each shown render took
+    recent: deque = field(default_factory=lambda: deque(maxlen=240))  # (monotonic time, work seconds) of active frames
 
     def add(self, wall_seconds: float, work_seconds: float, rendering: bool, drawn: bool) -> None:
+        self.recent.append((time.monotonic(), work_seconds))
         self.wall[rendering].append(wall_seconds)
         self.work[rendering].append(work_seconds)
         if drawn:
             self.drawn_work[rendering].append(work_seconds)
+
+    def current_text(self, window_seconds: float = 1.0) -> str:
+        """The UI's work per frame over the last second of active frames, or "idle" when nothing was drawing
+        (an idle window sleeps until input comes: its frame rate says nothing)."""
+        since = time.monotonic() - window_seconds
+        work = sorted(w for t, w in self.recent if t >= since)
+        if not work:
+            return "UI idle"
+        return f"UI {1000.0 * work[len(work) // 2]:.1f} ms/frame"
 
     def summary(self) -> str:
         parts = []
@@ -99,7 +112,9 @@ class EditorApp:
         self.shown_frame: RenderedFrame | None = None
         self.render_uploads = 0  # counts the images written to render_texture, so the window knows when it changed
         self.floor_color = document.scene.floor.color
-        self.tool = "select"  # or "paint"
+        self.tool = "select"  # or "paint"; the bucket works only while the Paint tab shows (bucket_active)
+        self.tools_tab = "Object"  # the tools panel's open tab, as drawn last frame
+        self.requested_tab: str | None = None  # a tab to open on the next frame (a replay's "tool" action)
         self.paint_color: tuple[float, float, float] = PALETTE[0]
         self.tolerance = 0.1
         self.photo = PhotoTool(self)  # the Photo tab's photo being aligned, and its commands
@@ -117,6 +132,11 @@ class EditorApp:
         self._screenshots: list[Path] = []
         self.unloadable_source = None  # the object (mesh or voxels file) that failed to load, if any
         self._offer_recovery()
+
+    @property
+    def bucket_active(self) -> bool:
+        """The bucket fills on a click only where the user can see it is chosen: with the Paint tab open."""
+        return self.tool == "paint" and self.tools_tab == "Paint"
 
     # --- messages and prompts ---------------------------------------------------------------
 
@@ -168,6 +188,8 @@ class EditorApp:
         except InputError as exc:
             self.say(str(exc), error=True)
             return False
+        if self.message is not None and self.message.error:
+            self.message = None  # the error is over once an edit succeeds
         if preview:
             self.doc.preview(scene)
             return True
@@ -230,8 +252,15 @@ class EditorApp:
         target = Path(path) if path else self.doc.path
         if target is None:
             self.say("choose a file name to save to (File tab)", error=True)
+            self.requested_tab = "File"
             return False
-        own_file = self.doc.path is not None and target.resolve() == self.doc.path.resolve()
+        if path is None and target.resolve().is_relative_to(SHIPPED_ASSETS):
+            self.say(f"{target.name} ships with NVR Studio and is not saved over: choose a file name (File tab, Save as)",
+                     error=True)
+            self.requested_tab = "File"
+            return False
+        own_file = (self.doc.path is not None and target.resolve() == self.doc.path.resolve()
+                    and not target.resolve().is_relative_to(SHIPPED_ASSETS))  # a shipped file: ask before replacing
 
         def write() -> str:
             self.doc.cancel_preview()
@@ -372,9 +401,11 @@ class EditorApp:
         """Show the document's scene: upload its voxels (voxelising in the background first if needed), render it."""
         scene = self.doc.scene
         if not self.voxels.has_object(scene):
+            if self.job is not None:
+                return  # voxelising (or another job): the scene is shown when it is done
             if source_key(scene) == self.unloadable_source:  # its error is shown; retried only once the object changes
                 self._synced = self.doc.revision
-            elif self.job is None:
+            else:
                 self.unloadable_source = source_key(scene)  # until the job succeeds
                 self.start_job(f"Voxelising {Path(scene.object.voxels or scene.object.mesh).name}",
                                lambda progress: self.voxels.object_rgba(scene, progress), self._object_loaded)

@@ -1,40 +1,53 @@
 """Every edit the editor makes, as a pure function from a scene to a new scene.
 
-Values are clamped to what a scene may hold (light above the floor, elevation below 90
-degrees, positive scale), so dragging past a limit stops there instead of failing.
+A value outside what the editor allows (a scale <= 0, the light under the floor or off the floor's
+square, a camera at 90 degrees) is refused with an InputError that names the bounds, so a typed value
+is never changed without a word; drags in the viewport stop at the bounds themselves (`clamp`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from pathlib import Path
 
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.errors import InputError
+from renderer.scene import FLOOR_HALF_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
 
 MIN_LIGHT_HEIGHT = 0.05
+MAX_LIGHT_HEIGHT = 10.0
 MAX_ELEVATION = 89.0
 MIN_SCALE = 0.05
 MAX_SCALE = 20.0
-MAX_POSITION = 50.0
+MAX_POSITION = FLOOR_HALF_SIZE  # the object and the light stay over the floor's square
 
 
-def _clamp(value: float, lo: float, hi: float) -> float:
+def clamp(value: float, lo: float, hi: float) -> float:
     return min(max(float(value), lo), hi)
 
 
+def _check(name: str, values, lo: float, hi: float) -> tuple[float, ...]:
+    values = tuple(float(v) for v in values)
+    if not all(math.isfinite(v) and lo <= v <= hi for v in values):
+        shown = ", ".join(f"{v:g}" for v in values)
+        raise InputError(f"{name} must be from {lo:g} to {hi:g}, got {shown}")
+    return values
+
+
 def move_light(scene: Scene, position: tuple[float, float, float]) -> Scene:
-    """The light centred at `position` (height kept above the floor)."""
-    x, y, z = position
-    p = (_clamp(x, -MAX_POSITION, MAX_POSITION), _clamp(y, MIN_LIGHT_HEIGHT, MAX_POSITION), _clamp(z, -MAX_POSITION, MAX_POSITION))
-    return scene.with_changes(light=LightSpec(p))
+    """The light centred at `position`: over the floor's square, between MIN_ and MAX_LIGHT_HEIGHT above it."""
+    x, z = _check("light x and z", (position[0], position[2]), -MAX_POSITION, MAX_POSITION)
+    (y,) = _check("light height", (position[1],), MIN_LIGHT_HEIGHT, MAX_LIGHT_HEIGHT)
+    return scene.with_changes(light=LightSpec((x, y, z)))
 
 
 def set_elevation(scene: Scene, elevation_deg: float) -> Scene:
-    return scene.with_changes(camera=CameraSpec(_clamp(elevation_deg, 0.0, MAX_ELEVATION)))
+    (elevation,) = _check("camera elevation", (elevation_deg,), 0.0, MAX_ELEVATION)
+    return scene.with_changes(camera=CameraSpec(elevation))
 
 
 def set_floor_color(scene: Scene, color: tuple[float, float, float]) -> Scene:
-    return scene.with_changes(floor=FloorSpec(tuple(_clamp(c, 0.0, 1.0) for c in color)))
+    return scene.with_changes(floor=FloorSpec(_check("floor color", color, 0.0, 1.0)))
 
 
 def place_object(scene: Scene, translation: tuple[float, float] | None = None, rotation_deg: float | None = None,
@@ -42,11 +55,12 @@ def place_object(scene: Scene, translation: tuple[float, float] | None = None, r
     """The object moved on the floor, turned about the vertical axis and/or scaled per axis."""
     o = scene.object
     if translation is not None:
-        o = replace(o, translation=tuple(_clamp(t, -MAX_POSITION, MAX_POSITION) for t in translation))
+        o = replace(o, translation=_check("position", translation, -MAX_POSITION, MAX_POSITION))
     if rotation_deg is not None:
-        o = replace(o, rotation_deg=(float(rotation_deg) + 180.0) % 360.0 - 180.0)
+        (rotation,) = _check("rotation", (rotation_deg,), -1e6, 1e6)
+        o = replace(o, rotation_deg=(rotation + 180.0) % 360.0 - 180.0)
     if scale is not None:
-        o = replace(o, scale=tuple(_clamp(s, MIN_SCALE, MAX_SCALE) for s in scale))
+        o = replace(o, scale=_check("scale", scale, MIN_SCALE, MAX_SCALE))
     return scene.with_changes(object=o)
 
 

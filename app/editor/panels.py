@@ -8,11 +8,12 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 from imgui_bundle import imgui
 
 from app.editor import edits
-from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
+from app.editor.app import MESSAGE_SECONDS, PALETTE, SHIPPED_ASSETS, EditorApp
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
@@ -20,6 +21,7 @@ from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import PhotoPanel
 from app.editor.render_panel import RENDERERS
 from app.editor.viewport_input import ViewportInput
+from renderer.scene import range_warnings
 
 FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
          | imgui.WindowFlags_.no_bring_to_front_on_focus | imgui.WindowFlags_.no_saved_settings)
@@ -53,12 +55,13 @@ class Interface:
 
     def __init__(self, app: EditorApp):
         self.app = app
-        self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(app.doc.path or "scene.json"))
+        self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(_save_as_default(app.doc.path)))
         self.viewport_input = ViewportInput()
         self.photo_panel = PhotoPanel(app)
         self.underlay = None
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
         self._popup_title: str | None = None
+        self.field_error: tuple[str, str] | None = None  # (field, why its typed value was refused)
         self.dialog_program = dialog_program()  # None: no Browse buttons, the path fields only
         self._file_dialog: tuple[FileDialog, str] | None = None  # an open dialog, and the field its answer goes to
         self._rate_text, self._rate_time = "", 0.0
@@ -147,6 +150,11 @@ class Interface:
         inputs.update(app, (mouse.x - origin.x, mouse.y - origin.y), (w, h), hovered)
         imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
         imgui.text_colored(GRAY, inputs.hint)
+        _range_note(app.scene, imgui.ImVec2(origin.x + 8, origin.y + h - (60 if app.job is not None else 30)))
+        if inputs.light_hovered or inputs.light_drag is not None:
+            imgui.set_mouse_cursor(imgui.MouseCursor_.resize_all)
+        if hovered and app.bucket_active:
+            imgui.set_mouse_cursor(imgui.MouseCursor_.hand)  # with the paint drop below: the bucket
         if inputs.hovered_voxel is not None:  # the bucket cursor: the color a click would pour
             draw = imgui.get_window_draw_list()
             color = imgui.get_color_u32(imgui.ImVec4(*app.paint_color, 1.0))
@@ -200,30 +208,43 @@ class Interface:
     def _tools(self, rect: Rect) -> None:
         _place(rect)
         imgui.begin("Tools", None, FIXED)
+        app = self.app
         if imgui.begin_tab_bar("tool tabs"):
             for name, draw in (("Object", self._object_tab), ("Light & camera", self._light_tab),
                                ("Paint", self._paint_tab), ("Photo", self._photo_tab), ("File", self._file_tab)):
-                if imgui.begin_tab_item_simple(name):
+                flags = imgui.TabItemFlags_.set_selected if app.requested_tab == name else 0
+                opened, _ = imgui.begin_tab_item(name, None, flags)
+                if opened:
+                    app.tools_tab = name
                     draw()
                     imgui.end_tab_item()
             imgui.end_tab_bar()
+        app.requested_tab = None
         imgui.end()
 
-    def _field(self, changed: bool, make_scene) -> None:
-        """Preview an edited numeric field; commit one undo step when the field is released."""
+    def _field(self, key: str, changed: bool, make_scene) -> None:
+        """Preview an edited numeric field; commit one undo step when the field is released. A value the
+        scene cannot take is refused: the message shows under the field and the previous value stays."""
         if changed:
-            self.app.edit(make_scene, preview=True)
+            if self.app.edit(make_scene, preview=True):
+                self.field_error = None if self.field_error and self.field_error[0] == key else self.field_error
+            else:
+                self.field_error = (key, self.app.message.text if self.app.message else "value refused")
         if imgui.is_item_deactivated_after_edit():
             self.app.commit_preview()
+        if self.field_error is not None and self.field_error[0] == key:
+            imgui.push_style_color(imgui.Col_.text, RED)
+            imgui.text_wrapped(self.field_error[1])
+            imgui.pop_style_color()
 
     def _object_tab(self) -> None:
         o = self.app.scene.object
-        changed, t = imgui.drag_float2("position x, z", list(o.translation), 0.01, -5.0, 5.0, "%.3f")
-        self._field(changed, lambda s: edits.place_object(s, translation=tuple(t)))
+        changed, t = imgui.drag_float2("position x, z", list(o.translation), 0.01, -edits.MAX_POSITION, edits.MAX_POSITION, "%.3f")
+        self._field("position", changed, lambda s: edits.place_object(s, translation=tuple(t)))
         changed, r = imgui.drag_float("rotation (deg)", o.rotation_deg, 0.5, -180.0, 180.0, "%.1f")
-        self._field(changed, lambda s: edits.place_object(s, rotation_deg=r))
+        self._field("rotation", changed, lambda s: edits.place_object(s, rotation_deg=r))
         changed, sc = imgui.drag_float3("scale x, y, z", list(o.scale), 0.01, edits.MIN_SCALE, edits.MAX_SCALE, "%.3f")
-        self._field(changed, lambda s: edits.place_object(s, scale=tuple(sc)))
+        self._field("scale", changed, lambda s: edits.place_object(s, scale=tuple(sc)))
         imgui.separator()
         f = self.fields
         _, f.mesh_path = imgui.input_text("mesh file", f.mesh_path)
@@ -234,12 +255,13 @@ class Interface:
 
     def _light_tab(self) -> None:
         scene = self.app.scene
-        changed, p = imgui.drag_float3("light x, y, z", list(scene.light.position), 0.01, -10.0, 10.0, "%.2f")
-        self._field(changed, lambda s: edits.move_light(s, tuple(p)))
+        changed, p = imgui.drag_float3("light x, y, z", list(scene.light.position), 0.01, -edits.MAX_POSITION,
+                                       edits.MAX_POSITION, "%.2f")
+        self._field("light", changed, lambda s: edits.move_light(s, tuple(p)))
         changed, e = imgui.slider_float("camera elevation", scene.camera.elevation_deg, 0.0, edits.MAX_ELEVATION, "%.1f deg")
-        self._field(changed, lambda s: edits.set_elevation(s, e))
+        self._field("elevation", changed, lambda s: edits.set_elevation(s, e))
         changed, c = imgui.color_edit3("floor color", list(scene.floor.color))
-        self._field(changed, lambda s: edits.set_floor_color(s, tuple(c)))
+        self._field("floor color", changed, lambda s: edits.set_floor_color(s, tuple(c)))
         imgui.text_colored(GRAY, "Drag the light square in the viewport; Shift+drag sets its height.")
 
     def _paint_tab(self) -> None:
@@ -319,19 +341,26 @@ class Interface:
         imgui.pop_style_var()
         frame = app.shown_frame
         render_ms = f"{frame.seconds * 1000:.0f} ms/render" if frame else "-"
-        imgui.text_colored(GRAY, f"model: {app.live.label}  |  device: {app.live.device}  |  "
-                                 f"{self._frame_rate_text()}  |  {render_ms}")
+        info = f"{app.live.label}  |  {app.live.device}  |  {self._frame_time_text()}  |  {render_ms}"
         message = app.message
         if message is not None and (message.error or time.monotonic() - message.shown_at < MESSAGE_SECONDS):
+            # The message comes first and is cut to the room left by the status; all of it on hover (and on stderr).
+            room = imgui.get_content_region_avail().x - imgui.calc_text_size(info).x - 24
+            text = _fit(message.text, room)
+            imgui.text_colored(RED if message.error else GREEN, text)
+            if text != message.text and imgui.is_item_hovered():
+                imgui.set_tooltip(message.text)
             imgui.same_line()
-            imgui.text_colored(RED if message.error else GREEN, f"  {message.text}")
+        imgui.set_cursor_pos_x(max(imgui.get_cursor_pos_x(), imgui.get_window_width() - imgui.calc_text_size(info).x - 8))
+        imgui.text_colored(GRAY, info)
         imgui.end()
 
-    def _frame_rate_text(self) -> str:
+    def _frame_time_text(self) -> str:
+        """The UI's work per drawn frame, or "idle"; refreshed at most every RATE_REFRESH_SECONDS so an idle
+        window is not redrawn for a changing number."""
         now = time.monotonic()
         if now - self._rate_time >= RATE_REFRESH_SECONDS:
-            rate = imgui.get_io().framerate
-            self._rate_text, self._rate_time = f"UI {1000.0 / max(rate, 1e-3):.1f} ms/frame ({rate:.0f} fps)", now
+            self._rate_text, self._rate_time = self.app.stats.current_text(), now
         return self._rate_text
 
     def _prompt(self) -> None:
@@ -371,3 +400,37 @@ def _box(rect: Rect) -> Box:
 def _place(rect: Rect) -> None:
     imgui.set_next_window_pos(imgui.ImVec2(rect.x, rect.y), imgui.Cond_.always)
     imgui.set_next_window_size(imgui.ImVec2(rect.width, rect.height), imgui.Cond_.always)
+
+
+def _fit(text: str, width: float) -> str:
+    """`text` cut (with an ellipsis) to fit `width` pixels of the current font."""
+    if imgui.calc_text_size(text).x <= width:
+        return text
+    low, high = 0, len(text)
+    while low < high:
+        mid = (low + high + 1) // 2
+        if imgui.calc_text_size(text[:mid] + "...").x <= width:
+            low = mid
+        else:
+            high = mid - 1
+    return text[:low] + "..."
+
+
+def _range_note(scene, position: imgui.ImVec2) -> None:
+    """Amber text at `position` when the scene leaves the network's training ranges (it extrapolates there)."""
+    warnings = range_warnings(scene)
+    if not warnings:
+        return
+    more = f" (and {len(warnings) - 1} more)" if len(warnings) > 1 else ""
+    imgui.set_cursor_screen_pos(position)
+    imgui.text_colored(AMBER, f"Outside the training range: {warnings[0]}{more}")
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("The network was trained inside these ranges and extrapolates outside them:\n" + "\n".join(warnings))
+
+
+def _save_as_default(path: Path | None) -> Path:
+    """The Save-as field's first value: the scene's own file, or for a scene that ships with the product
+    (or none) a file of that name in the working folder."""
+    if path is None:
+        return Path("scene.json")
+    return Path(path.name) if path.resolve().is_relative_to(SHIPPED_ASSETS) else path

@@ -21,6 +21,7 @@ High-level actions call the same commands as the interface:
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
     {"action": "close"}                                       as the window's close button
+    {"action": "resize", "size": [w, h]}                      as a window manager resizes it (X ConfigureWindow)
 Raw input goes through the window backend's own event handlers, as real input does (mouse
 buttons and modifiers go to ImGui's input queue directly, see _mouse_button):
     {"action": "mouse_move", "pos": [x, y]}   window pixels
@@ -159,6 +160,17 @@ def _photo_gesture(name: str, *keys: str):
     return run
 
 
+def _resize(app, action) -> Iterator[None]:
+    """Ask the X server for a new window size, then let frames pass until the window has it."""
+    width, height = (int(v) for v in action["size"])
+    glfw.set_window_size(app.window.handle, width, height)
+    for _ in range(100):
+        if tuple(app.window.size) == (width, height):
+            break
+        yield
+    yield  # one frame drawn at the new size before the next action
+
+
 def _wait(app, action) -> Iterator[None]:
     for _ in range(int(action.get("frames", 1))):
         yield
@@ -168,6 +180,8 @@ def _set_tool(app, action) -> None:
     if action["name"] not in ("select", "paint"):
         raise ValueError(f"tool must be select or paint, got {action['name']!r}")
     app.tool = action["name"]
+    if app.tool == "paint":
+        app.requested_tab = "Paint"  # as a user picks the bucket: in the Paint tab
 
 
 # --- raw input through the glfw backend's callbacks ----------------------------------------------
@@ -263,6 +277,7 @@ ACTIONS = {
     "tool": _set_tool,
     "close": lambda app, a: glfw.set_window_should_close(app.window.handle, True),
     "wait": _wait,
+    "resize": _resize,
     "mouse_move": _mouse_move,
     "mouse_down": _mouse_button(True),
     "mouse_up": _mouse_button(False),

@@ -45,8 +45,12 @@ class Transform:
 
 @dataclass
 class LightDrag:
+    """A drag of the light square: the floor point under the light follows the mouse, so the light moves by
+    what the mouse covers on the floor (it sits above the camera: rays to its own plane run off to infinity)."""
+
     start_scene: Scene
-    offset: np.ndarray  # light centre minus the grabbed point, on the light's plane
+    start_mouse: np.ndarray  # viewport pixels where the drag (or its last re-anchoring) began
+    anchor: np.ndarray  # where the floor point under the light appeared then, viewport pixels
 
 
 class ViewportInput:
@@ -84,17 +88,17 @@ class ViewportInput:
             self._update_transform(app, mouse, ray)
             return
         if self.light_drag is not None:
-            self._update_light_drag(app, ray)
+            self._update_light_drag(app, mouse)
             return
         self.light_hovered = hovered and hits_light(*ray, app.scene.light.position)
-        self.hovered_voxel = self._voxel_under(app, ray) if hovered and app.tool == "paint" else None
+        self.hovered_voxel = self._voxel_under(app, ray) if hovered and app.bucket_active else None
         if not hovered:
             return
         if imgui.is_mouse_clicked(imgui.MouseButton_.left):
             if self.hovered_voxel is not None:
                 app.paint_region(self.hovered_voxel)
             elif self.light_hovered:
-                self._start_light_drag(app, ray)
+                self._start_light_drag(app, mouse)
         io = imgui.get_io()
         if not io.want_text_input:
             for key, kind in TRANSFORM_KEYS.items():
@@ -128,13 +132,18 @@ class ViewportInput:
 
     # --- the light ------------------------------------------------------------------------
 
-    def _start_light_drag(self, app, ray) -> None:
-        light = np.asarray(app.scene.light.position, dtype=np.float64)
-        hit = ray_at_height(*ray, light[1])
-        if hit is not None:
-            self.light_drag = LightDrag(app.doc.history.current, light - hit)
+    def _start_light_drag(self, app, mouse: tuple[float, float]) -> None:
+        anchor = self._under_light_px(app.scene)
+        if anchor is not None:
+            self.light_drag = LightDrag(app.doc.history.current, np.asarray(mouse, dtype=np.float64), anchor)
 
-    def _update_light_drag(self, app, ray) -> None:
+    def _under_light_px(self, scene: Scene) -> np.ndarray | None:
+        """Where the floor point straight under the light appears in the viewport (None: behind the camera)."""
+        x, _, z = scene.light.position
+        u, v, depth = self.camera.project(np.array([x, 0.0, z]))
+        return None if float(depth) <= 0.0 else np.array([float(u), float(v)])
+
+    def _update_light_drag(self, app, mouse: tuple[float, float]) -> None:
         drag = self.light_drag
         if not imgui.is_mouse_down(imgui.MouseButton_.left):
             self.light_drag = None
@@ -144,17 +153,21 @@ class ViewportInput:
             self.light_drag = None
             app.cancel_preview()
             return
-        light = np.asarray(app.scene.light.position, dtype=np.float64)
-        io = imgui.get_io()
-        if io.key_shift:
-            light[1] -= io.mouse_delta.y * LIGHT_HEIGHT_PER_PIXEL
-            hit = ray_at_height(*ray, max(light[1], edits.MIN_LIGHT_HEIGHT))
-            if hit is not None:  # re-anchor so releasing Shift does not make the light jump
-                drag.offset = light - hit
+        light = list(app.scene.light.position)
+        mouse = np.asarray(mouse, dtype=np.float64)
+        if imgui.get_io().key_shift:
+            light[1] = edits.clamp(light[1] - imgui.get_io().mouse_delta.y * LIGHT_HEIGHT_PER_PIXEL,
+                                   edits.MIN_LIGHT_HEIGHT, edits.MAX_LIGHT_HEIGHT)
+            anchor = self._under_light_px(app.scene)
+            if anchor is not None:  # releasing Shift goes on from here
+                drag.start_mouse, drag.anchor = mouse, anchor
         else:
-            hit = ray_at_height(*ray, light[1])
-            if hit is not None:
-                light[[0, 2]] = (hit + drag.offset)[[0, 2]]
+            target = drag.anchor + (mouse - drag.start_mouse)
+            origin, direction = self.camera.pixel_rays(np.array(target[0]), np.array(target[1]))
+            hit = ray_at_height(origin, np.asarray(direction), 0.0)
+            if hit is None:  # above the horizon: the light stays where it was
+                return
+            light[0], light[2] = (edits.clamp(c, -edits.MAX_POSITION, edits.MAX_POSITION) for c in hit[[0, 2]])
         app.edit(lambda s: edits.move_light(s, tuple(light)), preview=True)
 
     # --- grab, rotate, scale --------------------------------------------------------------
@@ -186,7 +199,8 @@ class ViewportInput:
             delta = (now - start)[[0, 2]]
             if t.axis is not None:
                 delta = delta * (np.array([t.axis == 0, t.axis == 2]))
-            return edits.place_object(t.start_scene, translation=tuple(np.asarray(o.translation) + delta))
+            moved = np.clip(np.asarray(o.translation) + delta, -edits.MAX_POSITION, edits.MAX_POSITION)
+            return edits.place_object(t.start_scene, translation=tuple(moved))
         centre = self._object_centre_px(t.start_scene)
         start_vec = np.asarray(t.start_mouse) - centre
         now_vec = np.asarray(mouse) - centre
@@ -195,7 +209,7 @@ class ViewportInput:
             return edits.place_object(t.start_scene, rotation_deg=o.rotation_deg + math.degrees(turned))
         factor = float(np.linalg.norm(now_vec) / max(np.linalg.norm(start_vec), 1.0))
         scale = np.asarray(o.scale) * (factor if t.axis is None else np.where(np.arange(3) == t.axis, factor, 1.0))
-        return edits.place_object(t.start_scene, scale=tuple(scale))
+        return edits.place_object(t.start_scene, scale=tuple(np.clip(scale, edits.MIN_SCALE, edits.MAX_SCALE)))
 
     def _object_centre_px(self, scene: Scene) -> np.ndarray:
         """Where the middle of the object's vertical axis appears in the viewport."""

@@ -4,9 +4,10 @@ The glfw package uses imgui_bundle's glfw library (see app/editor/__init__.py), 
 handle made here is the one ImGui's native glfw backend reads.
 
 A frame that looks like the one on screen is neither drawn nor shown. With Mesa's software
-OpenGL and GLX_MESA_copy_sub_buffer, the back buffer is never swapped, so it keeps the last
+OpenGL and GLX_MESA_copy_sub_buffer, the back buffer is not swapped, so it keeps the last
 frame: only the boxes that changed are drawn again and copied to the screen
-(app/editor/frame_damage.py). Otherwise every new frame is drawn whole and swapped in.
+(app/editor/frame_damage.py); after the window changes size, one frame is swapped so that Mesa
+makes the back buffer at the new size. Otherwise every new frame is drawn whole and swapped in.
 """
 
 from __future__ import annotations
@@ -56,6 +57,11 @@ class Window:
         self._watch_input()
         self._on_screen: FrameSummary | None = None  # the frame the screen shows, None when unknown
         self._to_show: list[Box] | None = []  # what `present` must show: [] nothing, None the whole back buffer
+        # The window size the back buffer was last made for. Mesa's software OpenGL re-makes the back buffer
+        # at a new window size only after a swap, so copying a box of a larger window out of it fails
+        # (X_ShmPutImage BadValue, which ends the process): after a resize, one frame is swapped.
+        self._buffer_size: tuple[int, int] | None = None
+        self._swap_due = False
         glfw.set_window_refresh_callback(self.handle, self._forget_screen)  # uncovered or resized: draw it all
         self.ctx = moderngl.create_context()
         imgui.create_context()
@@ -122,11 +128,13 @@ class Window:
         draw_data = imgui.get_draw_data()
         uploads_due = any(t.status != imgui.ImTextureStatus.ok for t in draw_data.textures)
         frame = None if uploads_due else summarize(draw_data, self.size, images)
-        boxes = None if force or frame is None else changed_boxes(self._on_screen, frame)
+        resized = self.size != self._buffer_size
+        boxes = None if force or resized or frame is None else changed_boxes(self._on_screen, frame)
         if boxes == []:
             return False  # looks like the frame on screen
-        if self._copy_sub_buffer is None:
+        if self._copy_sub_buffer is None or resized:
             boxes = None  # a swap shows the whole back buffer
+            self._swap_due = True
         self._on_screen = frame
         self.ctx.screen.use()
         width, height = self.size
@@ -163,8 +171,12 @@ class Window:
         boxes, self._to_show = self._to_show, []
         if boxes == []:
             return
-        if self._copy_sub_buffer is None:
+        if self._swap_due:
             glfw.swap_buffers(self.handle)
+            self._swap_due = False
+            if self._copy_sub_buffer is not None and self._buffer_size != self.size:
+                self._on_screen = None  # the next frame is drawn whole, into the back buffer made for the new size
+            self._buffer_size = self.size
             return
         width, height = self.size
         for x0, y0, x1, y1 in [(0, 0, width, height)] if boxes is None else boxes:
