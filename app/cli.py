@@ -79,9 +79,10 @@ def _render_shaded(scene, size: int):
 
 def _render_pathtrace(scene, size: int, args: argparse.Namespace):
     from renderer.pathtrace.path_tracer import render_pathtraced
-    from renderer.pipeline import object_mesh
+    from renderer.reference_object import reference_scene
 
-    result = render_pathtraced(scene, object_mesh(scene), size=size, spp=args.spp, seed=args.seed, denoise=args.denoise)
+    scene, mesh = reference_scene(scene)  # painted and captured colors included
+    result = render_pathtraced(scene, mesh, size=size, spp=args.spp, seed=args.seed, denoise=args.denoise)
     denoised = ", OIDN" if args.denoise else ""
     return result.image, f", mitsuba {result.variant}, {args.spp} spp{denoised}"
 

@@ -19,11 +19,11 @@ from app.editor.photo_capture import PhotoAlignment, object_shape, shape_key
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
 from app.editor.side_by_side import compose, scale_for
 from app.editor.voxel_cache import VoxelCache
-from app.editor.voxel_faces import exposed_faces, voxel_surface_mesh
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.paint import apply_paint
 from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene
+from renderer.voxel_faces import exposed_faces, voxel_surface_mesh
 from renderer.voxels import save_voxels
 
 

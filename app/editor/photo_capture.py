@@ -17,7 +17,6 @@ import numpy as np
 import trimesh
 from PIL import Image
 
-from app.editor.voxel_faces import voxel_surface_mesh
 from renderer.camera import Camera
 from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance
 from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
@@ -26,6 +25,7 @@ from renderer.errors import InputError
 from renderer.io import load_image
 from renderer.pipeline import object_mesh
 from renderer.scene import Scene
+from renderer.voxel_faces import voxel_surface_mesh
 
 if TYPE_CHECKING:
     from app.editor.voxel_cache import VoxelCache

@@ -16,11 +16,11 @@ import moderngl
 import numpy as np
 
 from app.editor.orbit_view import frustum_corners, view_projection
-from app.editor.voxel_faces import exposed_faces
 from renderer.camera import Camera
 from renderer.scene import FLOOR_HALF_SIZE, LIGHT_SIZE, OBJECT_SIZE, Scene
 from renderer.surface import grid_from_world
 from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
+from renderer.voxel_faces import exposed_faces
 
 BACKGROUND = (0.16, 0.17, 0.19)
 LIGHT_COLOR = (1.0, 0.93, 0.55)

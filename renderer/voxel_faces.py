@@ -1,4 +1,5 @@
-"""The visible faces of object voxels for the viewport: one quad per exposed voxel face.
+"""The visible faces of object voxels: one quad per exposed voxel face (the viewport draws them; the path
+tracer renders them for an object that has voxels but no mesh).
 
 Only faces whose neighbour is empty (renderer/surface.py `exposed`) can ever be seen, so a
 100^3 object becomes a few tens of thousands of quads instead of a million cubes. Face ids:
