@@ -172,6 +172,36 @@ def cmd_info(args: argparse.Namespace) -> None:
         print(f"  - {message}")
 
 
+# --- nvr import-vox / export-vox ---------------------------------------------------------
+
+
+def cmd_import_vox(args: argparse.Namespace) -> None:
+    from renderer.scene import ObjectSpec, Scene, save_scene
+    from renderer.vox import read_vox
+    from renderer.voxels import save_voxels
+
+    scene_out = _output_path(args.output, args.force)
+    voxels_out = _output_path(f"{scene_out.with_suffix('')}_voxels.npz", args.force)
+    rgba = read_vox(args.model_file, model=args.model)
+    save_voxels(voxels_out, rgba)
+    n = rgba.shape[0]
+    scene = Scene(object=ObjectSpec(voxels=str(voxels_out.resolve()), resolution=n), base_dir=Path("."))
+    save_scene(scene, scene_out)
+    print(f"wrote {scene_out} and {voxels_out} ({n}^3 voxels, {int((rgba[..., 3] > 0.5).sum())} occupied)")
+
+
+def cmd_export_vox(args: argparse.Namespace) -> None:
+    from renderer.pipeline import object_voxels, painted_voxels
+    from renderer.scene import load_scene
+    from renderer.vox import write_vox
+
+    scene = load_scene(args.scene)
+    out = _output_path(args.output, args.force)
+    rgba, _ = painted_voxels(scene, object_voxels(scene))
+    colors = write_vox(out, rgba)
+    print(f"wrote {out} ({rgba.shape[0]}^3 voxels, {int((rgba[..., 3] > 0.5).sum())} occupied, {colors} palette colors)")
+
+
 # --- nvr data ----------------------------------------------------------------------------
 
 
@@ -320,6 +350,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")
     p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
     p.set_defaults(func=cmd_capture)
+
+    p = sub.add_parser("import-vox", help="a MagicaVoxel .vox model as a scene (its colored voxels are the object)")
+    p.add_argument("model_file", metavar="MODEL.vox")
+    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_voxels.npz goes beside it")
+    p.add_argument("--model", type=int, default=None, help="which model of a multi-model file, from 0 (default: the largest)")
+    p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
+    p.set_defaults(func=cmd_import_vox)
+
+    p = sub.add_parser("export-vox", help="a scene's painted object voxels as a MagicaVoxel .vox model")
+    p.add_argument("scene")
+    p.add_argument("-o", "--output", required=True, help=".vox file to write (at most 255 colors)")
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.set_defaults(func=cmd_export_vox)
 
     data = sub.add_parser("data", help="make training and test sets").add_subparsers(dest="data_command", required=True)
     p = data.add_parser("generate", help="render objects and views after the paper's protocol")

@@ -229,6 +229,17 @@ def scene_cases() -> list[Case]:
     return [Case(f"info {name}", ["info", name], {name: data, **extra}) for name, data in scenes.items()]
 
 
+def vox_cases() -> list[Case]:
+    header = b"VOX " + struct.pack("<i", 150)
+    files = {
+        "random.vox": random_bytes(4096, 10),
+        "cut.vox": header + struct.pack("<4sii", b"MAIN", 0, 5000) + b"SIZE",
+        "lying_count.vox": header + struct.pack("<4sii", b"MAIN", 0, 40) + struct.pack("<4sii3i", b"SIZE", 12, 0, 4, 4, 4)
+        + struct.pack("<4siii", b"XYZI", 4, 0, 10**9),
+    }
+    return [Case(f"import-vox {name}", ["import-vox", name, "-o", "scene.json"], {name: data}) for name, data in files.items()]
+
+
 def image_cases() -> list[Case]:
     from PIL import Image
 
@@ -312,7 +323,7 @@ def editor_cases() -> list[Case]:
 
 
 def all_cases() -> list[Case]:
-    return mesh_cases() + scene_cases() + image_cases() + weight_cases() + option_cases() + editor_cases()
+    return mesh_cases() + scene_cases() + vox_cases() + image_cases() + weight_cases() + option_cases() + editor_cases()
 
 
 if __name__ == "__main__":  # survey: run every case and print what it did

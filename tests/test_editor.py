@@ -676,3 +676,24 @@ def test_ctrl_s_on_the_shipped_demo_scene_leaves_it_alone_and_asks_for_a_name(di
     assert result.returncode == 0, result.stderr[-2000:]
     assert (demo.read_bytes(), demo.stat().st_mtime_ns) == before
     assert "ships with NVR Studio and is not saved over" in result.stderr
+
+
+def test_import_vox_makes_the_object_and_export_vox_writes_it_back(display, tmp_path, scene_file):
+    from renderer.vox import read_vox, write_vox
+
+    rgba = np.zeros((8, 8, 8, 4), np.float32)
+    rgba[2:6, 0:5, 2:6] = (*GREEN, 1.0)
+    rgba[2:6, 5:7, 2:6] = (*BLUE, 1.0)
+    write_vox(tmp_path / "model.vox", rgba)
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "import_vox", "path": str(tmp_path / "model.vox")},
+        {"action": "save", "path": str(tmp_path / "imported.json")},
+        {"action": "export_vox", "path": str(tmp_path / "back.vox")},
+        {"action": "screenshot", "path": str(tmp_path / "imported.png")},
+    ])
+    assert result.returncode == 0, result.stderr[-2000:]
+    scene = load_scene(tmp_path / "imported.json")
+    assert scene.object.mesh is None and scene.object.resolution == 8
+    assert Path(scene.voxels_path()).resolve().parent == tmp_path.resolve()  # copied beside the scene on save
+    np.testing.assert_allclose(read_vox(tmp_path / "back.vox"), read_vox(tmp_path / "model.vox"), atol=0.5 / 255)
+    assert share_of(pixels(tmp_path / "imported.png", PANELS.viewport), GREEN) > 0.005

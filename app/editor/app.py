@@ -319,6 +319,32 @@ class EditorApp:
         self.say(message)
         return True
 
+    def import_vox(self, path: str | Path) -> None:
+        """Make a MagicaVoxel model the object (its palette colors; the largest model of the file): one undo step."""
+        from renderer.vox import read_vox
+
+        def work(_progress: Progress) -> tuple[Path, int]:
+            rgba = read_vox(path)
+            return state.save_capture(rgba), rgba.shape[0]  # kept in the state folder; Save copies it beside the scene
+
+        def done(result: tuple[Path, int]) -> None:
+            voxels, n = result
+            if self.edit(lambda s: edits.replace_object_source(s, voxels=voxels, resolution=n)):
+                self.say(f"imported {Path(path).name} ({n}^3 voxels)")
+
+        self.start_job(f"Importing {Path(path).name}", work, done)
+
+    def export_vox(self, path: str | Path, overwrite: bool = False) -> bool:
+        """Write the painted object voxels as a MagicaVoxel model (at most 255 colors)."""
+        from renderer.vox import write_vox
+
+        def write() -> str:
+            rgba, _ = self.voxels.painted(self.doc.history.current)
+            colors = write_vox(path, rgba)
+            return f"exported {path} ({rgba.shape[0]}^3 voxels, {colors} colors)"
+
+        return self._write_file(path, overwrite, write)
+
     def screenshot(self, path: str | Path) -> None:
         """Save the whole window at the end of this frame."""
         self._screenshots.append(Path(path))

@@ -69,9 +69,11 @@ def paint(scene: Scene, op: PaintOp) -> Scene:
     return scene.with_changes(paint=(*scene.paint, op))
 
 
-def replace_object_source(scene: Scene, mesh: Path | None = None, voxels: Path | None = None, up: str = "y") -> Scene:
+def replace_object_source(scene: Scene, mesh: Path | None = None, voxels: Path | None = None, up: str = "y",
+                          resolution: int | None = None) -> Scene:
     """The object made from another mesh or voxel file (absolute path); placement kept, color and paint reset."""
     o = replace(scene.object, mesh=None if mesh is None else str(Path(mesh).resolve()),
-                voxels=None if voxels is None else str(Path(voxels).resolve()), up=up, color=None)
+                voxels=None if voxels is None else str(Path(voxels).resolve()), up=up, color=None,
+                resolution=scene.object.resolution if resolution is None else resolution)
     floor_strokes = tuple(op for op in scene.paint if op.target == "floor")
     return scene.with_changes(object=o, paint=floor_strokes)

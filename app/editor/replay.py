@@ -9,6 +9,7 @@ High-level actions call the same commands as the interface:
     {"action": "undo"} {"action": "redo"}
     {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
+    {"action": "import_vox", "path": ...} {"action": "export_vox", "path": ...}   MagicaVoxel models
     {"action": "renderer", "name": "nvr+"}                    the render panel's renderer ("shaded" or "nvr+")
     {"action": "load_mesh", "path": ..., "up": "y"}
     {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo; "camera" is optional
@@ -262,6 +263,8 @@ ACTIONS = {
     "save": lambda app, a: app.save(a.get("path")),
     "export": lambda app, a: app.export(a["path"]),
     "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
+    "import_vox": lambda app, a: app.import_vox(a["path"]),
+    "export_vox": lambda app, a: app.export_vox(a["path"]),
     "renderer": lambda app, a: app.choose_renderer(a["name"]),
     "load_mesh": lambda app, a: app.load_mesh(a["path"], up=a.get("up", "y")),
     "load_photo": lambda app, a: app.photo.load(a["photo"], a.get("camera")),
