@@ -202,6 +202,33 @@ def cmd_export_vox(args: argparse.Namespace) -> None:
     print(f"wrote {out} ({rgba.shape[0]}^3 voxels, {int((rgba[..., 3] > 0.5).sum())} occupied, {colors} palette colors)")
 
 
+# --- nvr turntable -----------------------------------------------------------------------
+
+
+def cmd_turntable(args: argparse.Namespace) -> None:
+    from app.turntable import TurntableConfig, render_turntable, write_frames
+    from renderer.scene import load_scene
+
+    config = TurntableConfig(frames=args.frames, sweep=args.sweep, renderer=args.renderer, size=args.size,
+                             spp=args.spp, model=args.model)
+    config.check()
+    if args.size is not None and not MIN_IMAGE_SIZE <= args.size <= MAX_IMAGE_SIZE:
+        raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
+    out = Path(args.output)
+    if out.suffix.lower() == ".gif":
+        _output_path(args.output, args.force)
+    elif out.exists() and (not out.is_dir() or (any(out.glob("frame_*.png")) and not args.force)):
+        raise InputError("holds frames already (pass --force to replace them)" if out.is_dir() else "is not a folder", out)
+    scene = load_scene(args.scene)
+    images, seconds, name = render_turntable(scene, config)
+    written = write_frames(out, images)
+    rest = sorted(seconds[1:])
+    timing = f"first frame {1000 * seconds[0]:.0f} ms" + (
+        f", then median {1000 * rest[len(rest) // 2]:.0f} ms a frame" if rest else "")
+    print(f"wrote {out if len(written) == 1 else f'{len(written)} frames to {out}'} ({config.frames} frames, "
+          f"{config.sweep} sweep, {name}; {timing})")
+
+
 # --- nvr data ----------------------------------------------------------------------------
 
 
@@ -363,6 +390,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help=".vox file to write (at most 255 colors)")
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.set_defaults(func=cmd_export_vox)
+
+    p = sub.add_parser("turntable", help="the object turning (or the light circling) as an animated GIF or PNG frames")
+    p.add_argument("scene")
+    p.add_argument("-o", "--output", required=True, help="OUT.gif, or a folder for frame_0000.png ...")
+    p.add_argument("--frames", type=int, default=36, help="frames in one full turn (default 36)")
+    p.add_argument("--sweep", choices=["rotation", "light"], default="rotation",
+                   help="rotation: the object turns; light: the light circles at its height")
+    p.add_argument("--renderer", choices=["shaded", "nvr+", "nvr", "splat", "pathtrace"], default="shaded")
+    p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's; networks: 256)")
+    p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel (denoised)")
+    p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
+    p.add_argument("--force", action="store_true", help="replace an existing GIF or frames")
+    p.set_defaults(func=cmd_turntable)
 
     data = sub.add_parser("data", help="make training and test sets").add_subparsers(dest="data_command", required=True)
     p = data.add_parser("generate", help="render objects and views after the paper's protocol")

@@ -697,3 +697,16 @@ def test_import_vox_makes_the_object_and_export_vox_writes_it_back(display, tmp_
     assert Path(scene.voxels_path()).resolve().parent == tmp_path.resolve()  # copied beside the scene on save
     np.testing.assert_allclose(read_vox(tmp_path / "back.vox"), read_vox(tmp_path / "model.vox"), atol=0.5 / 255)
     assert share_of(pixels(tmp_path / "imported.png", PANELS.viewport), GREEN) > 0.005
+
+
+def test_export_turntable_renders_in_the_background_with_the_panels_renderer(display, tmp_path, scene_file):
+    from PIL import ImageSequence
+
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "export_turntable", "path": str(tmp_path / "turn.gif"), "frames": 6, "sweep": "light"},
+    ])
+    assert result.returncode == 0, result.stderr[-2000:]
+    with Image.open(tmp_path / "turn.gif") as gif:
+        frames = [np.asarray(f.convert("RGB"), dtype=float) for f in ImageSequence.Iterator(gif)]
+    assert len(frames) == 6 and frames[0].shape[:2] == (64, 64)  # the scene's image size, voxel shader
+    assert np.abs(frames[0] - frames[3]).mean() > 1.0  # the light went round

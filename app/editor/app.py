@@ -345,6 +345,27 @@ class EditorApp:
 
         return self._write_file(path, overwrite, write)
 
+    def export_turntable(self, path: str | Path, frames: int = 36, sweep: str = "rotation", overwrite: bool = False) -> bool:
+        """Render the committed scene turning (or the light circling) with the panel's renderer in the background,
+        then write an animated GIF (`path` ends in .gif) or a folder of PNG frames; asks before replacing a GIF."""
+        from app.turntable import TurntableConfig, render_turntable, write_frames
+
+        target = Path(path)
+        if target.suffix.lower() == ".gif" and target.exists() and not overwrite:
+            self.ask("Replace the file?", f"{path} exists. Replace it?", ("Replace", "Cancel"),
+                     lambda choice: choice == "Replace" and self.export_turntable(path, frames, sweep, overwrite=True))
+            return False
+        config = TurntableConfig(frames=frames, sweep=sweep, renderer=self.live.renderer, model=self.live.model_path)
+        scene = self.doc.history.current
+
+        def work(progress: Progress) -> str:
+            images, seconds, name = render_turntable(scene, config, progress=False, on_frame=progress)
+            write_frames(target, images)
+            return f"exported {path} ({frames} frames, {sweep} sweep, {name}, {1000 * sum(seconds) / len(seconds):.0f} ms a frame)"
+
+        self.start_job(f"Turntable {target.name}", work, self.say)
+        return True
+
     def screenshot(self, path: str | Path) -> None:
         """Save the whole window at the end of this frame."""
         self._screenshots.append(Path(path))

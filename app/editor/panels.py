@@ -33,6 +33,7 @@ MESH_FILES = FileKind("Open a mesh", "Meshes", ("*.obj", "*.ply", "*.stl", "*.of
 SCENE_FILES = FileKind("Open a scene", "Scenes", ("*.json",))
 NEW_SCENE_FILE = FileKind("Save the scene as", "Scenes", ("*.json",), save=True)
 NEW_PNG_FILE = FileKind("Export as", "PNG images", ("*.png",), save=True)
+NEW_GIF_FILE = FileKind("Export the turntable as", "GIF animations", ("*.gif",), save=True)
 VOX_FILES = FileKind("Import a MagicaVoxel model", "MagicaVoxel models", ("*.vox",))
 NEW_VOX_FILE = FileKind("Export the voxels as", "MagicaVoxel models", ("*.vox",), save=True)
 RATE_REFRESH_SECONDS = 0.5  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
@@ -46,6 +47,7 @@ class Fields:
     save_path: str = ""
     export_path: str = "render.png"
     side_by_side_path: str = "viewport_and_render.png"
+    turntable_path: str = "turntable.gif"
     vox_in_path: str = ""
     vox_out_path: str = "object.vox"
     mesh_path: str = ""
@@ -102,6 +104,8 @@ class Interface:
                 app.export(self.fields.export_path)
             if imgui.menu_item_simple("Export viewport and render"):
                 app.export_side_by_side(self.fields.side_by_side_path)
+            if imgui.menu_item_simple("Export turntable"):
+                app.export_turntable(self.fields.turntable_path)
             imgui.separator()
             if imgui.menu_item_simple("Import .vox (path in the File tab)", enabled=bool(self.fields.vox_in_path)):
                 app.import_vox(self.fields.vox_in_path)
@@ -306,6 +310,7 @@ class Interface:
                 ("save", NEW_SCENE_FILE, "save_path", "Save as", app.save),
                 ("export", NEW_PNG_FILE, "export_path", "Export PNG", app.export),
                 ("side by side", NEW_PNG_FILE, "side_by_side_path", "Export viewport + render", app.export_side_by_side),
+                ("turntable", NEW_GIF_FILE, "turntable_path", "Export turntable", app.export_turntable),
                 ("import vox", VOX_FILES, "vox_in_path", "Import .vox", app.import_vox),
                 ("export vox", NEW_VOX_FILE, "vox_out_path", "Export .vox", app.export_vox)):
             imgui.set_next_item_width(200)

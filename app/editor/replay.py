@@ -10,6 +10,7 @@ High-level actions call the same commands as the interface:
     {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
     {"action": "import_vox", "path": ...} {"action": "export_vox", "path": ...}   MagicaVoxel models
+    {"action": "export_turntable", "path": "t.gif", "frames": 8, "sweep": "light"}   in the background
     {"action": "renderer", "name": "nvr+"}                    the render panel's renderer ("shaded" or "nvr+")
     {"action": "load_mesh", "path": ..., "up": "y"}
     {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo; "camera" is optional
@@ -264,6 +265,7 @@ ACTIONS = {
     "export": lambda app, a: app.export(a["path"]),
     "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
     "import_vox": lambda app, a: app.import_vox(a["path"]),
+    "export_turntable": lambda app, a: app.export_turntable(a["path"], int(a.get("frames", 36)), a.get("sweep", "rotation")),
     "export_vox": lambda app, a: app.export_vox(a["path"]),
     "renderer": lambda app, a: app.choose_renderer(a["name"]),
     "load_mesh": lambda app, a: app.load_mesh(a["path"], up=a.get("up", "y")),

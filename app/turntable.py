@@ -1,0 +1,128 @@
+"""Turntables and light sweeps: a scene rendered frame by frame with the object turning or the light circling,
+written as a PNG sequence or an animated GIF (`nvr turntable`, the editor's File menu).
+
+Each renderer keeps its caches across the frames: in a light sweep the voxel shader reruns only its
+shading stage and the network only its light-dependent layers, so those frames cost a fraction of the first.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from renderer.color import to_uint8
+from renderer.errors import InputError
+from renderer.io import atomic_path, save_png
+from renderer.pipeline import object_voxels, painted_voxels
+from renderer.scene import LightSpec, Scene
+
+SWEEPS = ("rotation", "light")
+RENDERERS = ("splat", "shaded", "nvr", "nvr+", "pathtrace")
+MAX_FRAMES = 3600
+GIF_SECONDS = 4.0  # one turn lasts this long in the GIF, whatever the frame count
+MIN_LIGHT_RADIUS = 1.0  # a light straight above the object circles at this distance instead
+
+
+@dataclass(frozen=True)
+class TurntableConfig:
+    frames: int = 36
+    sweep: str = "rotation"
+    renderer: str = "shaded"
+    size: int | None = None  # None: the scene's (the networks: theirs)
+    spp: int = 64  # path tracing only
+    model: str | None = None  # network weights; None: the shipped model
+
+    def check(self) -> None:
+        if isinstance(self.frames, bool) or not isinstance(self.frames, int) or not 1 <= self.frames <= MAX_FRAMES:
+            raise InputError(f"--frames must be from 1 to {MAX_FRAMES}, got {self.frames!r}")
+        if self.sweep not in SWEEPS:
+            raise InputError(f"--sweep must be one of {', '.join(SWEEPS)}, got {self.sweep!r}")
+        if self.renderer not in RENDERERS:
+            raise InputError(f"--renderer must be one of {', '.join(RENDERERS)}, got {self.renderer!r}")
+
+
+def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
+    """The scene of each frame: the object turned by 360 / frames degrees a frame, or the light moved as far
+    around the vertical axis through the scene centre, at its height and distance."""
+    x, y, z = scene.light.position
+    radius, start = max(math.hypot(x, z), MIN_LIGHT_RADIUS), math.atan2(z, x)
+    for f in range(frames):
+        turn = 2.0 * math.pi * f / frames
+        if sweep == "rotation":
+            rotation = (scene.object.rotation_deg + math.degrees(turn) + 180.0) % 360.0 - 180.0
+            yield replace(scene, object=replace(scene.object, rotation_deg=rotation))
+        else:
+            yield replace(scene, light=LightSpec((radius * math.cos(start + turn), y, radius * math.sin(start + turn))))
+
+
+def frame_renderer(scene: Scene, config: TurntableConfig) -> tuple[Callable[[Scene], np.ndarray], str]:
+    """A function rendering a frame's scene with the chosen renderer (caches kept between calls), and its name."""
+    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+    size = config.size or scene.image_size
+    if config.renderer == "splat":
+        from renderer.splat import splat_scene
+
+        return lambda s: splat_scene(s, rgba, floor_color, size=size), "splat"
+    if config.renderer == "shaded":
+        from renderer.shading.staged import StagedShader
+
+        shader = StagedShader()
+        return lambda s: shader.render(s, "object", rgba, floor_color, size).image, "voxel shader"
+    if config.renderer == "pathtrace":
+        from renderer.pathtrace.path_tracer import render_pathtraced
+        from renderer.reference_object import reference_scene
+
+        reference, mesh = reference_scene(scene)
+
+        def traced(s: Scene) -> np.ndarray:
+            placed = replace(reference, object=replace(reference.object, rotation_deg=s.object.rotation_deg), light=s.light)
+            return render_pathtraced(placed, mesh, size=size, spp=config.spp, denoise=True).image
+
+        return traced, f"path tracer, {config.spp} spp + OIDN"
+    from models.engine.render_engine import RenderEngine
+
+    engine = RenderEngine.load(config.model, kind=config.renderer)
+    if config.size is not None and config.size != engine.output_size:
+        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {config.size} is not supported")
+    return engine.render, f"{config.renderer} {engine.model_name}"
+
+
+def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = True,
+                     on_frame: Callable[[float], None] | None = None) -> tuple[list[np.ndarray], list[float], str]:
+    """All frames (uint8 images), each frame's seconds, and what rendered them. `progress`: a progress bar on
+    the terminal; `on_frame` gets the fraction done after each frame (the editor's progress bar)."""
+    from tqdm import tqdm
+
+    config.check()
+    render, name = frame_renderer(scene, config)
+    images, seconds = [], []
+    for frame_scene in tqdm(frame_scenes(scene, config.frames, config.sweep), total=config.frames, unit="frame",
+                            disable=not progress, desc=f"{config.sweep} sweep"):
+        start = time.perf_counter()
+        images.append(to_uint8(render(frame_scene)))
+        seconds.append(time.perf_counter() - start)
+        if on_frame is not None:
+            on_frame(len(images) / config.frames)
+    return images, seconds, name
+
+
+def write_frames(out: Path, images: list[np.ndarray]) -> list[Path]:
+    """An animated GIF when `out` ends in .gif (one turn in GIF_SECONDS, looping), else a folder of
+    frame_0000.png ...; each file written atomically."""
+    if out.suffix.lower() == ".gif":
+        frames = [Image.fromarray(image) for image in images]
+        duration = max(20, round(1000.0 * GIF_SECONDS / len(frames)))
+        with atomic_path(out) as tmp:
+            frames[0].save(tmp, format="GIF", save_all=True, append_images=frames[1:], duration=duration, loop=0)
+        return [out]
+    out.mkdir(parents=True, exist_ok=True)
+    paths = [out / f"frame_{i:04d}.png" for i in range(len(images))]
+    for path, image in zip(paths, images):
+        save_png(path, image)
+    return paths
