@@ -710,3 +710,19 @@ def test_export_turntable_renders_in_the_background_with_the_panels_renderer(dis
         frames = [np.asarray(f.convert("RGB"), dtype=float) for f in ImageSequence.Iterator(gif)]
     assert len(frames) == 6 and frames[0].shape[:2] == (64, 64)  # the scene's image size, voxel shader
     assert np.abs(frames[0] - frames[3]).mean() > 1.0  # the light went round
+
+
+def test_the_reference_button_path_traces_the_edited_scene_beside_the_render(display, tmp_path, scene_file):
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "fill_object", "color": list(GREEN)},
+        {"action": "screenshot", "path": str(tmp_path / "before.png")},
+        {"action": "reference_render", "spp": 4},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "after.png")},
+    ])
+    assert result.returncode == 0, result.stderr[-2000:]
+    v = PANELS.viewport
+    corner = replace(v, x=v.x + v.width - 290, y=v.y + 8, width=270, height=270)  # where the reference window sits
+    before, after = pixels(tmp_path / "before.png", corner), pixels(tmp_path / "after.png", corner)
+    assert np.abs(after - before).max(axis=-1).mean() > 0.1  # the window appeared
+    assert share_of(after, GREEN) > 0.003  # the path tracer shows the painted object, not the mesh's own colors

@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from app.editor import edits, side_by_side, state
 from app.editor.document import Document
 from app.editor.jobs import BackgroundJob, Progress
@@ -24,15 +26,22 @@ from app.editor.render_panel import LiveRender, RenderedFrame, export_render, fi
 from app.editor.viewport import ViewportRenderer
 from app.editor.voxel_cache import VoxelCache, source_key
 from app.editor.window import Window, upload_image
+from renderer.camera import Camera
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
-from renderer.scene import PaintOp, Scene, save_scene
+from renderer.scene import ObjectSpec, PaintOp, Scene, save_scene
 
 AUTOSAVE_SECONDS = 5.0
 FRAME_SECONDS = 1.0 / 60.0  # the loop sleeps to this pace so the render thread gets the CPU it needs
 MESSAGE_SECONDS = 8.0
+REFERENCE_SPP = 64  # with OIDN: the project's reference quality (docs/pathtrace_spp.md)
 SHIPPED_ASSETS = Path(__file__).resolve().parents[2] / "assets"  # the demo scene and models: Save writes elsewhere
+
+
+def new_scene() -> Scene:
+    """What File > New starts from: the demo chair (by absolute path) in the default set-up, no file yet."""
+    return Scene(object=ObjectSpec(mesh=str(SHIPPED_ASSETS / "demo" / "chair.obj"), rotation_deg=30.0))
 PALETTE = (
     (0.90, 0.30, 0.25), (0.95, 0.60, 0.20), (0.95, 0.85, 0.30), (0.45, 0.75, 0.35), (0.25, 0.60, 0.55),
     (0.30, 0.50, 0.85), (0.55, 0.40, 0.80), (0.85, 0.45, 0.65), (0.55, 0.38, 0.25), (0.95, 0.95, 0.93),
@@ -45,6 +54,15 @@ class Message:
     text: str
     error: bool
     shown_at: float = field(default_factory=time.monotonic)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A path-traced image of a scene, shown beside the live render."""
+
+    image: np.ndarray
+    scene: Scene
+    label: str
 
 
 @dataclass
@@ -131,6 +149,8 @@ class EditorApp:
         self._autosave_time = time.monotonic()
         self._screenshots: list[Path] = []
         self.unloadable_source = None  # the object (mesh or voxels file) that failed to load, if any
+        self.reference: Reference | None = None  # the last reference render, and its texture
+        self.reference_texture = None
         self._offer_recovery()
 
     @property
@@ -202,6 +222,13 @@ class EditorApp:
     def cancel_preview(self) -> None:
         self.doc.cancel_preview()
 
+    def view_through_render_camera(self) -> None:
+        """The viewport looks through the camera that renders the image (its elevation, 40 mm, distance 2.8)."""
+        self.view = Camera.from_scene(self.scene)
+
+    def reset_view(self) -> None:
+        self.view = HOME
+
     def undo(self) -> None:
         if not self.doc.undo():
             self.say("nothing to undo")
@@ -239,11 +266,27 @@ class EditorApp:
             except InputError as exc:
                 self.say(str(exc), error=True)
                 return
+            state.remember_scene(path)
             self.say(f"opened {path}")
 
         if self.doc.dirty:
             choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
             self.ask("Unsaved changes", "Save the current scene before opening another?", choices, go)
+        else:
+            go()
+
+    def new_scene(self) -> None:
+        """Start a new, unsaved scene with the demo chair (asking first about unsaved changes)."""
+        def go(choice: str = "Discard") -> None:
+            if choice == "Save" and not self.save():
+                return
+            if choice != "Cancel":
+                self._replace_document(Document(new_scene(), None))
+                self.say("new scene: load a mesh in the Object tab, or import a .vox")
+
+        if self.doc.dirty:
+            choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
+            self.ask("Unsaved changes", "Save the current scene before starting a new one?", choices, go)
         else:
             go()
 
@@ -267,6 +310,7 @@ class EditorApp:
             save_scene(state.adopt_capture(self.scene, target), target)
             self.doc.mark_saved(target)
             state.clear_recovery()
+            state.remember_scene(target)
             return f"saved {target}"
 
         return self._write_file(target, overwrite or own_file, write)
@@ -366,6 +410,38 @@ class EditorApp:
         self.start_job(f"Turntable {target.name}", work, self.say)
         return True
 
+    def reference_render(self, spp: int = REFERENCE_SPP) -> None:
+        """Path trace the committed scene (edits included) in the background, to show beside the live render."""
+        from renderer.pathtrace.path_tracer import PathTracer
+        from renderer.reference_object import reference_scene
+
+        scene = self.doc.history.current
+
+        def work(progress: Progress) -> Reference:
+            start = time.perf_counter()
+            traced_scene, mesh = reference_scene(scene)
+            progress(0.15)
+            tracer = PathTracer(traced_scene, mesh)
+            progress(0.3)
+            result = tracer.render(spp, seed=0, denoise=True)
+            return Reference(result.image, scene, f"path traced, {result.spp} spp + OIDN, {time.perf_counter() - start:.1f} s")
+
+        def done(reference: Reference) -> None:
+            self.reference = reference
+            self.reference_texture = upload_image(self.window.ctx, self.reference_texture, reference.image)
+            self.say(f"reference render ready ({reference.label})")
+
+        self.start_job("Path tracing the reference", work, done)
+
+    def reference_error(self) -> float | None:
+        """MSE (0-255 scale) between the shown render and the reference, when both show the same scene at one size."""
+        frame, reference = self.shown_frame, self.reference
+        if frame is None or reference is None or frame.scene != reference.scene or frame.preview:
+            return None
+        if frame.image.shape != reference.image.shape:
+            return None
+        return float(np.mean((frame.image.astype(np.float64) - reference.image) ** 2) * 255.0**2)
+
     def screenshot(self, path: str | Path) -> None:
         """Save the whole window at the end of this frame."""
         self._screenshots.append(Path(path))
@@ -390,6 +466,7 @@ class EditorApp:
 
     def _replace_document(self, document: Document) -> None:
         self.doc = document
+        self.photo = PhotoTool(self)  # a photo aligned to the old scene's object does not carry over
         self._synced = -1
         self._autosaved = document.revision
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from imgui_bundle import imgui
 
-from app.editor import edits
+from app.editor import edits, state
 from app.editor.app import MESSAGE_SECONDS, PALETTE, SHIPPED_ASSETS, EditorApp
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.frame_damage import Box
@@ -61,7 +61,10 @@ class Interface:
 
     def __init__(self, app: EditorApp):
         self.app = app
-        self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(_save_as_default(app.doc.path)))
+        folder = _output_folder(app.doc.path)
+        self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(_save_as_default(app.doc.path)),
+                             export_path=str(folder / "render.png"), side_by_side_path=str(folder / "viewport_and_render.png"),
+                             turntable_path=str(folder / "turntable.gif"), vox_out_path=str(folder / "object.vox"))
         self.viewport_input = ViewportInput()
         self.photo_panel = PhotoPanel(app)
         self.underlay = None
@@ -69,7 +72,8 @@ class Interface:
         self._popup_title: str | None = None
         self.field_error: tuple[str, str] | None = None  # (field, why its typed value was refused)
         self.dialog_program = dialog_program()  # None: no Browse buttons, the path fields only
-        self._file_dialog: tuple[FileDialog, str] | None = None  # an open dialog, and the field its answer goes to
+        self._file_dialog = None  # an open dialog, the field its answer goes to, and what to do with it (or None)
+        self._recent: list[Path] = []  # the File menu's recent scenes
         self._rate_text, self._rate_time = "", 0.0
 
     def draw(self) -> None:
@@ -82,6 +86,7 @@ class Interface:
         self.photo_panel.shown = None  # set again if the Photo tab is open
         self._tools(panels.tools)
         self._status(panels.status)
+        self._reference_window(panels.viewport)
         self._prompt()
         self._shortcuts()
         self._poll_file_dialog()
@@ -98,8 +103,20 @@ class Interface:
         if not imgui.begin_main_menu_bar():
             return
         if imgui.begin_menu("File"):
+            if imgui.menu_item_simple("New", "Ctrl+N"):
+                app.new_scene()
+            if imgui.menu_item_simple("Open...", "Ctrl+O"):
+                self._ask_path(SCENE_FILES, "scene_path", app.open_scene)
+            if imgui.begin_menu("Open recent", enabled=bool(self._recent)):
+                for path in self._recent:
+                    if imgui.menu_item_simple(str(path)):
+                        app.open_scene(path)
+                imgui.end_menu()
             if imgui.menu_item_simple("Save", "Ctrl+S"):
                 app.save()
+            if imgui.menu_item_simple("Save as...", "Ctrl+Shift+S"):
+                self._ask_path(NEW_SCENE_FILE, "save_path", app.save)
+            imgui.separator()
             if imgui.menu_item_simple("Export render", "Ctrl+E"):
                 app.export(self.fields.export_path)
             if imgui.menu_item_simple("Export viewport and render"):
@@ -107,13 +124,21 @@ class Interface:
             if imgui.menu_item_simple("Export turntable"):
                 app.export_turntable(self.fields.turntable_path)
             imgui.separator()
-            if imgui.menu_item_simple("Import .vox (path in the File tab)", enabled=bool(self.fields.vox_in_path)):
-                app.import_vox(self.fields.vox_in_path)
+            if imgui.menu_item_simple("Import .vox..."):
+                self._ask_path(VOX_FILES, "vox_in_path", app.import_vox)
             if imgui.menu_item_simple("Export .vox"):
                 app.export_vox(self.fields.vox_out_path)
             imgui.separator()
             if imgui.menu_item_simple("Quit", "Ctrl+Q"):
                 app.request_quit()
+            imgui.end_menu()
+        else:
+            self._recent = state.recent_scenes()  # read while the menu is closed, not every frame it is open
+        if imgui.begin_menu("View"):
+            if imgui.menu_item_simple("Through the render camera", "Home"):
+                app.view_through_render_camera()
+            if imgui.menu_item_simple("Reset view"):
+                app.reset_view()
             imgui.end_menu()
         if imgui.begin_menu("Edit"):
             if imgui.menu_item_simple("Undo", "Ctrl+Z", enabled=app.doc.history.can_undo):
@@ -127,6 +152,8 @@ class Interface:
 
     def _shortcuts(self) -> None:
         app, io = self.app, imgui.get_io()
+        if not io.want_text_input and app.prompt is None and imgui.is_key_pressed(imgui.Key.home, False):
+            app.view_through_render_camera()
         if io.want_text_input or not io.key_ctrl or app.prompt is not None:
             return
         if imgui.is_key_pressed(imgui.Key.z, False):
@@ -134,7 +161,11 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.y, False):
             app.redo()
         elif imgui.is_key_pressed(imgui.Key.s, False):
-            app.save()
+            self._ask_path(NEW_SCENE_FILE, "save_path", app.save) if io.key_shift else app.save()
+        elif imgui.is_key_pressed(imgui.Key.n, False):
+            app.new_scene()
+        elif imgui.is_key_pressed(imgui.Key.o, False):
+            self._ask_path(SCENE_FILES, "scene_path", app.open_scene)
         elif imgui.is_key_pressed(imgui.Key.e, False):
             app.export(self.fields.export_path)
         elif imgui.is_key_pressed(imgui.Key.q, False):
@@ -186,6 +217,11 @@ class Interface:
         _place(rect)
         imgui.begin("Render", None, FIXED | imgui.WindowFlags_.no_scrollbar)
         self._renderer_choice()
+        imgui.same_line()
+        if imgui.small_button("Reference"):
+            app.reference_render()
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Path trace the scene (edits included) in the background and show it beside this render")
         imgui.same_line()
         frame = app.shown_frame
         if frame is None:
@@ -328,12 +364,22 @@ class Interface:
         imgui.same_line()
         if imgui.button(f"Browse##{key}") and self._file_dialog is None:
             command = dialog_command(self.dialog_program, kind, getattr(self.fields, field_name))
-            self._file_dialog = (FileDialog(command), field_name)
+            self._file_dialog = (FileDialog(command), field_name, None)
+
+    def _ask_path(self, kind: FileKind, field_name: str, then) -> None:
+        """A file for a menu command: from the system's file dialog when there is one (`then` gets it), else
+        from the File tab's typed path field, which is opened for it."""
+        if self.dialog_program is not None and self._file_dialog is None:
+            command = dialog_command(self.dialog_program, kind, getattr(self.fields, field_name))
+            self._file_dialog = (FileDialog(command), field_name, then)
+        elif self.dialog_program is None:
+            self.app.requested_tab = "File"
+            self.app.say(f"{kind.title}: type the path in the File tab (no file dialog program is installed)")
 
     def _poll_file_dialog(self) -> None:
         if self._file_dialog is None:
             return
-        dialog, field_name = self._file_dialog
+        dialog, field_name, then = self._file_dialog
         if not dialog.poll():
             return
         self._file_dialog = None
@@ -341,12 +387,36 @@ class Interface:
             self.app.say(dialog.error, error=True)
         elif dialog.path:
             setattr(self.fields, field_name, dialog.path)
+            if then is not None:
+                then(dialog.path)
 
     def close(self) -> None:
         """Close a file dialog left open; release the photo's texture."""
         if self._file_dialog is not None:
             self._file_dialog[0].close()
         self.photo_panel.close()
+
+    # --- the reference render -------------------------------------------------------------
+
+    def _reference_window(self, viewport: Rect) -> None:
+        """The path-traced reference, over the viewport's top right, with its error against the live render."""
+        app = self.app
+        if app.reference is None or app.reference_texture is None:
+            return
+        side = min(256, viewport.width // 2, viewport.height - 80)
+        imgui.set_next_window_pos(imgui.ImVec2(viewport.x + viewport.width - side - 24, viewport.y + 8), imgui.Cond_.always)
+        opened, keep = imgui.begin("Reference", True, FIXED | imgui.WindowFlags_.always_auto_resize)
+        if opened:
+            imgui.image(imgui.ImTextureRef(app.reference_texture.glo), imgui.ImVec2(side, side))
+            imgui.text_colored(GRAY, app.reference.label)
+            error = app.reference_error()
+            if error is not None:
+                imgui.text(f"{app.live.label} vs reference: MSE {error:.1f} (0-255)")
+            else:
+                imgui.text_colored(AMBER, "the scene changed since: press Reference again")
+        imgui.end()
+        if not keep:
+            app.reference = None
 
     # --- status bar and questions -------------------------------------------------------
 
@@ -443,6 +513,14 @@ def _range_note(scene, position: imgui.ImVec2) -> None:
     imgui.text_colored(AMBER, f"Outside the training range: {warnings[0]}{more}")
     if imgui.is_item_hovered():
         imgui.set_tooltip("The network was trained inside these ranges and extrapolates outside them:\n" + "\n".join(warnings))
+
+
+def _output_folder(path: Path | None) -> Path:
+    """Where exports go by default: beside the scene file, or the working folder for a scene shipped with the
+    product (or none)."""
+    if path is None or path.resolve().is_relative_to(SHIPPED_ASSETS):
+        return Path(".")
+    return path.parent
 
 
 def _save_as_default(path: Path | None) -> Path:

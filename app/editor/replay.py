@@ -11,6 +11,7 @@ High-level actions call the same commands as the interface:
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
     {"action": "import_vox", "path": ...} {"action": "export_vox", "path": ...}   MagicaVoxel models
     {"action": "export_turntable", "path": "t.gif", "frames": 8, "sweep": "light"}   in the background
+    {"action": "reference_render", "spp": 16}                 path trace the scene beside the live render
     {"action": "renderer", "name": "nvr+"}                    the render panel's renderer ("shaded" or "nvr+")
     {"action": "load_mesh", "path": ..., "up": "y"}
     {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo; "camera" is optional
@@ -265,6 +266,7 @@ ACTIONS = {
     "export": lambda app, a: app.export(a["path"]),
     "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
     "import_vox": lambda app, a: app.import_vox(a["path"]),
+    "reference_render": lambda app, a: app.reference_render(int(a.get("spp", 64))),
     "export_turntable": lambda app, a: app.export_turntable(a["path"], int(a.get("frames", 36)), a.get("sweep", "rotation")),
     "export_vox": lambda app, a: app.export_vox(a["path"]),
     "renderer": lambda app, a: app.choose_renderer(a["name"]),

@@ -29,6 +29,31 @@ def state_dir() -> Path:
     return Path(base) / "nvr-studio"
 
 
+MAX_RECENT = 8
+
+
+def recent_scenes() -> list[Path]:
+    """The scene files opened or saved last, newest first (those that still exist)."""
+    try:
+        entries = load_json(state_dir() / "recent.json")
+    except InputError:
+        return []
+    if not isinstance(entries, list):
+        return []
+    return [Path(e) for e in entries if isinstance(e, str) and Path(e).is_file()][:MAX_RECENT]
+
+
+def remember_scene(path: str | Path) -> None:
+    """Put `path` first in the recent scene files (a failure to write the list is not the user's problem)."""
+    path = str(Path(path).resolve())
+    entries = [path] + [str(p) for p in recent_scenes() if str(p) != path]
+    try:
+        state_dir().mkdir(parents=True, exist_ok=True)
+        save_json(state_dir() / "recent.json", entries[:MAX_RECENT])
+    except (InputError, OSError):
+        pass
+
+
 def _recovery_dir() -> Path:
     return state_dir() / "recovery"
 
