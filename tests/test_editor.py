@@ -474,16 +474,17 @@ def test_the_window_asks_before_replacing_a_file_and_the_file_menu_exports_side_
         {"action": "answer", "choice": "Replace"},
     ], "--model", str(model_file))
     assert Image.open(target).size == (1024, 512)
-    # The File menu's item, clicked with the mouse, writes to the File tab's default path (in the working folder).
-    # The menu's items (Save, Export render, Export viewport and render, Quit) are 19 pixels apart, the first at y = 36.
-    item = [60, 36 + 2 * 19]
+    # The File menu's item, clicked with the mouse, writes to the File tab's default path (beside the scene file).
+    # The menu: New, Open, Open recent, Save, Save as | Export render, Export viewport and render (at y = 155), ...
+    item = [60, 155]
     run_editor(display, tmp_path, scene_file, [
         {"action": "mouse_move", "pos": [18, 11]}, {"action": "wait", "frames": 2},
         {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
         {"action": "mouse_move", "pos": item}, {"action": "wait", "frames": 2},
         {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
     ], "--model", str(model_file), cwd=tmp_path)
-    assert Image.open(tmp_path / "viewport_and_render.png").size == (1024, 512)
+    assert Image.open(scene_file.parent / "viewport_and_render.png").size == (1024, 512)
+    assert not (tmp_path / "viewport_and_render.png").exists()  # not into the working folder
 
 
 # --- file dialog and the path fields without one ------------------------------------------------------
