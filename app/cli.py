@@ -34,6 +34,13 @@ def _warn(messages: list[str]) -> None:
         print(f"warning: {message}", file=sys.stderr)
 
 
+def _material_warnings(mesh_path) -> list[str]:
+    from renderer.mesh import missing_material_files
+
+    return [f"{mesh_path}: material file {name} not found: the mesh has no colors (grey)"
+            for name in missing_material_files(mesh_path)] if mesh_path else []
+
+
 # --- nvr render ---------------------------------------------------------------------------
 
 
@@ -45,7 +52,7 @@ def cmd_render(args: argparse.Namespace) -> None:
         raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
     scene = load_scene(args.scene)
     out = _output_path(args.output, args.force)
-    _warn(range_warnings(scene))
+    _warn(range_warnings(scene) + _material_warnings(scene.mesh_path()))
     size = args.size or scene.image_size
     start = time.perf_counter()
     if args.renderer == "splat":
@@ -106,6 +113,7 @@ def cmd_voxelize(args: argparse.Namespace) -> None:
 
     out = _output_path(args.output, args.force)
     mesh = normalise_mesh(load_mesh(args.mesh, up=args.up))
+    _warn(_material_warnings(args.mesh))
     rgba = voxelize(mesh, resolution=args.res)
     save_voxels(out, rgba)
     occupied = int((rgba[..., 3] > 0.5).sum())

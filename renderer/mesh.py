@@ -58,6 +58,19 @@ def load_mesh(path: str | Path, up: str = "y") -> trimesh.Trimesh:
     return mesh
 
 
+def missing_material_files(path: str | Path) -> list[str]:
+    """The material libraries an OBJ names (`mtllib`) that are not beside it: trimesh then loads the mesh
+    grey without a word, so callers warn with these names. Reads the first 64 KB, where `mtllib` lines stand."""
+    path = Path(path)
+    if path.suffix.lower() != ".obj" or not path.is_file():
+        return []
+    with open(path, "rb") as f:
+        head = f.read(65536).decode("utf-8", "replace")
+    names = [line.split(None, 1)[1].strip() for line in head.splitlines()
+             if line.startswith("mtllib") and len(line.split(None, 1)) == 2]
+    return [name for name in names if not (path.parent / name).is_file()]
+
+
 def _read_mesh(path: Path) -> trimesh.Trimesh:
     """All triangle geometry of a file as one mesh, parts moved to their scene positions.
 

@@ -202,3 +202,13 @@ def test_colors_on_a_sliver_face_are_finite_blends_of_its_corners():
     colors = mesh_colors_at(mesh, np.array([[0.465, 0.061919983848763585, -0.295]]), np.array([0]))
     assert np.isfinite(colors).all()
     assert colors.sum() == pytest.approx(280 / 255)  # a convex blend of corners each summing to 280
+
+
+def test_a_missing_material_file_is_named_so_callers_can_warn(tmp_path):
+    from renderer.mesh import missing_material_files
+
+    obj = tmp_path / "m.obj"
+    obj.write_text("mtllib there.mtl\nmtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "there.mtl").write_text("newmtl a\nKd 1 0 0\n")
+    assert missing_material_files(obj) == ["gone.mtl"]
+    assert missing_material_files(tmp_path / "other.ply") == []

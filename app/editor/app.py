@@ -453,8 +453,12 @@ class EditorApp:
         except InputError as exc:
             self.say(str(exc), error=True)
             return
-        self.start_job(f"Voxelising {Path(path).name}", lambda progress: self.voxels.object_rgba(candidate, progress),
-                       lambda _: self.edit(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)))
+        def done(_rgba) -> None:
+            if self.edit(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)):
+                self.say(f"loaded {Path(path).name}")
+                self._warn_missing_materials(Path(path))
+
+        self.start_job(f"Voxelising {Path(path).name}", lambda progress: self.voxels.object_rgba(candidate, progress), done)
 
     def start_job(self, title: str, work: Callable[[Progress], object], on_result: Callable[[object], None]) -> None:
         """Run `work(progress)` in the background (one job at a time); `on_result` gets its result on the UI thread."""
@@ -548,6 +552,14 @@ class EditorApp:
 
     def _object_loaded(self, _rgba) -> None:
         self.unloadable_source = None
+        self._warn_missing_materials(self.scene.mesh_path())
+
+    def _warn_missing_materials(self, mesh: Path | None) -> None:
+        from renderer.mesh import missing_material_files
+
+        missing = missing_material_files(mesh) if mesh else []
+        if missing:
+            self.say(f"{mesh.name}: material file {', '.join(missing)} not found: the mesh is grey", error=True)
 
     def _autosave(self) -> None:
         now = time.monotonic()

@@ -74,6 +74,7 @@ class Interface:
         self.dialog_program = dialog_program()  # None: no Browse buttons, the path fields only
         self._file_dialog = None  # an open dialog, the field its answer goes to, and what to do with it (or None)
         self._recent: list[Path] = []  # the File menu's recent scenes
+        self._mesh_shown: Path | None = None  # the object mesh the mesh field was last set to
         self._rate_text, self._rate_time = "", 0.0
 
     def draw(self) -> None:
@@ -297,6 +298,9 @@ class Interface:
         self._field("scale", changed, lambda s: edits.place_object(s, scale=tuple(sc)))
         imgui.separator()
         f = self.fields
+        mesh = self.app.scene.mesh_path()
+        if mesh != self._mesh_shown:  # the field shows the object's mesh (after loading, opening, undo)
+            f.mesh_path, self._mesh_shown = str(mesh.resolve()) if mesh else "", mesh
         _, f.mesh_path = imgui.input_text("mesh file", f.mesh_path)
         self._browse("mesh", MESH_FILES, "mesh_path")
         _, f.mesh_up = imgui.combo("up axis", f.mesh_up, ["y up", "z up"])
