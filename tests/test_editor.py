@@ -727,3 +727,17 @@ def test_the_reference_button_path_traces_the_edited_scene_beside_the_render(dis
     before, after = pixels(tmp_path / "before.png", corner), pixels(tmp_path / "after.png", corner)
     assert np.abs(after - before).max(axis=-1).mean() > 0.1  # the window appeared
     assert share_of(after, GREEN) > 0.003  # the path tracer shows the painted object, not the mesh's own colors
+
+
+def test_exports_at_a_chosen_size_render_the_shader_there_and_upscale_the_network(display, tmp_path, scene_file, model_file):
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "export", "path": str(tmp_path / "shaded128.png"), "size": 128},
+        {"action": "renderer", "name": "nvr+"},
+        {"action": "export", "path": str(tmp_path / "network128.png"), "size": 128},
+    ], "--model", str(model_file), "--renderer", "shaded")
+    assert result.returncode == 0, result.stderr[-2000:]
+    cli = tmp_path / "cli128.png"
+    subprocess.run([sys.executable, "-m", "app.cli", "render", str(scene_file), "--renderer", "shaded", "--size", "128",
+                    "-o", str(cli)], check=True, capture_output=True, timeout=120, cwd=REPOSITORY)
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "shaded128.png")), np.asarray(Image.open(cli)))
+    assert Image.open(tmp_path / "network128.png").size == (128, 128)  # the 64 px network image, upscaled

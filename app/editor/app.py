@@ -326,10 +326,12 @@ class EditorApp:
         self._synced = -1  # submit the scene again
         self.say(f"rendering with {self.live.label}")
 
-    def export(self, path: str | Path, overwrite: bool = False) -> bool:
-        """Write the neural render of the committed scene as `nvr render --renderer nvr+` would."""
+    def export(self, path: str | Path, overwrite: bool = False, size: int | None = None) -> bool:
+        """Write the panel renderer's image of the committed scene as `nvr render` would, at `size` pixels
+        (default the scene's; larger network images are upscaled and the message says so)."""
         def write() -> str:
-            used = export_render(self.doc.history.current, path, self.live.model_path, self.live.renderer, self.voxels)
+            used = export_render(self.doc.history.current, path, self.live.model_path, self.live.renderer, self.voxels,
+                                 size)
             return f"exported {path} ({used})"
 
         return self._write_file(path, overwrite, write)

@@ -36,6 +36,7 @@ NEW_PNG_FILE = FileKind("Export as", "PNG images", ("*.png",), save=True)
 NEW_GIF_FILE = FileKind("Export the turntable as", "GIF animations", ("*.gif",), save=True)
 VOX_FILES = FileKind("Import a MagicaVoxel model", "MagicaVoxel models", ("*.vox",))
 NEW_VOX_FILE = FileKind("Export the voxels as", "MagicaVoxel models", ("*.vox",), save=True)
+EXPORT_SIZES = (None, 512, 1024, 2048)  # None: the scene's size (the networks' native 256)
 RATE_REFRESH_SECONDS = 0.5  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
 
 
@@ -48,6 +49,7 @@ class Fields:
     export_path: str = "render.png"
     side_by_side_path: str = "viewport_and_render.png"
     turntable_path: str = "turntable.gif"
+    export_size: int = 0  # index into EXPORT_SIZES
     vox_in_path: str = ""
     vox_out_path: str = "object.vox"
     mesh_path: str = ""
@@ -119,7 +121,7 @@ class Interface:
                 self._ask_path(NEW_SCENE_FILE, "save_path", app.save)
             imgui.separator()
             if imgui.menu_item_simple("Export render", "Ctrl+E"):
-                app.export(self.fields.export_path)
+                app.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
             if imgui.menu_item_simple("Export viewport and render"):
                 app.export_side_by_side(self.fields.side_by_side_path)
             if imgui.menu_item_simple("Export turntable"):
@@ -168,7 +170,7 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.o, False):
             self._ask_path(SCENE_FILES, "scene_path", app.open_scene)
         elif imgui.is_key_pressed(imgui.Key.e, False):
-            app.export(self.fields.export_path)
+            app.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
         elif imgui.is_key_pressed(imgui.Key.q, False):
             app.request_quit()
 
@@ -348,7 +350,8 @@ class Interface:
         for key, kind, field_name, label, act in (
                 ("open", SCENE_FILES, "scene_path", "Open scene", app.open_scene),
                 ("save", NEW_SCENE_FILE, "save_path", "Save as", app.save),
-                ("export", NEW_PNG_FILE, "export_path", "Export PNG", app.export),
+                ("export", NEW_PNG_FILE, "export_path", "Export PNG",
+                 lambda p: app.export(p, size=EXPORT_SIZES[f.export_size])),
                 ("side by side", NEW_PNG_FILE, "side_by_side_path", "Export viewport + render", app.export_side_by_side),
                 ("turntable", NEW_GIF_FILE, "turntable_path", "Export turntable", app.export_turntable),
                 ("import vox", VOX_FILES, "vox_in_path", "Import .vox", app.import_vox),
@@ -360,6 +363,12 @@ class Interface:
             imgui.same_line()
             if imgui.button(label) and path:
                 act(path)
+            if key == "export":
+                imgui.set_next_item_width(200)
+                native = f"{app.scene.image_size} px (native)"
+                _, f.export_size = imgui.combo("export size", f.export_size,
+                                               [native] + [f"{s} px" + ("" if app.live.renderer == "shaded" else " (upscaled)")
+                                                           for s in EXPORT_SIZES[1:]])
 
     def _browse(self, key: str, kind: FileKind, field_name: str) -> None:
         """A Browse button after a path field, when the system has a file dialog: the chosen file fills the field."""

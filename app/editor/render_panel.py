@@ -13,14 +13,16 @@ import os
 import sys
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from app.editor.voxel_cache import VoxelCache, source_key
 from models.engine.async_render import AsyncRenderer
 from models.engine.render_engine import RenderEngine, RenderReport, default_threads
+from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.pipeline import object_voxels, painted_voxels
@@ -235,8 +237,17 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
 
 
 def export_render(scene: Scene, path: str | Path, model_path: str | None = None, renderer: str = "nvr+",
-                  voxels: VoxelCache | None = None) -> str:
-    """Write the image `nvr render SCENE --renderer RENDERER` makes; returns what was used."""
-    image, used = final_render(scene, model_path, renderer, voxels)
+                  voxels: VoxelCache | None = None, size: int | None = None) -> str:
+    """Write the image `nvr render SCENE --renderer RENDERER` makes, at `size` (default the scene's); returns what
+    was used. The voxel shader renders any size; a network's 256 px image is upscaled (Lanczos), and says so."""
+    if size is None or size == scene.image_size:
+        image, used = final_render(scene, model_path, renderer, voxels)
+    elif renderer == "shaded":
+        image, used = final_render(replace(scene, image_size=size), model_path, renderer, voxels)
+    else:
+        image, used = final_render(scene, model_path, renderer, voxels)
+        native = image.shape[0]
+        image = np.asarray(Image.fromarray(to_uint8(image)).resize((size, size), Image.Resampling.LANCZOS))
+        used += f", upscaled from {native} px"
     save_png(path, image)
     return used

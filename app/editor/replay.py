@@ -7,7 +7,7 @@ High-level actions call the same commands as the interface:
     {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1}
     {"action": "fill_object", "color": [...]}                 {"action": "fill_floor", "color": [...]}
     {"action": "undo"} {"action": "redo"}
-    {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ...}
+    {"action": "open", "path": ...} {"action": "save", "path": ...} {"action": "export", "path": ..., "size": 512}
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
     {"action": "import_vox", "path": ...} {"action": "export_vox", "path": ...}   MagicaVoxel models
     {"action": "export_turntable", "path": "t.gif", "frames": 8, "sweep": "light"}   in the background
@@ -263,7 +263,7 @@ ACTIONS = {
     "redo": lambda app, a: app.redo(),
     "open": lambda app, a: app.open_scene(a["path"]),
     "save": lambda app, a: app.save(a.get("path")),
-    "export": lambda app, a: app.export(a["path"]),
+    "export": lambda app, a: app.export(a["path"], size=a.get("size")),
     "export_side_by_side": lambda app, a: app.export_side_by_side(a["path"]),
     "import_vox": lambda app, a: app.import_vox(a["path"]),
     "reference_render": lambda app, a: app.reference_render(int(a.get("spp", 64))),
