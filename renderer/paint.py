@@ -33,6 +33,11 @@ def fill_region(rgba: np.ndarray, seed: tuple[int, int, int], color: Color, tole
     Color distance is the largest absolute channel difference. The seed must be an occupied
     voxel of the grid. `occupied`: the grid's `occupied_voxels`, if the caller keeps them.
     """
+    return _paint(rgba, fill_region_voxels(rgba, seed, tolerance, occupied), color)
+
+
+def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.ndarray | None = None) -> np.ndarray:
+    """The flat indices of the voxels `fill_region` would paint (the editor previews them under the cursor)."""
     shape = np.shape(rgba)[:3]
     seed = tuple(int(s) for s in seed)
     if len(seed) != 3 or not all(0 <= s < n for s, n in zip(seed, shape)):
@@ -45,7 +50,7 @@ def fill_region(rgba: np.ndarray, seed: tuple[int, int, int], color: Color, tole
     mask = np.zeros(shape, dtype=bool)
     mask.reshape(-1)[similar] = True
     labels = ndimage.label(mask, structure=FACE_NEIGHBOURS)[0].reshape(-1)
-    return _paint(rgba, similar[labels[similar] == labels[seed_flat]], color)
+    return similar[labels[similar] == labels[seed_flat]]
 
 
 def fill_object(rgba: np.ndarray, color: Color, occupied: np.ndarray | None = None) -> np.ndarray:

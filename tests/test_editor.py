@@ -741,3 +741,25 @@ def test_exports_at_a_chosen_size_render_the_shader_there_and_upscale_the_networ
                     "-o", str(cli)], check=True, capture_output=True, timeout=120, cwd=REPOSITORY)
     np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "shaded128.png")), np.asarray(Image.open(cli)))
     assert Image.open(tmp_path / "network128.png").size == (128, 128)  # the 64 px network image, upscaled
+
+
+def test_the_bucket_previews_the_region_it_would_fill_before_the_click(display, tmp_path, scene_file, model_file):
+    scene = load_scene(scene_file)
+    front = apply_transform(object_to_world(scene.object), voxel_centers_at(np.array([[8, 5, 11]]), 16) + [0, 0, 0.5 / 16])[0]
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "tool", "name": "paint"},
+        {"action": "paint_color", "color": list(GREEN)},
+        {"action": "mouse_move", "pos": screen_position(front)},
+        {"action": "wait", "frames": 25},
+        {"action": "screenshot", "path": str(tmp_path / "hover.png")},
+        {"action": "mouse_move", "pos": [PANELS.viewport.x + 20, PANELS.viewport.y + PANELS.viewport.height - 20]},
+        {"action": "wait", "frames": 25},
+        {"action": "screenshot", "path": str(tmp_path / "away.png")},
+        {"action": "save", "path": str(tmp_path / "after.json")},
+    ], "--model", str(model_file))
+    assert result.returncode == 0, result.stderr[-2000:]
+    hover, away = pixels(tmp_path / "hover.png", PANELS.viewport), pixels(tmp_path / "away.png", PANELS.viewport)
+    tinted = np.asarray(RED) * 0.4 + np.asarray(GREEN) * 0.6
+    assert share_of(hover, tuple(tinted)) > 0.003 and share_of(hover, RED) < share_of(away, RED)  # the red block, tinted
+    assert share_of(away, RED) > 0.005  # back to red once the cursor leaves
+    assert load_scene(tmp_path / "after.json").paint == ()  # a preview, not an edit

@@ -10,6 +10,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from imgui_bundle import imgui
 
 from app.editor import edits, state
@@ -21,6 +22,8 @@ from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import PhotoPanel
 from app.editor.render_panel import RENDERERS
 from app.editor.viewport_input import ViewportInput
+from renderer.errors import InputError
+from renderer.paint import fill_region_voxels
 from renderer.scene import range_warnings
 
 FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
@@ -37,7 +40,9 @@ NEW_GIF_FILE = FileKind("Export the turntable as", "GIF animations", ("*.gif",),
 VOX_FILES = FileKind("Import a MagicaVoxel model", "MagicaVoxel models", ("*.vox",))
 NEW_VOX_FILE = FileKind("Export the voxels as", "MagicaVoxel models", ("*.vox",), save=True)
 EXPORT_SIZES = (None, 512, 1024, 2048)  # None: the scene's size (the networks' native 256)
-RATE_REFRESH_SECONDS = 0.5  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
+RATE_REFRESH_SECONDS = 0.5
+PREVIEW_DELAY_SECONDS = 0.15  # the bucket rests this long on a voxel before its region is tinted
+PREVIEW_MIX = 0.6  # how far the tint goes towards the paint color  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
 
 
 @dataclass
@@ -77,6 +82,8 @@ class Interface:
         self._file_dialog = None  # an open dialog, the field its answer goes to, and what to do with it (or None)
         self._recent: list[Path] = []  # the File menu's recent scenes
         self._mesh_shown: Path | None = None  # the object mesh the mesh field was last set to
+        self._hover: tuple = (None, 0.0)  # the bucket's voxel (with tolerance, color, voxels) and since when
+        self._preview_key = None  # what the viewport's tinted region shows, None when it shows the voxels as they are
         self._rate_text, self._rate_time = "", 0.0
 
     def draw(self) -> None:
@@ -196,6 +203,7 @@ class Interface:
         hovered = imgui.is_item_hovered() and app.prompt is None
         mouse = imgui.get_io().mouse_pos
         inputs.update(app, (mouse.x - origin.x, mouse.y - origin.y), (w, h), hovered)
+        self._bucket_preview(inputs.hovered_voxel)
         imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
         imgui.text_colored(GRAY, inputs.hint)
         _range_note(app.scene, imgui.ImVec2(origin.x + 8, origin.y + h - (60 if app.job is not None else 30)))
@@ -212,6 +220,32 @@ class Interface:
             imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + h - 34))
             imgui.progress_bar(app.job.progress, imgui.ImVec2(min(360, w - 16), 0), f"{app.job.title} {app.job.progress:.0%}")
         imgui.end()
+
+    def _bucket_preview(self, voxel: tuple[int, int, int] | None) -> None:
+        """Tint the region a click would fill once the bucket rests on a voxel for PREVIEW_DELAY_SECONDS, so a
+        tolerance that leaves speckles shows before the click; the tint goes when the cursor leaves."""
+        app, now = self.app, time.monotonic()
+        rgba = app.shown_rgba
+        wanted = None if voxel is None or rgba is None else (voxel, app.tolerance, tuple(app.paint_color), id(rgba))
+        if wanted != self._hover[0]:
+            self._hover = (wanted, now)
+        target = wanted if wanted is not None and now - self._hover[1] >= PREVIEW_DELAY_SECONDS else None
+        if target == self._preview_key or (target is None and self._preview_key is None):
+            return
+        if target is None:
+            if rgba is not None:
+                app.viewport.set_voxels(rgba)
+            self._preview_key = None
+            return
+        try:
+            region = fill_region_voxels(rgba, voxel, app.tolerance)
+        except InputError:
+            return
+        preview = rgba.copy()
+        flat = preview.reshape(-1, 4)
+        flat[region, :3] = (1.0 - PREVIEW_MIX) * flat[region, :3] + PREVIEW_MIX * np.asarray(app.paint_color)
+        app.viewport.set_voxels(preview)
+        self._preview_key = target
 
     # --- live render --------------------------------------------------------------------
 

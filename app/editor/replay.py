@@ -23,6 +23,7 @@ High-level actions call the same commands as the interface:
     {"action": "color_from_photo"} {"action": "match_photo_view"}   one undo step each
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
+    {"action": "paint_color", "color": [r, g, b]}             the bucket's color
     {"action": "close"}                                       as the window's close button
     {"action": "resize", "size": [w, h]}                      as a window manager resizes it (X ConfigureWindow)
 Raw input goes through the window backend's own event handlers, as real input does (mouse
@@ -282,6 +283,7 @@ ACTIONS = {
     "screenshot": lambda app, a: app.screenshot(a["path"]),
     "answer": lambda app, a: app.answer(a["choice"]),
     "tool": _set_tool,
+    "paint_color": lambda app, a: setattr(app, "paint_color", _color(a)),
     "close": lambda app, a: glfw.set_window_should_close(app.window.handle, True),
     "wait": _wait,
     "resize": _resize,
