@@ -763,3 +763,19 @@ def test_the_bucket_previews_the_region_it_would_fill_before_the_click(display, 
     assert share_of(hover, tuple(tinted)) > 0.003 and share_of(hover, RED) < share_of(away, RED)  # the red block, tinted
     assert share_of(away, RED) > 0.005  # back to red once the cursor leaves
     assert load_scene(tmp_path / "after.json").paint == ()  # a preview, not an edit
+
+
+def test_ctrl_n_starts_an_untitled_scene_after_asking_and_open_recent_remembers_files(display, tmp_path, scene_file):
+    state = tmp_path / "state"
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "set_elevation", "deg": 20},
+        {"action": "key", "key": "n", "mods": ["ctrl"]},
+        {"action": "answer", "choice": "Discard"},
+        {"action": "save", "path": str(tmp_path / "new.json")},
+    ], state=state)
+    assert result.returncode == 0, result.stderr[-2000:]
+    new = load_scene(tmp_path / "new.json")
+    assert Path(new.mesh_path()).resolve() == (REPOSITORY / "assets" / "demo" / "chair.obj").resolve()
+    assert new.camera.elevation_deg == 30.0  # the new scene, not the edited one
+    recent = json.loads((state / "nvr-studio" / "recent.json").read_text())
+    assert recent[0] == str((tmp_path / "new.json").resolve())

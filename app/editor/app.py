@@ -537,7 +537,7 @@ class EditorApp:
                 self._synced = self.doc.revision
             else:
                 self.unloadable_source = source_key(scene)  # until the job succeeds
-                self.start_job(f"Voxelising {Path(scene.object.voxels or scene.object.mesh).name}",
+                self.start_job(f"Loading {Path(scene.object.mesh or scene.object.voxels).name}",
                                lambda progress: self.voxels.object_rgba(scene, progress), self._object_loaded)
             return
         try:
