@@ -35,8 +35,13 @@ class PhotoColors(NamedTuple):
 
 
 def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, photo_rgb: np.ndarray,
-                            camera: Camera, mirror: bool = False) -> PhotoColors:
-    """Color every occupied voxel from `photo_rgb` ((H, W, 3) sRGB) seen by `camera`; occupancy is unchanged."""
+                            camera: Camera, mirror: bool = False, trusted: np.ndarray | None = None) -> PhotoColors:
+    """Color every occupied voxel from `photo_rgb` ((H, W, 3) sRGB) seen by `camera`; occupancy is unchanged.
+
+    `trusted` ((H, W) bool): the pixels surely on the object (the mask away from its edge). A visible voxel
+    that lands elsewhere takes the color of the nearest voxel that lands on a trusted pixel, as hidden
+    voxels do, so the background around the silhouette never colors the object.
+    """
     rgba = check_object_voxels(object_rgba).copy()
     photo = _check_photo(photo_rgb, camera)
     occupied = occupancy(rgba)
@@ -55,8 +60,32 @@ def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.
     hidden_flat = np.flatnonzero(hidden)
     source.reshape(-1)[hidden_flat] = marcher.first_occupied_towards(camera_grid, hidden_flat)
 
+    if trusted is not None:
+        source = _trusted_sources(source, visible, occupied, matrix, camera, np.asarray(trusted, dtype=bool))
     rgba[occupied, :3] = _photo_at_voxels(photo, matrix, camera, source[occupied], n)
     return PhotoColors(rgba, visible)
+
+
+def _trusted_sources(source: np.ndarray, visible: np.ndarray, occupied: np.ndarray, matrix: np.ndarray, camera: Camera,
+                     trusted: np.ndarray) -> np.ndarray:
+    """`source` with every voxel whose source projects outside `trusted` sent to the nearest trusted visible voxel."""
+    from scipy import ndimage
+
+    n = occupied.shape[0]
+    flat = np.flatnonzero(visible)
+    u, v, _ = _project_voxels(matrix, camera, flat, n)
+    col = np.clip(np.floor(u).astype(np.int64), 0, camera.width - 1)
+    row = np.clip(np.floor(v).astype(np.int64), 0, camera.height - 1)
+    good = np.zeros(occupied.size, dtype=bool)
+    good[flat[trusted[row, col]]] = True
+    if not good.any():
+        return source  # nothing is sure: keep what the photo shows rather than nothing
+    _, nearest = ndimage.distance_transform_edt(~good.reshape(occupied.shape), return_indices=True)
+    nearest_flat = np.ravel_multi_index(tuple(nearest), occupied.shape).reshape(-1)
+    out = source.reshape(-1).copy()
+    bad = occupied.reshape(-1) & ~good[out]
+    out[bad] = nearest_flat[out[bad]]
+    return out.reshape(source.shape)
 
 
 def mirror_symmetry_score(occupied: np.ndarray) -> float:

@@ -278,3 +278,22 @@ def test_free_focal_length_is_recovered_for_a_longer_lens(chair):
     assert fixed.pose.camera.focal_mm == 40.0
     assert free.pose.camera.focal_mm == pytest.approx(55.0, rel=0.15)
     assert free.iou >= fixed.iou
+
+
+def test_coloring_near_the_silhouette_never_takes_the_background_even_from_a_pose_a_little_off():
+    """A red box on a blue backdrop; colored from a pose shifted by 2 pixels, the voxels along the edge would
+    land on the backdrop: with the mask's trusted inside they take the nearest sure voxel's red instead."""
+    box = box_mesh()
+    truth = PhotoPose(Camera(25.0, 200, 160), rotation_deg=30.0)
+    silhouette = SilhouetteRenderer(box).mask(truth)
+    photo = np.where(silhouette[..., None], np.array([0.85, 0.1, 0.1]), np.array([0.2, 0.3, 0.8]))
+    off = replace(truth, translation=(0.02, 0.0))  # about 2 pixels to the side
+    rgba = voxelize(box, 32)
+    colored = capture_appearance(rgba, box, photo, None, off, search=False)
+    occupied = colored.rgba[..., 3] > 0.5
+    colors = colored.rgba[occupied, :3]
+    assert (colors[:, 2] < 0.3).all() and (colors[:, 0] > 0.7).all()  # every voxel red, none blue
+    from renderer.photo import color_voxels_from_photo
+
+    untrusted = color_voxels_from_photo(rgba, off.object_to_world(), photo, off.camera)
+    assert (untrusted.rgba[occupied, 2] > 0.5).any()  # without it, the edge takes the backdrop's blue

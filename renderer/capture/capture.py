@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 from PIL import Image
+from scipy import ndimage
 
 from renderer.capture.align import Alignment, align_pose
 from renderer.capture.pose import PhotoPose
@@ -24,6 +25,7 @@ from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
+TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
 SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
 
 
@@ -72,10 +74,25 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
     try:
-        colors = color_voxels_from_photo(object_rgba, pose.object_to_world(), photo_rgb, pose.camera, mirror=mirror)
+        colors = color_voxels_from_photo(object_rgba, pose.object_to_world(), photo_rgb, pose.camera, mirror=mirror,
+                                         trusted=trusted_pixels(photo_rgb, alpha, path))
     except InputError as exc:
         raise InputError(exc.problem, path) from None
     return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment)
+
+
+def trusted_pixels(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None) -> np.ndarray | None:
+    """The pixels surely on the object: its mask (the alpha channel, or segmented) farther than TRUST_MARGIN of
+    the photo's shorter side from the mask's edge, where a pose a pixel off or a soft edge would mix in the
+    background. None when the photo cannot be segmented: then every pixel counts, as before segmentation."""
+    h, w = photo_rgb.shape[:2]
+    small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
+    try:
+        mask = object_mask(small_rgb, small_alpha, path)
+    except InputError:
+        return None
+    full = np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize((w, h), Image.Resampling.NEAREST)) > 127
+    return ndimage.distance_transform_edt(full) > max(1.0, TRUST_MARGIN * min(h, w))
 
 
 def _downscale(rgb: np.ndarray, alpha: np.ndarray | None, long_side: int) -> tuple[np.ndarray, np.ndarray | None]:
