@@ -138,7 +138,7 @@ def cmd_capture(args: argparse.Namespace) -> None:
     search = args.auto or pose is None
     rgba = voxelize(mesh, resolution=args.res)
     captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
-                                  free_focal=args.free_focal)
+                                  free_focal=args.free_focal, box=_parse_box(args.box, photo.shape))
     save_voxels(voxels_out, captured.rgba)
     save_pose(camera_out, captured.pose)
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
@@ -154,6 +154,20 @@ def cmd_capture(args: argparse.Namespace) -> None:
     print(f"colors: {seen} of {occupied} voxels seen in the photo; mirror copy {mirror} "
           f"(symmetry IoU {captured.mirror_score:.2f})")
     print(f"wrote {scene_out}, {voxels_out}, {camera_out}")
+
+
+def _parse_box(text: str | None, shape) -> tuple[int, int, int, int] | None:
+    """--box x0,y0,x1,y1: the object's box in photo pixels (x right, y down), inside the photo."""
+    if text is None:
+        return None
+    try:
+        x0, y0, x1, y1 = (int(v) for v in text.split(","))
+    except ValueError:
+        raise InputError(f"--box takes x0,y0,x1,y1 in pixels, got {text!r}") from None
+    h, w = shape[:2]
+    if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+        raise InputError(f"--box {text} must lie inside the {w}x{h} photo with x0 < x1 and y0 < y1")
+    return x0, y0, x1, y1
 
 
 def cmd_info(args: argparse.Namespace) -> None:
@@ -380,6 +394,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--auto", action="store_true",
                    help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
     p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
+    p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
+                   help="the object's box in photo pixels: outside it is background (helps on cluttered photos)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
     p.add_argument("--res", type=int, default=100, help="object voxels per side (default 100)")
     p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")

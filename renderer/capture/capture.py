@@ -8,7 +8,7 @@ by the search. Colors keep the photo's shading; the network is trained on such i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +17,7 @@ from PIL import Image
 from scipy import ndimage
 
 from renderer.capture.align import Alignment, align_pose
+from renderer.capture.grabcut import Hints
 from renderer.capture.pose import PhotoPose
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
@@ -26,7 +27,8 @@ from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
-SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
+SEGMENT_SIDE = 320
+SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement  # long side at which the photo is segmented and aligned (the colors use the full photo)
 
 
 @dataclass(frozen=True)
@@ -40,20 +42,37 @@ class Capture:
 
 
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
-              initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False) -> Alignment:
-    """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough pose."""
+              initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False,
+              box: tuple[int, int, int, int] | None = None) -> Alignment:
+    """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough
+    pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is.
+
+    Without an alpha channel, segmentation and pose search alternate: the first pose's silhouette starts
+    the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times.
+    """
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
-    mask = object_mask(small_rgb, small_alpha, path)
-    sh, sw = mask.shape
+    sh, sw = small_rgb.shape[:2]
+    hints = Hints(box=None if box is None else tuple(round(v * sw / w) for v in box))
+    mask = object_mask(small_rgb, small_alpha, path, hints)
     start = None if initial is None else initial.at_size(sw, sh)
-    alignment = align_pose(SilhouetteRenderer(mesh), mask, start, free_focal)
-    return Alignment(alignment.pose.at_size(w, h), alignment.iou, alignment.rays, alignment.seconds)
+    silhouettes = SilhouetteRenderer(mesh)
+    alignment = align_pose(silhouettes, mask, start, free_focal)
+    rays, seconds = alignment.rays, alignment.seconds
+    for _ in range(SEGMENT_ROUNDS if small_alpha is None else 0):
+        try:
+            mask = object_mask(small_rgb, None, path, replace(hints, prior=silhouettes.mask(alignment.pose)))
+        except InputError:
+            break  # the pose's silhouette gave nothing better: keep the pose found
+        alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
+        rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+    return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds)
 
 
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
-                       path: str | Path | None = None, free_focal: bool = False) -> Capture:
+                       path: str | Path | None = None, free_focal: bool = False,
+                       box: tuple[int, int, int, int] | None = None) -> Capture:
     """Color `object_rgba` (voxels of `mesh`, which only the search needs) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
@@ -67,7 +86,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
         raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
     if search:
-        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal)
+        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, box)
         pose = alignment.pose
     pose = pose.at_size(w, h)
     occupied = object_rgba[..., 3] > 0.5

@@ -1,20 +1,23 @@
-"""Which pixels of a photo show the object: its alpha channel, or what differs from the background.
+"""Which pixels of a photo show the object: its alpha channel, or GrabCut's segmentation.
 
-Without alpha, the background is estimated from the photo's border: a smooth color field (a
-quadratic in the pixel coordinates, per channel) fitted to a band of border pixels, refitted
-without the pixels it explains badly, so an object touching the border or a soft vignette does
-not spoil it. Pixels far from that field are the object. When the border itself is not a plain
-background (a cluttered room, an object filling the frame) the fit cannot explain most of it,
-and segmentation stops with a message instead of guessing.
+Without alpha, a first guess comes from the photo's border when it is a plain backdrop: a smooth
+color field (a quadratic in the pixel coordinates, per channel) fitted to a band of border pixels,
+refitted without the pixels it explains badly, so an object touching the border or a soft vignette
+does not spoil it; pixels far from that field are probably the object. GrabCut
+(renderer/capture/grabcut.py) then separates object and background from that guess, or, when the
+border is not plain (a floor and a sky, a room), from the frame's middle, the user's box and strokes
+or the object's silhouette at a pose already found.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
 
+from renderer.capture.grabcut import Hints, grabcut_mask
 from renderer.errors import InputError
 
 BORDER_FRACTION = 0.04  # width of the border band, as a fraction of the shorter side
@@ -28,22 +31,34 @@ SPECK_FRACTION = 0.0005  # components smaller than this share of the image are n
 OPAQUE = 0.5  # alpha at or above this is object
 
 
-def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None) -> np.ndarray:
+def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None,
+                hints: Hints | None = None) -> np.ndarray:
     """(H, W) bool mask of the object in a photo ((H, W, 3) sRGB in [0, 1], alpha (H, W) or None).
 
-    Raises InputError naming `path` when the object cannot be separated.
+    The alpha channel when it has one; else GrabCut (renderer/capture/grabcut.py), started from the user's
+    `hints` (a box, strokes, a silhouette at a found pose) and from what differs from the border when the
+    border is a plain backdrop. Raises InputError naming `path` when the object cannot be separated.
     """
     if alpha is not None and np.any(alpha < OPAQUE):
         mask = np.asarray(alpha) >= OPAQUE
         if not mask.any():
             raise InputError("the photo's alpha channel is fully transparent: there is no object in it", path)
         return mask
-    mask = _differs_from_background(np.asarray(rgb, dtype=np.float64), path)
-    fraction = mask.mean()
-    if fraction < MIN_OBJECT_FRACTION:
-        raise InputError("found no object: the photo looks like plain background", path)
-    if fraction > MAX_OBJECT_FRACTION:
-        raise InputError("the object fills the photo; give it an alpha channel (transparent background)", path)
+    hints = hints or Hints()
+    told = hints.box is not None or hints.prior is not None or hints.object_strokes is not None
+    rgb = np.asarray(rgb, dtype=np.float64)
+    try:
+        rough = _differs_from_background(rgb, path)
+    except InputError:
+        rough = None  # a floor, a sky, a room: GrabCut starts from the frame's middle (or the hints)
+    if rough is not None and not told:
+        if rough.mean() < MIN_OBJECT_FRACTION:
+            raise InputError("found no object: the photo looks like plain background", path)
+        if rough.mean() > MAX_OBJECT_FRACTION:
+            raise InputError("the object fills the photo; give it an alpha channel (transparent background)", path)
+    mask = grabcut_mask(rgb, replace(hints, rough=None if told else rough), path)
+    if mask.mean() > MAX_OBJECT_FRACTION:
+        raise InputError("the object fills the photo; draw a box around it or give it an alpha channel", path)
     return mask
 
 

@@ -1,0 +1,150 @@
+"""The object in a photo without an alpha channel, by GrabCut (OpenCV): color models of object and
+background fitted by graph cuts, started from what is known.
+
+What is known, strongest first: the user's strokes (sure object, sure background); the object's
+silhouette at a pose already found (eroded: sure object; itself: probable object; elsewhere
+probable background); the user's box (outside: sure background); the photo's border (background,
+unless the object is said to touch it). GrabCut's background model is a mixture of several colors, so
+a floor and a sky behind the object are two background regions, not one; a shadow is floor, darker.
+The field's standard tool is used rather than a hand-made color model: it is what the photo's
+clutter needs, and it is maintained (opencv-python-headless).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from renderer.errors import InputError
+
+ITERATIONS = 5
+BORDER_FRACTION = 0.02  # the border band taken as background, as a share of the shorter side
+PRIOR_MARGIN_FRACTION = 0.02  # a silhouette prior is eroded/dilated by this share of the shorter side
+CENTER_MARGIN = 0.1  # without box or prior, the object is looked for inside this margin of the frame
+MIN_OBJECT_FRACTION = 0.002  # of the image: less than this is nothing
+SPECK_FRACTION = 0.001  # object components smaller than this share of the image are dropped
+SHADOW_CHROMA = 0.03  # largest chromaticity difference from the row's background that can still be shadow
+SHADOW_MIN_COLOR = 0.03  # the background's chromaticity must be at least this far from grey for the test
+SHADOW_DARKEST, SHADOW_LIGHTEST = 0.15, 0.9  # brightness of a shadow relative to the lit background beside it
+
+
+@dataclass(frozen=True)
+class Hints:
+    """What the user or an earlier step says about where the object is; all optional. Masks are (H, W) bool."""
+
+    box: tuple[int, int, int, int] | None = None  # x0, y0, x1, y1 in pixels, the object inside
+    object_strokes: np.ndarray | None = None
+    background_strokes: np.ndarray | None = None
+    prior: np.ndarray | None = None  # the object's silhouette at a found pose
+    rough: np.ndarray | None = None  # a rough guess (e.g. what differs from a plain border): probable object
+
+
+def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | None = None) -> np.ndarray:
+    """(H, W) bool mask of the object in `rgb` ((H, W, 3) sRGB in [0, 1]); InputError when nothing separates."""
+    import cv2
+
+    h, w = rgb.shape[:2]
+    labels = _initial_labels(h, w, hints, path)
+    if not np.isin(labels, (cv2.GC_FGD, cv2.GC_PR_FGD)).any() or not np.isin(labels, (cv2.GC_BGD, cv2.GC_PR_BGD)).any():
+        raise InputError("the hints leave no room for object or for background", path)
+    image = np.ascontiguousarray(np.round(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)[..., ::-1])  # OpenCV: BGR
+    background_model, object_model = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    try:
+        cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
+    except cv2.error:
+        raise InputError("cannot tell the object from the background (one of them has no colors to model)", path) from None
+    shadow = _shadow_pixels(rgb, labels)
+    if shadow.any():  # the floor in shadow is background: cut again with it as such
+        labels[shadow] = cv2.GC_BGD
+        try:
+            cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
+        except cv2.error:
+            pass  # the first cut stands, without the shadow
+        labels[shadow] = cv2.GC_BGD
+    mask = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
+    mask = _without_specks(mask)
+    if mask.mean() < MIN_OBJECT_FRACTION:
+        raise InputError("found no object: nothing in the photo separates from the background", path)
+    return mask
+
+
+def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
+    import cv2
+
+    labels = np.full((h, w), cv2.GC_PR_BGD, np.uint8)
+    side = min(h, w)
+    if hints.prior is not None:
+        prior = np.asarray(hints.prior, dtype=bool)
+        if prior.shape != (h, w):
+            raise InputError(f"the silhouette is {prior.shape[1]}x{prior.shape[0]}, the photo {w}x{h}", path)
+        margin = max(1, round(PRIOR_MARGIN_FRACTION * side))
+        labels[prior] = cv2.GC_PR_FGD  # around it probable background: the floor between a chair's legs stays floor
+        labels[ndimage.binary_erosion(prior, iterations=margin)] = cv2.GC_FGD
+    elif hints.rough is not None:
+        margin = max(1, round(PRIOR_MARGIN_FRACTION * side))
+        labels[ndimage.binary_dilation(np.asarray(hints.rough, dtype=bool), iterations=margin)] = cv2.GC_PR_FGD
+    elif hints.box is None:
+        m = round(CENTER_MARGIN * side)
+        labels[m:h - m, m:w - m] = cv2.GC_PR_FGD
+    if hints.box is not None:
+        x0, y0, x1, y1 = (int(v) for v in hints.box)
+        x0, x1, y0, y1 = max(0, min(x0, x1)), min(w, max(x0, x1)), max(0, min(y0, y1)), min(h, max(y0, y1))
+        if x1 - x0 < 2 or y1 - y0 < 2:
+            raise InputError(f"the box {list(hints.box)} holds no pixels of the {w}x{h} photo", path)
+        inside = np.zeros((h, w), dtype=bool)
+        inside[y0:y1, x0:x1] = True
+        labels[~inside] = cv2.GC_BGD
+        if hints.prior is None:
+            labels[inside] = cv2.GC_PR_FGD
+    band = max(1, round(BORDER_FRACTION * side))
+    border = np.zeros((h, w), dtype=bool)
+    border[:band], border[-band:], border[:, :band], border[:, -band:] = True, True, True, True
+    labels[border & (labels == cv2.GC_PR_BGD)] = cv2.GC_BGD  # where nothing says object, the border is background
+    for strokes, label in ((hints.object_strokes, cv2.GC_FGD), (hints.background_strokes, cv2.GC_BGD)):
+        if strokes is not None:
+            labels[np.asarray(strokes, dtype=bool)] = label
+    return labels
+
+
+def _shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Pixels taken as probable object that look like the background of their row in shadow: the same
+    chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST (rows whose background is nearly grey are
+    left alone). A floor's shadow is floor; what the user or a pose said is object (sure labels) is never
+    changed."""
+    import cv2
+
+    probable = labels == cv2.GC_PR_FGD
+    background = (labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)
+    if not probable.any() or not background.any():
+        return np.zeros(labels.shape, dtype=bool)
+    brightness = rgb.sum(axis=2) + 1e-6
+    chroma = rgb / brightness[..., None]
+    shadow = np.zeros(labels.shape, dtype=bool)
+    rows = np.flatnonzero(probable.any(axis=1))
+    for row in rows:
+        band = background[max(0, row - 2):row + 3]
+        if band.sum() < 4:
+            continue
+        reference_chroma = np.median(chroma[max(0, row - 2):row + 3][band], axis=0)
+        if np.abs(reference_chroma - 1.0 / 3.0).max() < SHADOW_MIN_COLOR:
+            continue  # a grey background: a darker grey object cannot be told from its shadow by color
+        reference_brightness = np.median(brightness[max(0, row - 2):row + 3][band])
+        cols = np.flatnonzero(probable[row])
+        similar = np.abs(chroma[row, cols] - reference_chroma).max(axis=1) < SHADOW_CHROMA
+        ratio = brightness[row, cols] / reference_brightness
+        shadow[row, cols[similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)]] = True
+    return shadow
+
+
+def _without_specks(mask: np.ndarray) -> np.ndarray:
+    labels, count = ndimage.label(mask)
+    if count == 0:
+        return mask
+    sizes = ndimage.sum_labels(mask, labels, index=np.arange(1, count + 1))
+    keep = np.flatnonzero(sizes >= SPECK_FRACTION * mask.size) + 1
+    if len(keep) == 0:
+        keep = np.array([int(np.argmax(sizes)) + 1])
+    return np.isin(labels, keep)

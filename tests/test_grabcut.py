@@ -1,0 +1,78 @@
+"""GrabCut segmentation on photos with a floor and a sky (renderer/capture/grabcut.py, segment.py)."""
+
+import numpy as np
+import pytest
+
+from renderer.capture.align import silhouette_iou
+from renderer.capture.grabcut import Hints, grabcut_mask
+from renderer.capture.segment import object_mask
+from renderer.errors import InputError
+
+H, W = 120, 160
+
+
+def floor_and_sky(rect=(50, 60, 95, 100), noise=0.02, seed=0):
+    """A grey sky over a magenta floor lit brighter in front, a darker shadow on the floor beside a blue
+    striped object in `rect` (y0, x0, y1, x1); camera noise. Returns the photo and the object's mask."""
+    rng = np.random.default_rng(seed)
+    y, x = np.mgrid[0:H, 0:W]
+    photo = np.empty((H, W, 3))
+    sky = y < 40
+    photo[sky] = np.array([0.62, 0.63, 0.66]) + 0.001 * y[sky, None]
+    floor_light = 0.55 + 0.35 * (y / H)
+    photo[~sky] = (np.array([0.75, 0.25, 0.55]) * floor_light[~sky, None])
+    y0, x0, y1, x1 = rect
+    shadow = (y >= y1 - 12) & (y < y1) & (x >= x1) & (x < x1 + 25)
+    photo[shadow] *= 0.55
+    obj = (y >= y0) & (y < y1) & (x >= x0) & (x < x1)
+    photo[obj] = np.where(((x[obj] // 4) % 2 == 0)[:, None], [0.15, 0.2, 0.7], [0.3, 0.35, 0.85])
+    photo += rng.normal(0.0, noise, photo.shape)
+    return np.clip(photo, 0.0, 1.0), obj
+
+
+def test_an_object_on_a_floor_under_a_sky_is_found_without_its_shadow():
+    photo, truth = floor_and_sky()
+    mask = object_mask(photo)
+    assert silhouette_iou(mask, truth) > 0.9
+    shadow = np.zeros_like(truth)
+    shadow[83:95, 100:125] = True
+    assert mask[shadow].mean() < 0.2  # the shadow is floor
+
+
+def test_a_box_keeps_everything_outside_it_background():
+    photo, truth = floor_and_sky()
+    mask = grabcut_mask(photo, Hints(box=(55, 45, 105, 100)))
+    assert not mask[:, :55].any() and not mask[:, 105:].any() and not mask[:45].any()
+    assert silhouette_iou(mask, truth) > 0.9
+
+
+def test_strokes_overrule_the_color_models():
+    photo, truth = floor_and_sky()
+    background = np.zeros_like(truth)
+    background[50:95, 60:70] = True  # the user strokes the object's left part as background
+    mask = grabcut_mask(photo, Hints(box=(55, 45, 105, 100), background_strokes=background))
+    assert not mask[background].any() and mask[truth & ~background].mean() > 0.8
+    keep = np.zeros_like(truth)
+    keep[85:95, 100:110] = True  # and a piece of the floor as object
+    assert grabcut_mask(photo, Hints(object_strokes=keep))[keep].all()
+
+
+def test_an_object_touching_the_border_and_a_small_object_are_found():
+    photo, truth = floor_and_sky(rect=(60, 120, 110, 160))  # cut by the right edge
+    assert silhouette_iou(object_mask(photo), truth) > 0.85
+    small, small_truth = floor_and_sky(rect=(70, 75, 84, 90))  # about 1 % of the photo
+    assert silhouette_iou(object_mask(small), small_truth) > 0.7
+
+
+def test_a_photo_with_nothing_in_it_is_refused_saying_why():
+    empty, _ = floor_and_sky(rect=(0, 0, 0, 0))
+    with pytest.raises(InputError, match="found no object") as refused:
+        object_mask(empty, path="empty.jpg")
+    assert str(refused.value).startswith("empty.jpg: ")
+
+
+def test_a_silhouette_prior_is_taken_as_the_probable_object():
+    photo, truth = floor_and_sky()
+    rough = np.zeros_like(truth)
+    rough[48:97, 58:102] = True  # a pose a little off: slightly larger than the object
+    assert silhouette_iou(grabcut_mask(photo, Hints(prior=rough)), truth) > 0.9
