@@ -4,9 +4,9 @@ Each photo is a generated test object (chairs and sofas: furniture whose rotatio
 can tell; round stools and square tables look the same at several rotations) path traced from a
 random view: rotation in [-180, 180), elevation, floor position and scale over the training
 ranges, a random light. Three kinds of photo, in turn:
-    studio   no floor, plain ambient backdrop, no alpha: the object is segmented from the border
+    studio   no floor, plain ambient backdrop, no alpha: GrabCut from the border's guess
     cutout   the usual floor scene with an alpha channel cut along the object's true silhouette
-    floor    the usual floor scene, no alpha: segmentation must cope with floor, shadow and reflection
+    floor    the usual floor scene, no alpha: GrabCut must cope with floor, sky, shadow and reflection
 The pose search starts from no pose and from the true pose perturbed by up to 30 degrees in
 rotation and elevation and 10 percent in scale and position (0.1 object sizes).
 Measured per run: rotation and elevation error (degrees), silhouette IoU of the found pose
@@ -175,9 +175,9 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         f"on {datetime.date.today()}, {platform.machine()} with {os.cpu_count()} cores; {note}.",
         "Photos: generated test-split chairs and sofas (default and textured appearance), path traced at "
         f"{args.size}^2 with {args.spp} spp + OIDN from random views (rotation in [-180, 180), elevation, floor "
-        "position and scale over the training ranges). Styles: `studio` (no floor, no alpha: segmented from the "
-        "border), `cutout` (floor scene with an alpha channel along the true silhouette), `floor` (floor scene, "
-        "no alpha). Starts: `none` (no pose) and `perturbed` (true pose off by up to 30 degrees in rotation and "
+        "position and scale over the training ranges). Styles: `studio` (no floor, no alpha: GrabCut from the "
+        "border's guess), `cutout` (floor scene with an alpha channel along the true silhouette), `floor` (floor scene, "
+        "no alpha: GrabCut, then again from the found pose's silhouette). Starts: `none` (no pose) and `perturbed` (true pose off by up to 30 degrees in rotation and "
         "elevation, 10 % in scale and position). IoU: silhouette of the found pose against the true silhouette. "
         "Color RMSE (0-255 sRGB) over the voxels the photo shows, against the object's true colors; the photo's "
         "shading makes even the true pose's error large, so compare the two columns.",
