@@ -57,6 +57,7 @@ class PhotoAlignment:
         self._mesh_key: object = None
         self._shown_photos: dict[tuple[int, int], np.ndarray] = {}  # the photo resized for the overlay, by size
         self.revision = 0  # grows with every pose change, so the window knows when to redraw the overlay
+        self.box: tuple[int, int, int, int] | None = None  # the user's box around the object (photo pixels), or None
 
     def set_mesh(self, mesh: trimesh.Trimesh, key: object, silhouettes: SilhouetteRenderer | None = None) -> None:
         """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped.
@@ -78,6 +79,16 @@ class PhotoAlignment:
     @property
     def silhouettes(self) -> SilhouetteRenderer | None:
         return self._silhouettes
+
+    def set_box(self, box: tuple[float, float, float, float] | None) -> None:
+        """The object's box (x0, y0, x1, y1 in photo pixels, any corner order), clipped to the photo; None clears it."""
+        if box is None:
+            self.box = None
+        else:
+            h, w = self.rgb.shape[:2]
+            x0, x1 = sorted((int(np.clip(box[0], 0, w)), int(np.clip(box[2], 0, w))))
+            y0, y1 = sorted((int(np.clip(box[1], 0, h)), int(np.clip(box[3], 0, h))))
+            self.box = (x0, y0, x1, y1) if x1 - x0 >= 2 and y1 - y0 >= 2 else None
 
     def set_pose(self, pose: PhotoPose) -> None:
         h, w = self.rgb.shape[:2]

@@ -52,7 +52,9 @@ class PhotoPanel:
         self.uploads = 0  # counts the images written to the texture (the window redraws the image when it changes)
         self._uploaded_for: tuple | None = None  # (alignment, its revision, overlay side) of the texture's image
         self._files_shown_for: PhotoAlignment | None = None  # the files section folds once when a photo is loaded
-        self.shown: tuple[Box, int] | None = None  # where the overlay was drawn this frame, and its version
+        self.shown: tuple[Box, tuple] | None = None  # where the overlay was drawn this frame, and its version
+        self.box_mode = False  # drags on the photo draw the object's box instead of posing it
+        self._box_start: tuple[float, float] | None = None  # photo pixels where the box drag began
 
     def draw(self, fields: PhotoFields, browse: Browse) -> None:
         """The tab's contents, for this frame."""
@@ -67,7 +69,22 @@ class PhotoPanel:
         imgui.begin_group()  # the numbers beside the photo
         self._pose_fields(alignment.pose)
         imgui.end_group()
-        imgui.text_colored(GRAY, "On the photo: drag turns, Shift+drag moves, the wheel scales.")
+        self._drag_mode(alignment)
+
+    def _drag_mode(self, alignment: PhotoAlignment) -> None:
+        """Whether a drag on the photo poses the object or draws its box (for a cluttered photo: outside is background)."""
+        if imgui.radio_button("drag poses the object", not self.box_mode):
+            self.box_mode = False
+        imgui.same_line()
+        if imgui.radio_button("drag draws its box", self.box_mode):
+            self.box_mode = True
+        if alignment.box is not None:
+            imgui.same_line()
+            if imgui.small_button("clear box"):
+                alignment.set_box(None)
+        if imgui.is_item_hovered() or imgui.is_window_hovered():
+            imgui.set_item_tooltip("Outside the box is background for Align." if self.box_mode else
+                                   "On the photo: drag turns, Shift+drag moves, the wheel scales.")
 
     def _files(self, fields: PhotoFields, browse: Browse) -> None:
         """Photo and camera file, and Load; folded away when a photo has just been loaded, to leave it the room."""
@@ -102,17 +119,26 @@ class PhotoPanel:
         """The photo with the silhouette's outline, taking the mouse gestures that pose it."""
         h, w = alignment.rgb.shape[:2]
         style = imgui.get_style()
-        room = imgui.get_window_height() - imgui.get_cursor_pos_y() - style.window_padding.y  # not scrolled
+        room = (imgui.get_window_height() - imgui.get_cursor_pos_y() - style.window_padding.y  # not scrolled
+                - imgui.get_frame_height_with_spacing())  # the drag mode's row below the photo
         widest = IMAGE_SHARE * imgui.get_content_region_avail().x
         width = max(1, int(min(widest, max(MIN_IMAGE_HEIGHT, room) * w / h)))
         height = max(1, round(width * h / w))
         origin = imgui.get_cursor_screen_pos()
         imgui.invisible_button("photo overlay", imgui.ImVec2(width, height))
-        self._gestures()
+        if self.box_mode:
+            self._box_gesture(alignment, origin, w / width)
+        else:
+            self._gestures()
         self._upload(alignment, DRAG_SIDE if imgui.is_item_active() else max(width, height))
         corner = imgui.ImVec2(origin.x + width, origin.y + height)
-        imgui.get_window_draw_list().add_image(imgui.ImTextureRef(self.texture.glo), origin, corner)
-        self.shown = ((int(origin.x), int(origin.y), int(corner.x), int(corner.y)), self.uploads)
+        draw = imgui.get_window_draw_list()
+        draw.add_image(imgui.ImTextureRef(self.texture.glo), origin, corner)
+        if alignment.box is not None:  # the box, in the photo's pixels scaled to the shown image
+            x0, y0, x1, y1 = (v * width / w for v in alignment.box)
+            draw.add_rect(imgui.ImVec2(origin.x + x0, origin.y + y0), imgui.ImVec2(origin.x + x1, origin.y + y1),
+                          imgui.get_color_u32(imgui.ImVec4(1.0, 0.85, 0.2, 1.0)), thickness=2.0)
+        self.shown = ((int(origin.x), int(origin.y), int(corner.x), int(corner.y)), (self.uploads, alignment.box))
 
     def _gestures(self) -> None:
         """Left-drag turns, Shift+left-drag shifts (screen pixels), the wheel zooms, over the last item."""
@@ -125,6 +151,18 @@ class PhotoPanel:
             steps = io.mouse_wheel
             if steps:
                 photo.adjust(lambda a: a.zoom(steps))
+
+    def _box_gesture(self, alignment: PhotoAlignment, origin: imgui.ImVec2, photo_per_pixel: float) -> None:
+        """Left-drag on the photo draws the object's box (in photo pixels): the search then takes what is outside
+        as background."""
+        mouse = imgui.get_io().mouse_pos
+        here = ((mouse.x - origin.x) * photo_per_pixel, (mouse.y - origin.y) * photo_per_pixel)
+        if imgui.is_item_activated():
+            self._box_start = here
+        if imgui.is_item_active() and self._box_start is not None:
+            alignment.set_box((*self._box_start, *here))
+        if imgui.is_item_deactivated():
+            self._box_start = None
 
     def _upload(self, alignment: PhotoAlignment, side: int) -> None:
         """Draw the overlay into the texture, when the pose, the shape or the size changed since the last time."""

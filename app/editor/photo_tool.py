@@ -87,7 +87,7 @@ class PhotoTool:
         mesh, initial = alignment.mesh, None if from_scratch else alignment.pose
 
         def work(_progress: Progress) -> Alignment:
-            return find_pose(mesh, alignment.rgb, alignment.alpha, initial=initial, path=alignment.path)
+            return find_pose(mesh, alignment.rgb, alignment.alpha, initial=initial, path=alignment.path, box=alignment.box)
 
         def done(found: Alignment) -> None:
             alignment.set_pose(found.pose)

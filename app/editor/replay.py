@@ -21,6 +21,7 @@ High-level actions call the same commands as the interface:
     {"action": "set_photo_pose", "rotation_deg": 30, "elevation_deg": 20, "translation": [x, z], "scale": [x, y, z]}
                                                               the pose fields (any of them)
     {"action": "color_from_photo"} {"action": "match_photo_view"}   one undo step each
+    {"action": "photo_box", "box": [x0, y0, x1, y1]}           the object's box in photo pixels (null clears it)
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
     {"action": "paint_color", "color": [r, g, b]}             the bucket's color
@@ -278,6 +279,7 @@ ACTIONS = {
     "shift_photo": _photo_gesture("shift", "dx", "dy"),
     "zoom_photo": _photo_gesture("zoom", "steps"),
     "set_photo_pose": _set_photo_pose,
+    "photo_box": lambda app, a: app.photo.alignment.set_box(None if a.get("box") is None else tuple(a["box"])),
     "color_from_photo": lambda app, a: app.photo.color_object(),
     "match_photo_view": lambda app, a: app.photo.match_view(),
     "screenshot": lambda app, a: app.screenshot(a["path"]),
