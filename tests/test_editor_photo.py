@@ -176,7 +176,7 @@ def test_a_box_drawn_on_the_photo_keeps_a_distractor_out_of_the_alignment(displa
 
 
 def test_in_box_mode_a_drag_on_the_photo_draws_the_box(display, tmp_path, chair_scene, model_file):
-    box_mode = [1022, 763]  # the "drag draws its box" radio button under the photo
+    box_mode = [922, 763]  # the "box" drag mode radio button under the photo
     run_editor(display, tmp_path, chair_scene, [
         {"action": "load_photo", "photo": str(chair_scene.parent / "photo.png")},
         *[{"action": "mouse_move", "pos": PHOTO_TAB}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
@@ -193,3 +193,29 @@ def test_in_box_mode_a_drag_on_the_photo_draws_the_box(display, tmp_path, chair_
     yellow = (image[..., 0] > 0.9) & (image[..., 1] > 0.75) & (image[..., 2] < 0.35)
     assert yellow[645:725, 865:945].sum() > 100  # the box's outline where the mouse went
     assert load_scene(tmp_path / "after.json").object.rotation_deg == START.rotation_deg  # the drag posed nothing
+
+
+def test_a_background_stroke_keeps_a_distractor_out_and_the_mask_shows_over_the_photo(display, tmp_path, chair_scene,
+                                                                                     model_file):
+    photo = np.asarray(Image.open(chair_scene.parent / "photo.png").convert("RGB")).copy()
+    photo[5:40, 2:22] = (np.array(CHAIR_BLUE) * 255).round()  # a second blue thing at the photo's left edge
+    Image.fromarray(photo).save(tmp_path / "cluttered.png")
+    run_editor(display, tmp_path, chair_scene, [
+        {"action": "mouse_move", "pos": PHOTO_TAB}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
+        {"action": "mouse_up", "button": 0},
+        {"action": "load_photo", "photo": str(tmp_path / "cluttered.png")},
+        *[{"action": "photo_stroke", "at": [12, y], "radius": 9, "kind": "background"} for y in (12, 22, 32)],
+        {"action": "show_photo_mask"},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "mask.png")},
+        {"action": "align_photo", "from_scratch": True},
+        {"action": "match_photo_view"},
+        {"action": "save", "path": str(tmp_path / "stroked.json")},
+    ], "--model", str(model_file))
+    aligned = load_scene(tmp_path / "stroked.json")
+    assert rotation_error_deg(aligned.object.rotation_deg, TRUTH.rotation_deg) < 3.0
+    image = pixels(tmp_path / "mask.png", PANELS.tools)
+    red = np.all(np.abs(image - np.array([0.95, 0.3, 0.2])) < 0.05, axis=-1)
+    assert red.sum() > 100  # the stroke over the distractor
+    darkened = np.all(np.abs(image - BACKDROP * 0.45) < 0.03, axis=-1)
+    assert darkened.sum() > 1000  # the segmented background, darkened

@@ -32,6 +32,7 @@ if TYPE_CHECKING:
 
 OVERLAY_SIDE = 320  # default long side of the overlay (the Photo tab asks for the size it shows)
 OUTLINE_COLOR = np.array([1.0, 0.2, 0.6])
+STROKE_OBJECT, STROKE_BACKGROUND = np.array([0.2, 0.9, 0.3]), np.array([0.95, 0.3, 0.2])
 TURN_DEG_PER_PIXEL = 0.5  # per pixel the mouse moves over the overlay as shown
 SHIFT_PER_PIXEL = 0.004  # object units per pixel the mouse moves over the overlay
 SCALE_PER_WHEEL_STEP = 1.05
@@ -58,6 +59,8 @@ class PhotoAlignment:
         self._shown_photos: dict[tuple[int, int], np.ndarray] = {}  # the photo resized for the overlay, by size
         self.revision = 0  # grows with every pose change, so the window knows when to redraw the overlay
         self.box: tuple[int, int, int, int] | None = None  # the user's box around the object (photo pixels), or None
+        self.strokes = np.zeros((h, w), np.int8)  # the user's strokes: 1 object, -1 background, 0 none
+        self.mask: np.ndarray | None = None  # the object's mask as segmented from the photo with these hints, to show
 
     def set_mesh(self, mesh: trimesh.Trimesh, key: object, silhouettes: SilhouetteRenderer | None = None) -> None:
         """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped.
@@ -90,6 +93,28 @@ class PhotoAlignment:
             y0, y1 = sorted((int(np.clip(box[1], 0, h)), int(np.clip(box[3], 0, h))))
             self.box = (x0, y0, x1, y1) if x1 - x0 >= 2 and y1 - y0 >= 2 else None
 
+    def stroke(self, x: float, y: float, radius: float, object_: bool) -> None:
+        """Paint a disc of `radius` photo pixels at (x, y) as surely object (or surely background)."""
+        h, w = self.strokes.shape
+        yy, xx = np.ogrid[0:h, 0:w]
+        self.strokes[(xx - x) ** 2 + (yy - y) ** 2 <= radius**2] = 1 if object_ else -1
+        self.mask = None  # segmented without these strokes
+        self.revision += 1
+
+    def clear_hints(self) -> None:
+        self.box, self.mask = None, None
+        self.strokes[:] = 0
+        self.revision += 1
+
+    def hints(self) -> dict:
+        """The user's hints as find_pose takes them (photo pixels)."""
+        return {"box": self.box, "object_strokes": self.strokes > 0 if (self.strokes > 0).any() else None,
+                "background_strokes": self.strokes < 0 if (self.strokes < 0).any() else None}
+
+    def set_mask(self, mask: np.ndarray | None) -> None:
+        self.mask = mask
+        self.revision += 1
+
     def set_pose(self, pose: PhotoPose) -> None:
         h, w = self.rgb.shape[:2]
         elevation = float(np.clip(pose.camera.elevation_deg, 0.0, MAX_ELEVATION_DEG))
@@ -117,6 +142,14 @@ class PhotoAlignment:
         factor = min(1.0, long_side / max(h, w))
         size = (max(1, round(w * factor)), max(1, round(h * factor)))
         shown = self._shown_photo(size)
+        if self.mask is not None or self.strokes.any():  # the segmentation and strokes, over the photo
+            shown = shown.copy()
+            if self.mask is not None:
+                segmented = _resized_mask(self.mask, size)
+                shown[~segmented] *= 0.45  # the background darkened: what stays bright is the object
+            strokes = np.asarray(Image.fromarray(self.strokes.astype(np.uint8) + 1).resize(size, Image.Resampling.NEAREST))
+            shown[strokes == 2] = STROKE_OBJECT
+            shown[strokes == 0] = STROKE_BACKGROUND
         if self._silhouettes is None:
             return shown
         mask = self._silhouettes.mask(self.pose.at_size(*size))
@@ -180,3 +213,7 @@ def _eroded(mask: np.ndarray) -> np.ndarray:
 
 def _wrap(angle_deg: float) -> float:
     return math.remainder(angle_deg, 360.0)
+
+
+def _resized_mask(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    return np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize(size, Image.Resampling.NEAREST)) > 127

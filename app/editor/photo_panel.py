@@ -33,6 +33,12 @@ MIN_IMAGE_HEIGHT = 120  # the photo fills the tab's height below the buttons, bu
 IMAGE_SHARE = 0.55  # ... and at most this share of its width: the pose fields stand beside it
 POSE_LABEL_WIDTH = 62  # room for the pose fields' labels
 DRAG_SIDE = 160  # long side of the overlay while a drag is under way
+STROKE_RADIUS = 0.02  # of the photo's shorter side
+DRAG_HINTS = {
+    "pose": "On the photo: drag turns the object, Shift+drag moves it, the wheel scales it",
+    "box": "On the photo: drag a box around the object; Align takes what is outside as background",
+    "strokes": "On the photo: paint where the object surely is (green); Shift: where the background is (red)",
+}
 Browse = Callable[[str, FileKind, str], None]  # draws a Browse button for a path field: (key, kind, field name)
 
 
@@ -53,7 +59,7 @@ class PhotoPanel:
         self._uploaded_for: tuple | None = None  # (alignment, its revision, overlay side) of the texture's image
         self._files_shown_for: PhotoAlignment | None = None  # the files section folds once when a photo is loaded
         self.shown: tuple[Box, tuple] | None = None  # where the overlay was drawn this frame, and its version
-        self.box_mode = False  # drags on the photo draw the object's box instead of posing it
+        self.drag_mode = "pose"  # what a drag on the photo does: "pose" the object, draw its "box", paint "strokes"
         self._box_start: tuple[float, float] | None = None  # photo pixels where the box drag began
 
     def draw(self, fields: PhotoFields, browse: Browse) -> None:
@@ -72,19 +78,22 @@ class PhotoPanel:
         self._drag_mode(alignment)
 
     def _drag_mode(self, alignment: PhotoAlignment) -> None:
-        """Whether a drag on the photo poses the object or draws its box (for a cluttered photo: outside is background)."""
-        if imgui.radio_button("drag poses the object", not self.box_mode):
-            self.box_mode = False
-        imgui.same_line()
-        if imgui.radio_button("drag draws its box", self.box_mode):
-            self.box_mode = True
-        if alignment.box is not None:
+        """What a drag on the photo does: pose the object, draw its box, or paint strokes (object; Shift:
+        background); and the segmentation these hints give, shown over the photo."""
+        for mode, label in (("pose", "pose"), ("box", "box"), ("strokes", "strokes")):
+            if imgui.radio_button(label, self.drag_mode == mode):
+                self.drag_mode = mode
+            if imgui.is_item_hovered():
+                imgui.set_tooltip(DRAG_HINTS[mode])
             imgui.same_line()
-            if imgui.small_button("clear box"):
-                alignment.set_box(None)
-        if imgui.is_item_hovered() or imgui.is_window_hovered():
-            imgui.set_item_tooltip("Outside the box is background for Align." if self.box_mode else
-                                   "On the photo: drag turns, Shift+drag moves, the wheel scales.")
+        if imgui.small_button("mask"):
+            self.app.photo.show_mask()
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Segment the photo with the box and strokes and show it: the background is darkened")
+        if alignment.box is not None or alignment.strokes.any() or alignment.mask is not None:
+            imgui.same_line()
+            if imgui.small_button("clear"):
+                alignment.clear_hints()
 
     def _files(self, fields: PhotoFields, browse: Browse) -> None:
         """Photo and camera file, and Load; folded away when a photo has just been loaded, to leave it the room."""
@@ -126,8 +135,10 @@ class PhotoPanel:
         height = max(1, round(width * h / w))
         origin = imgui.get_cursor_screen_pos()
         imgui.invisible_button("photo overlay", imgui.ImVec2(width, height))
-        if self.box_mode:
+        if self.drag_mode == "box":
             self._box_gesture(alignment, origin, w / width)
+        elif self.drag_mode == "strokes":
+            self._stroke_gesture(alignment, origin, w / width)
         else:
             self._gestures()
         self._upload(alignment, DRAG_SIDE if imgui.is_item_active() else max(width, height))
@@ -163,6 +174,14 @@ class PhotoPanel:
             alignment.set_box((*self._box_start, *here))
         if imgui.is_item_deactivated():
             self._box_start = None
+
+    def _stroke_gesture(self, alignment: PhotoAlignment, origin: imgui.ImVec2, photo_per_pixel: float) -> None:
+        """Left-drag paints where the object surely is; with Shift, where the background surely is."""
+        if imgui.is_item_active():
+            mouse, io = imgui.get_io().mouse_pos, imgui.get_io()
+            h, w = alignment.rgb.shape[:2]
+            alignment.stroke((mouse.x - origin.x) * photo_per_pixel, (mouse.y - origin.y) * photo_per_pixel,
+                             STROKE_RADIUS * min(h, w), object_=not io.key_shift)
 
     def _upload(self, alignment: PhotoAlignment, side: int) -> None:
         """Draw the overlay into the texture, when the pose, the shape or the size changed since the last time."""

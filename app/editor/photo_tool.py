@@ -21,7 +21,7 @@ from app.editor.jobs import BackgroundJob, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from app.editor.voxel_cache import VoxelCache
 from renderer.capture.align import Alignment
-from renderer.capture.capture import find_pose
+from renderer.capture.capture import find_pose, segment_photo
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.scene import Scene
 
@@ -87,7 +87,8 @@ class PhotoTool:
         mesh, initial = alignment.mesh, None if from_scratch else alignment.pose
 
         def work(_progress: Progress) -> Alignment:
-            return find_pose(mesh, alignment.rgb, alignment.alpha, initial=initial, path=alignment.path, box=alignment.box)
+            return find_pose(mesh, alignment.rgb, alignment.alpha, initial=initial, path=alignment.path,
+                             **alignment.hints())
 
         def done(found: Alignment) -> None:
             alignment.set_pose(found.pose)
@@ -115,6 +116,17 @@ class PhotoTool:
                 self.app.say(f"colored the object from {alignment.path.name}")
 
         self.app.start_job(f"Coloring from {alignment.path.name}", work, done)
+
+    def show_mask(self) -> None:
+        """Segment the photo with the box and strokes in the background and show the mask over it."""
+        alignment = self._needed()
+        if alignment is None:
+            return
+
+        def work(_progress: Progress):
+            return segment_photo(alignment.rgb, alignment.alpha, alignment.path, **alignment.hints())
+
+        self.app.start_job(f"Segmenting {alignment.path.name}", work, alignment.set_mask)
 
     def match_view(self) -> None:
         """Place the object and set the camera elevation as in the photo: one undo step."""

@@ -22,6 +22,8 @@ High-level actions call the same commands as the interface:
                                                               the pose fields (any of them)
     {"action": "color_from_photo"} {"action": "match_photo_view"}   one undo step each
     {"action": "photo_box", "box": [x0, y0, x1, y1]}           the object's box in photo pixels (null clears it)
+    {"action": "photo_stroke", "at": [x, y], "radius": 4, "kind": "background"}   a stroke ("object" or "background")
+    {"action": "show_photo_mask"}                             segment with the hints and show the mask
     {"action": "screenshot", "path": ...}                     {"action": "answer", "choice": "Restore"}
     {"action": "tool", "name": "paint"}                       {"action": "wait", "frames": 10}
     {"action": "paint_color", "color": [r, g, b]}             the bucket's color
@@ -280,6 +282,9 @@ ACTIONS = {
     "zoom_photo": _photo_gesture("zoom", "steps"),
     "set_photo_pose": _set_photo_pose,
     "photo_box": lambda app, a: app.photo.alignment.set_box(None if a.get("box") is None else tuple(a["box"])),
+    "photo_stroke": lambda app, a: app.photo.alignment.stroke(*a["at"], float(a.get("radius", 4)),
+                                                              object_=a.get("kind", "object") == "object"),
+    "show_photo_mask": lambda app, a: app.photo.show_mask(),
     "color_from_photo": lambda app, a: app.photo.color_object(),
     "match_photo_view": lambda app, a: app.photo.match_view(),
     "screenshot": lambda app, a: app.screenshot(a["path"]),

@@ -43,7 +43,8 @@ class Capture:
 
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
               initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False,
-              box: tuple[int, int, int, int] | None = None) -> Alignment:
+              box: tuple[int, int, int, int] | None = None, object_strokes: np.ndarray | None = None,
+              background_strokes: np.ndarray | None = None) -> Alignment:
     """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough
     pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is.
 
@@ -53,7 +54,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     sh, sw = small_rgb.shape[:2]
-    hints = Hints(box=None if box is None else tuple(round(v * sw / w) for v in box))
+    hints = photo_hints((sw, sh), (w, h), box, object_strokes, background_strokes)
     mask = object_mask(small_rgb, small_alpha, path, hints)
     start = None if initial is None else initial.at_size(sw, sh)
     silhouettes = SilhouetteRenderer(mesh)
@@ -67,6 +68,31 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
         alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
         rays, seconds = rays + alignment.rays, seconds + alignment.seconds
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds)
+
+
+def photo_hints(small: tuple[int, int], full: tuple[int, int], box=None, object_strokes=None,
+                background_strokes=None) -> Hints:
+    """The user's box and strokes (photo pixels) at the segmentation's size `small` (width, height)."""
+    (sw, sh), (w, _) = small, full
+
+    def shrunk(strokes: np.ndarray | None) -> np.ndarray | None:
+        if strokes is None:
+            return None
+        pooled = Image.fromarray(np.asarray(strokes, dtype=np.float32)).resize((sw, sh), Image.Resampling.BOX)
+        return np.asarray(pooled) > 0.25  # a pixel mostly stroked keeps the stroke
+
+    return Hints(box=None if box is None else tuple(round(v * sw / w) for v in box),
+                 object_strokes=shrunk(object_strokes), background_strokes=shrunk(background_strokes))
+
+
+def segment_photo(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None,
+                  **hints) -> np.ndarray:
+    """The object's mask at the photo's size, segmented at SEGMENT_SIDE with the user's hints (box, strokes)."""
+    h, w = photo_rgb.shape[:2]
+    small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
+    sh, sw = small_rgb.shape[:2]
+    mask = object_mask(small_rgb, small_alpha, path, photo_hints((sw, sh), (w, h), **hints))
+    return np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize((w, h), Image.Resampling.NEAREST)) > 127
 
 
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
