@@ -76,3 +76,4 @@ def test_a_silhouette_prior_is_taken_as_the_probable_object():
     rough = np.zeros_like(truth)
     rough[48:97, 58:102] = True  # a pose a little off: slightly larger than the object
     assert silhouette_iou(grabcut_mask(photo, Hints(prior=rough)), truth) > 0.9
+

@@ -52,6 +52,7 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         raise InputError("the hints leave no room for object or for background", path)
     image = np.ascontiguousarray(np.round(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)[..., ::-1])  # OpenCV: BGR
     background_model, object_model = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+    cv2.setRNGSeed(0)  # GrabCut's color models start from OpenCV's global random state: fix it, same photo same mask
     try:
         cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:
