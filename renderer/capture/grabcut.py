@@ -57,7 +57,7 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:
         raise InputError("cannot tell the object from the background (one of them has no colors to model)", path) from None
-    shadow = _shadow_pixels(rgb, labels)
+    shadow = shadow_pixels(rgb, labels)
     if shadow.any():  # the floor in shadow is background: cut again with it as such
         labels[shadow] = cv2.GC_BGD
         try:
@@ -110,7 +110,7 @@ def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
     return labels
 
 
-def _shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+def shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
     """Pixels taken as probable object that look like the background of their row in shadow: the same
     chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST (rows whose background is nearly grey are
     left alone). A floor's shadow is floor; what the user or a pose said is object (sure labels) is never

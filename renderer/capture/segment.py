@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-from renderer.capture.grabcut import Hints, grabcut_mask
+from renderer.capture.grabcut import Hints, grabcut_mask, shadow_pixels
 from renderer.errors import InputError
 
 BORDER_FRACTION = 0.04  # width of the border band, as a fraction of the shorter side
@@ -29,6 +29,7 @@ MIN_OBJECT_FRACTION = 0.002  # of the image: less than this is nothing
 MAX_OBJECT_FRACTION = 0.9
 SPECK_FRACTION = 0.0005  # components smaller than this share of the image are noise
 OPAQUE = 0.5  # alpha at or above this is object
+SHADOW_SHARE = 0.05  # of the pixels that differ from a plain backdrop: more shadow-like ones than this mean a lit floor
 
 
 def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None,
@@ -45,7 +46,7 @@ def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Pa
             raise InputError("the photo's alpha channel is fully transparent: there is no object in it", path)
         return mask
     hints = hints or Hints()
-    told = hints.box is not None or hints.prior is not None or hints.object_strokes is not None
+    told = any(h is not None for h in (hints.box, hints.prior, hints.object_strokes, hints.background_strokes))
     rgb = np.asarray(rgb, dtype=np.float64)
     try:
         rough = _differs_from_background(rgb, path)
@@ -56,10 +57,21 @@ def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Pa
             raise InputError("found no object: the photo looks like plain background", path)
         if rough.mean() > MAX_OBJECT_FRACTION:
             raise InputError("the object fills the photo; give it an alpha channel (transparent background)", path)
+        if not _has_shadow_side(rgb, rough):
+            return rough  # a plain backdrop: what differs from it is the object, to the pixel
     mask = grabcut_mask(rgb, replace(hints, rough=None if told else rough), path)
     if mask.mean() > MAX_OBJECT_FRACTION:
         raise InputError("the object fills the photo; draw a box around it or give it an alpha channel", path)
     return mask
+
+
+def _has_shadow_side(rgb: np.ndarray, rough: np.ndarray) -> bool:
+    """Whether a good part (SHADOW_SHARE) of what differs from the backdrop looks like the backdrop in shadow:
+    then the backdrop is a lit floor, and GrabCut must separate object from shadow; else the difference is the object."""
+    import cv2
+
+    labels = np.where(rough, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
+    return shadow_pixels(rgb, labels).sum() > SHADOW_SHARE * rough.sum()
 
 
 def _differs_from_background(rgb: np.ndarray, path: str | Path | None) -> np.ndarray:
