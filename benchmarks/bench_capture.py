@@ -4,7 +4,7 @@ Each photo is a generated test object (chairs and sofas: furniture whose rotatio
 can tell; round stools and square tables look the same at several rotations) path traced from a
 random view: rotation in [-180, 180), elevation, floor position and scale over the training
 ranges, a random light. Three kinds of photo, in turn:
-    studio   no floor, plain ambient backdrop, no alpha: GrabCut from the border's guess
+    studio   no floor, plain ambient backdrop, no alpha: what differs from the border (GrabCut where it looks like shadow)
     cutout   the usual floor scene with an alpha channel cut along the object's true silhouette
     floor    the usual floor scene, no alpha: GrabCut must cope with floor, sky, shadow and reflection
     real     the object cut out over a real photograph (scikit-image's samples), blurred, noisy, JPEG
@@ -209,8 +209,8 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         f"on {datetime.date.today()}, {platform.machine()} with {os.cpu_count()} cores; {note}.",
         "Photos: generated test-split chairs and sofas (default and textured appearance), path traced at "
         f"{args.size}^2 with {args.spp} spp + OIDN from random views (rotation in [-180, 180), elevation, floor "
-        "position and scale over the training ranges). Styles: `studio` (no floor, no alpha: GrabCut from the "
-        "border's guess), `cutout` (floor scene with an alpha channel along the true silhouette), `floor` (floor scene, "
+        "position and scale over the training ranges). Styles: `studio` (no floor, no alpha: what differs from the plain border, "
+        "GrabCut where that looks like shadow), `cutout` (floor scene with an alpha channel along the true silhouette), `floor` (floor scene, "
         "no alpha: GrabCut, then again from the found pose's silhouette), `real` (the object cut out along its "
         "silhouette over a crop of one of scikit-image's sample photographs, blurred by 0.6 px, noise of 0.015, "
         "JPEG quality 75, no alpha). Starts: `none` (no pose) and `perturbed` (true pose off by up to 30 degrees in rotation and "
