@@ -234,8 +234,6 @@ def cmd_turntable(args: argparse.Namespace) -> None:
     config = TurntableConfig(frames=args.frames, sweep=args.sweep, renderer=args.renderer, size=args.size,
                              spp=args.spp, model=args.model)
     config.check()
-    if args.size is not None and not MIN_IMAGE_SIZE <= args.size <= MAX_IMAGE_SIZE:
-        raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
     out = Path(args.output)
     if out.suffix.lower() == ".gif":
         _output_path(args.output, args.force)

@@ -19,6 +19,7 @@ from PIL import Image
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
+from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import LightSpec, Scene
 
@@ -45,6 +46,8 @@ class TurntableConfig:
             raise InputError(f"--sweep must be one of {', '.join(SWEEPS)}, got {self.sweep!r}")
         if self.renderer not in RENDERERS:
             raise InputError(f"--renderer must be one of {', '.join(RENDERERS)}, got {self.renderer!r}")
+        if self.size is not None and not MIN_IMAGE_SIZE <= self.size <= MAX_IMAGE_SIZE:
+            raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {self.size}")
 
 
 def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:

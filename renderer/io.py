@@ -23,7 +23,6 @@ from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.limits import (
     MAX_JSON_BYTES,
-    MAX_JSON_DEPTH,
     MAX_NAME_BYTES,
     MAX_NUMBER_DIGITS,
     MAX_PATH_CHARACTERS,
@@ -98,8 +97,8 @@ def remove_stale_temporaries(folder: str | Path) -> int:
 def load_json(path: str | Path, max_bytes: int = MAX_JSON_BYTES) -> Any:
     """Read a JSON file; missing, unreadable, malformed or oversized files raise InputError naming the problem.
 
-    Sizes, nesting and number lengths are bounded (renderer/limits.py) so that no file can exhaust memory
-    or the interpreter's stack; NaN and Infinity, which JSON does not have, are refused.
+    Sizes and number lengths are bounded (renderer/limits.py) and nesting by the interpreter's recursion
+    limit (about 1000 levels), so that no file can exhaust memory or the stack; NaN and Infinity, which JSON does not have, are refused.
     """
     path = Path(path)
     try:
@@ -123,11 +122,9 @@ def parse_json(text: str, path: str | Path | None = None) -> Any:
     except json.JSONDecodeError as exc:
         raise InputError(f"broken JSON at line {exc.lineno} column {exc.colno}: {exc.msg}", path) from None
     except RecursionError:
-        raise InputError(f"JSON nested too deeply (at most {MAX_JSON_DEPTH} levels)", path) from None
+        raise InputError("JSON nested too deeply", path) from None
     except ValueError as exc:  # raised by the hooks below
         raise InputError(str(exc), path) from None
-    if _depth(data) > MAX_JSON_DEPTH:
-        raise InputError(f"JSON nested too deeply (at most {MAX_JSON_DEPTH} levels)", path)
     return data
 
 
@@ -145,18 +142,6 @@ def _bounded_float(text: str) -> float:
 
 def _no_constant(name: str) -> float:
     raise ValueError(f"{name} is not a JSON number")
-
-
-def _depth(value: Any) -> int:
-    """How deeply lists and objects nest (a number is 0, [1] is 1)."""
-    depth, level = 0, [value]
-    while level:
-        depth += 1
-        level = [v for item in level if isinstance(item, (list, dict))
-                 for v in (item.values() if isinstance(item, dict) else item)]
-        if depth > MAX_JSON_DEPTH + 1:
-            break
-    return depth - 1
 
 
 def check_path_text(text: str) -> str | None:

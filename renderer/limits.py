@@ -26,7 +26,6 @@ MAX_MESH_FACES = 5_000_000
 # about 1 MB), data set manifests (20,000 samples are about 15 MB), object voxel files (a 256^3 grid
 # compressed), weight files (the paper's 79 M-parameter network is 316 MB in float32).
 MAX_JSON_BYTES = 64 * 2**20
-MAX_JSON_DEPTH = 64  # a scene file nests 3 deep; a manifest 5
 MAX_NUMBER_DIGITS = 50  # no valid number needs more digits (a float has 17 significant ones)
 MAX_VOXEL_FILE_BYTES = 300 * 2**20
 MAX_WEIGHT_PARAMETERS = 200_000_000

@@ -28,6 +28,7 @@ class MeshHeader:
 
     vertices: int | None = None
     faces: int | None = None
+    least_bytes: int = 0  # the fewest bytes a file holding those counts can have
 
 
 def check_mesh_file(path: Path) -> MeshHeader:
@@ -41,9 +42,9 @@ def check_mesh_file(path: Path) -> MeshHeader:
     with open(path, "rb") as f:
         head = f.read(HEADER_BYTES)
     if suffix == ".ply":
-        header = _ply_header(head, size, path)
+        header = _ply_header(head, path)
     elif suffix == ".off":
-        header = _off_header(head, size, path)
+        header = _off_header(head, path)
     elif suffix == ".stl":
         header = _stl_header(head, size)
     elif suffix == ".glb":
@@ -52,11 +53,16 @@ def check_mesh_file(path: Path) -> MeshHeader:
         header = _gltf_header(size, path)
     else:
         header = MeshHeader()
-    _check_counts_fit(header, path)
+    for count, limit, what in ((header.vertices, MAX_MESH_VERTICES, "vertices"), (header.faces, MAX_MESH_FACES, "faces")):
+        if count is not None and count > limit:
+            raise InputError(f"header claims {count:,} {what}; meshes are read up to {limit:,}", path)
+    if header.least_bytes > size:
+        raise InputError(f"file is cut: its header promises at least {header.least_bytes:,} bytes, the file has {size:,}",
+                         path)
     return header
 
 
-def _ply_header(head: bytes, size: int, path: Path) -> MeshHeader:
+def _ply_header(head: bytes, path: Path) -> MeshHeader:
     end = head.find(b"end_header")
     if not head.startswith(b"ply") or end < 0:
         raise InputError("not a PLY file (no 'ply' ... 'end_header' header)", path)
@@ -81,18 +87,13 @@ def _ply_header(head: bytes, size: int, path: Path) -> MeshHeader:
             else:
                 element[2] += PLY_TYPE_BYTES.get(words[1], 1)
     counts = {name: count for name, count, *_ in elements}
-    header = MeshHeader(counts.get("vertex"), counts.get("face"))
-    _check_counts_fit(header, path)
     # The least a body can hold: binary rows of fixed-size properties (lists at least their count),
     # text rows of at least one character and a separator per property.
     least = sum(count * ((fixed + lists) if binary else 2 * max(props, 1)) for _, count, fixed, lists, props in elements)
-    if body_start + least > size:
-        raise InputError(f"file is cut: its header promises at least {body_start + least:,} bytes, "
-                         f"the file has {size:,}", path)
-    return header
+    return MeshHeader(counts.get("vertex"), counts.get("face"), body_start + least)
 
 
-def _off_header(head: bytes, size: int, path: Path) -> MeshHeader:
+def _off_header(head: bytes, path: Path) -> MeshHeader:
     words = []
     for line in head.decode("ascii", "replace").splitlines():
         line = line.split("#", 1)[0].strip()
@@ -108,13 +109,7 @@ def _off_header(head: bytes, size: int, path: Path) -> MeshHeader:
         raise InputError("OFF header has no vertex and face counts", path) from None
     if vertices < 0 or faces < 0:
         raise InputError(f"OFF header has negative counts ({vertices}, {faces})", path)
-    header = MeshHeader(vertices, faces)
-    _check_counts_fit(header, path)
-    least = 6 * vertices + 8 * faces  # "0 0 0\n" and "3 0 1 2\n"
-    if least > size:
-        raise InputError(f"file is cut: its header promises {vertices:,} vertices and {faces:,} faces "
-                         f"(at least {least:,} bytes), the file has {size:,}", path)
-    return header
+    return MeshHeader(vertices, faces, 6 * vertices + 8 * faces)  # "0 0 0\n" and "3 0 1 2\n"
 
 
 def _stl_header(head: bytes, size: int) -> MeshHeader:
@@ -152,8 +147,3 @@ def _gltf_header(size: int, path: Path) -> MeshHeader:
             raise InputError(f"buffers[{i}].byteLength {length!r} is not a size up to {MAX_MESH_FILE_BYTES:,} bytes", path)
     return MeshHeader()
 
-
-def _check_counts_fit(header: MeshHeader, path: Path) -> None:
-    for count, limit, what in ((header.vertices, MAX_MESH_VERTICES, "vertices"), (header.faces, MAX_MESH_FACES, "faces")):
-        if count is not None and count > limit:
-            raise InputError(f"header claims {count:,} {what}; meshes are read up to {limit:,}", path)

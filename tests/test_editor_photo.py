@@ -9,6 +9,7 @@ Each test runs `nvr-editor --frames ... --replay ...` and checks the scene files
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,7 +23,7 @@ from renderer.objects import generate_object
 from renderer.pipeline import object_voxels
 from renderer.scene import CameraSpec, ObjectSpec, Scene, load_scene, save_scene
 from tests import test_editor
-from tests.test_editor import PANELS, pixels, run_editor
+from tests.test_editor import PANELS, _click, pixels, run_editor
 
 model_file = test_editor.model_file  # the window tests' tiny NVR+ (the Xvfb display comes from conftest.py)
 
@@ -156,15 +157,21 @@ def test_dragging_on_the_photo_turns_shift_drag_moves_and_the_wheel_scales(displ
 
 
 
-def test_a_box_drawn_on_the_photo_keeps_a_distractor_out_of_the_alignment(display, tmp_path, chair_scene, model_file):
+def cluttered_photo(chair_scene: Path, folder: Path) -> Path:
+    """The chair's photo with a second blue thing at its left edge, written into `folder`."""
     photo = np.asarray(Image.open(chair_scene.parent / "photo.png").convert("RGB")).copy()
-    photo[5:40, 2:22] = (np.array(CHAIR_BLUE) * 255).round()  # a second blue thing at the photo's left edge
-    Image.fromarray(photo).save(tmp_path / "cluttered.png")
+    photo[5:40, 2:22] = (np.array(CHAIR_BLUE) * 255).round()
+    Image.fromarray(photo).save(folder / "cluttered.png")
+    return folder / "cluttered.png"
+
+
+def test_a_box_drawn_on_the_photo_keeps_a_distractor_out_of_the_alignment(display, tmp_path, chair_scene, model_file):
+    cluttered = cluttered_photo(chair_scene, tmp_path)
     mask = SilhouetteRenderer(generate_object("chair", 8).mesh).mask(TRUTH)
     ys, xs = np.nonzero(mask)
     box = [int(xs.min()) - 4, int(ys.min()) - 4, int(xs.max()) + 5, int(ys.max()) + 5]
     run_editor(display, tmp_path, chair_scene, [
-        {"action": "load_photo", "photo": str(tmp_path / "cluttered.png")},
+        {"action": "load_photo", "photo": str(cluttered)},
         {"action": "photo_box", "box": box},
         {"action": "align_photo", "from_scratch": True},
         {"action": "match_photo_view"},
@@ -179,10 +186,8 @@ def test_in_box_mode_a_drag_on_the_photo_draws_the_box(display, tmp_path, chair_
     box_mode = [922, 763]  # the "box" drag mode radio button under the photo
     run_editor(display, tmp_path, chair_scene, [
         {"action": "load_photo", "photo": str(chair_scene.parent / "photo.png")},
-        *[{"action": "mouse_move", "pos": PHOTO_TAB}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
-          {"action": "mouse_up", "button": 0}],
-        {"action": "mouse_move", "pos": box_mode}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
-        {"action": "mouse_up", "button": 0},
+        *_click(PHOTO_TAB),
+        *_click(box_mode),
         {"action": "mouse_move", "pos": [870, 650]}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
         {"action": "mouse_move", "pos": [940, 720]}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
         {"action": "wait", "frames": 3},
@@ -197,13 +202,10 @@ def test_in_box_mode_a_drag_on_the_photo_draws_the_box(display, tmp_path, chair_
 
 def test_a_background_stroke_keeps_a_distractor_out_and_the_mask_shows_over_the_photo(display, tmp_path, chair_scene,
                                                                                      model_file):
-    photo = np.asarray(Image.open(chair_scene.parent / "photo.png").convert("RGB")).copy()
-    photo[5:40, 2:22] = (np.array(CHAIR_BLUE) * 255).round()  # a second blue thing at the photo's left edge
-    Image.fromarray(photo).save(tmp_path / "cluttered.png")
+    cluttered = cluttered_photo(chair_scene, tmp_path)
     run_editor(display, tmp_path, chair_scene, [
-        {"action": "mouse_move", "pos": PHOTO_TAB}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
-        {"action": "mouse_up", "button": 0},
-        {"action": "load_photo", "photo": str(tmp_path / "cluttered.png")},
+        *_click(PHOTO_TAB),
+        {"action": "load_photo", "photo": str(cluttered)},
         *[{"action": "photo_stroke", "at": [12, y], "radius": 9, "kind": "background"} for y in (12, 22, 32)],
         {"action": "show_photo_mask"},
         {"action": "wait", "frames": 3},

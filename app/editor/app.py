@@ -39,6 +39,11 @@ REFERENCE_SPP = 64  # with OIDN: the project's reference quality (docs/pathtrace
 SHIPPED_ASSETS = Path(__file__).resolve().parents[2] / "assets"  # the demo scene and models: Save writes elsewhere
 
 
+def shipped(path: str | Path | None) -> bool:
+    """Whether `path` is one of the files that ship with NVR Studio (never saved over, nor exported beside)."""
+    return path is not None and Path(path).resolve().is_relative_to(SHIPPED_ASSETS)
+
+
 def new_scene() -> Scene:
     """What File > New starts from: the demo chair (by absolute path) in the default set-up, no file yet."""
     return Scene(object=ObjectSpec(mesh=str(SHIPPED_ASSETS / "demo" / "chair.obj"), rotation_deg=30.0))
@@ -151,6 +156,7 @@ class EditorApp:
         self.unloadable_source = None  # the object (mesh or voxels file) that failed to load, if any
         self.reference: Reference | None = None  # the last reference render, and its texture
         self.reference_texture = None
+        self._reference_error: tuple = (None, None, None)  # (frame, reference, their MSE)
         self._offer_recovery()
 
     @property
@@ -256,11 +262,7 @@ class EditorApp:
 
     def open_scene(self, path: str | Path) -> None:
         """Open a scene file, asking first when the current one has unsaved changes."""
-        def go(choice: str = "Discard") -> None:
-            if choice == "Save" and not self.save():
-                return
-            if choice == "Cancel":
-                return
+        def go() -> None:
             try:
                 self._replace_document(Document.open(path))
             except InputError as exc:
@@ -269,26 +271,28 @@ class EditorApp:
             state.remember_scene(path)
             self.say(f"opened {path}")
 
-        if self.doc.dirty:
-            choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
-            self.ask("Unsaved changes", "Save the current scene before opening another?", choices, go)
-        else:
-            go()
+        self._replace_after_asking("Save the current scene before opening another?", go)
 
     def new_scene(self) -> None:
         """Start a new, unsaved scene with the demo chair (asking first about unsaved changes)."""
-        def go(choice: str = "Discard") -> None:
-            if choice == "Save" and not self.save():
+        def go() -> None:
+            self._replace_document(Document(new_scene(), None))
+            self.say("new scene: load a mesh in the Object tab, or import a .vox")
+
+        self._replace_after_asking("Save the current scene before starting a new one?", go)
+
+    def _replace_after_asking(self, question: str, replace_document: Callable[[], None]) -> None:
+        """Run `replace_document`, first asking whether to save unsaved changes (Save, Discard or Cancel)."""
+        def choose(choice: str) -> None:
+            if choice == "Cancel" or (choice == "Save" and not self.save()):
                 return
-            if choice != "Cancel":
-                self._replace_document(Document(new_scene(), None))
-                self.say("new scene: load a mesh in the Object tab, or import a .vox")
+            replace_document()
 
         if self.doc.dirty:
             choices = ("Save", "Discard", "Cancel") if self.doc.path else ("Discard", "Cancel")
-            self.ask("Unsaved changes", "Save the current scene before starting a new one?", choices, go)
+            self.ask("Unsaved changes", question, choices, choose)
         else:
-            go()
+            replace_document()
 
     def save(self, path: str | Path | None = None, overwrite: bool = False) -> bool:
         """Write the scene (atomically) to `path` or to the file it came from; asks before replacing another file."""
@@ -297,13 +301,13 @@ class EditorApp:
             self.say("choose a file name to save to (File tab)", error=True)
             self.requested_tab = "File"
             return False
-        if path is None and target.resolve().is_relative_to(SHIPPED_ASSETS):
+        if path is None and shipped(target):
             self.say(f"{target.name} ships with NVR Studio and is not saved over: choose a file name (File tab, Save as)",
                      error=True)
             self.requested_tab = "File"
             return False
         own_file = (self.doc.path is not None and target.resolve() == self.doc.path.resolve()
-                    and not target.resolve().is_relative_to(SHIPPED_ASSETS))  # a shipped file: ask before replacing
+                    and not shipped(target))  # a shipped file: ask before replacing
 
         def write() -> str:
             self.doc.cancel_preview()
@@ -351,11 +355,17 @@ class EditorApp:
 
         return self._write_file(path, overwrite, write)
 
-    def _write_file(self, path: str | Path, overwrite: bool, write: Callable[[], str]) -> bool:
-        """Run `write` (it returns the message to show), asking first whether to replace `path` if it exists."""
+    def _may_replace(self, path: str | Path, overwrite: bool, again: Callable[[], object]) -> bool:
+        """Whether `path` may be written now; if it exists (and `overwrite` is not set) ask, and on Replace run `again`."""
         if Path(path).exists() and not overwrite:
             self.ask("Replace the file?", f"{path} exists. Replace it?", ("Replace", "Cancel"),
-                     lambda choice: choice == "Replace" and self._write_file(path, True, write))
+                     lambda choice: choice == "Replace" and again())
+            return False
+        return True
+
+    def _write_file(self, path: str | Path, overwrite: bool, write: Callable[[], str]) -> bool:
+        """Run `write` (it returns the message to show), asking first whether to replace `path` if it exists."""
+        if not self._may_replace(path, overwrite, lambda: self._write_file(path, True, write)):
             return False
         try:
             message = write()
@@ -397,9 +407,8 @@ class EditorApp:
         from app.turntable import TurntableConfig, render_turntable, write_frames
 
         target = Path(path)
-        if target.suffix.lower() == ".gif" and target.exists() and not overwrite:
-            self.ask("Replace the file?", f"{path} exists. Replace it?", ("Replace", "Cancel"),
-                     lambda choice: choice == "Replace" and self.export_turntable(path, frames, sweep, overwrite=True))
+        overwrite = overwrite or target.suffix.lower() != ".gif"  # a folder of frames is written into, not replaced
+        if not self._may_replace(target, overwrite, lambda: self.export_turntable(path, frames, sweep, overwrite=True)):
             return False
         config = TurntableConfig(frames=frames, sweep=sweep, renderer=self.live.renderer, model=self.live.model_path)
         scene = self.doc.history.current
@@ -436,13 +445,15 @@ class EditorApp:
         self.start_job("Path tracing the reference", work, done)
 
     def reference_error(self) -> float | None:
-        """MSE (0-255 scale) between the shown render and the reference, when both show the same scene at one size."""
+        """MSE (0-255 scale) between the shown render and the reference, when both show the same scene at one size;
+        computed once per pair (the panel asks every frame)."""
         frame, reference = self.shown_frame, self.reference
-        if frame is None or reference is None or frame.scene != reference.scene or frame.preview:
-            return None
-        if frame.image.shape != reference.image.shape:
-            return None
-        return float(np.mean((frame.image.astype(np.float64) - reference.image) ** 2) * 255.0**2)
+        if self._reference_error[0] is not frame or self._reference_error[1] is not reference:
+            same = (frame is not None and reference is not None and not frame.preview and frame.scene == reference.scene
+                    and frame.image.shape == reference.image.shape)
+            error = float(np.mean((frame.image.astype(np.float64) - reference.image) ** 2) * 255.0**2) if same else None
+            self._reference_error = (frame, reference, error)
+        return self._reference_error[2]
 
     def screenshot(self, path: str | Path) -> None:
         """Save the whole window at the end of this frame."""

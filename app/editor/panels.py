@@ -14,7 +14,7 @@ import numpy as np
 from imgui_bundle import imgui
 
 from app.editor import edits, state
-from app.editor.app import MESSAGE_SECONDS, PALETTE, SHIPPED_ASSETS, EditorApp
+from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp, shipped
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
@@ -40,9 +40,9 @@ NEW_GIF_FILE = FileKind("Export the turntable as", "GIF animations", ("*.gif",),
 VOX_FILES = FileKind("Import a MagicaVoxel model", "MagicaVoxel models", ("*.vox",))
 NEW_VOX_FILE = FileKind("Export the voxels as", "MagicaVoxel models", ("*.vox",), save=True)
 EXPORT_SIZES = (None, 512, 1024, 2048)  # None: the scene's size (the networks' native 256)
-RATE_REFRESH_SECONDS = 0.5
+RATE_REFRESH_SECONDS = 0.5  # the frame-time text changes at most this often: a window that looks the same is not redrawn
 PREVIEW_DELAY_SECONDS = 0.15  # the bucket rests this long on a voxel before its region is tinted
-PREVIEW_MIX = 0.6  # how far the tint goes towards the paint color  # the frame-rate text changes at most this often: a window that looks the same is not redrawn
+PREVIEW_MIX = 0.6  # how far the tint goes towards the paint color
 
 
 @dataclass
@@ -230,7 +230,7 @@ class Interface:
         if wanted != self._hover[0]:
             self._hover = (wanted, now)
         target = wanted if wanted is not None and now - self._hover[1] >= PREVIEW_DELAY_SECONDS else None
-        if target == self._preview_key or (target is None and self._preview_key is None):
+        if target == self._preview_key:
             return
         if target is None:
             if rgba is not None:
@@ -565,7 +565,7 @@ def _range_note(scene, position: imgui.ImVec2) -> None:
 def _output_folder(path: Path | None) -> Path:
     """Where exports go by default: beside the scene file, or the working folder for a scene shipped with the
     product (or none)."""
-    if path is None or path.resolve().is_relative_to(SHIPPED_ASSETS):
+    if path is None or shipped(path):
         return Path(".")
     return path.parent
 
@@ -575,4 +575,4 @@ def _save_as_default(path: Path | None) -> Path:
     (or none) a file of that name in the working folder."""
     if path is None:
         return Path("scene.json")
-    return Path(path.name) if path.resolve().is_relative_to(SHIPPED_ASSETS) else path
+    return Path(path.name) if shipped(path) else path

@@ -18,7 +18,7 @@ import trimesh
 from PIL import Image
 
 from renderer.camera import Camera
-from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance
+from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance, mask_at_size
 from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
@@ -96,8 +96,12 @@ class PhotoAlignment:
     def stroke(self, x: float, y: float, radius: float, object_: bool) -> None:
         """Paint a disc of `radius` photo pixels at (x, y) as surely object (or surely background)."""
         h, w = self.strokes.shape
-        yy, xx = np.ogrid[0:h, 0:w]
-        self.strokes[(xx - x) ** 2 + (yy - y) ** 2 <= radius**2] = 1 if object_ else -1
+        x0, x1 = max(0, int(x - radius)), min(w, int(x + radius) + 1)  # only the disc's square: a drag paints
+        y0, y1 = max(0, int(y - radius)), min(h, int(y + radius) + 1)  # every frame, on photos of millions of pixels
+        if x0 >= x1 or y0 >= y1:
+            return
+        yy, xx = np.ogrid[y0:y1, x0:x1]
+        self.strokes[y0:y1, x0:x1][(xx - x) ** 2 + (yy - y) ** 2 <= radius**2] = 1 if object_ else -1
         self.mask = None  # segmented without these strokes
         self.revision += 1
 
@@ -145,7 +149,7 @@ class PhotoAlignment:
         if self.mask is not None or self.strokes.any():  # the segmentation and strokes, over the photo
             shown = shown.copy()
             if self.mask is not None:
-                segmented = _resized_mask(self.mask, size)
+                segmented = mask_at_size(self.mask, size)
                 shown[~segmented] *= 0.45  # the background darkened: what stays bright is the object
             strokes = np.asarray(Image.fromarray(self.strokes.astype(np.uint8) + 1).resize(size, Image.Resampling.NEAREST))
             shown[strokes == 2] = STROKE_OBJECT
@@ -214,6 +218,3 @@ def _eroded(mask: np.ndarray) -> np.ndarray:
 def _wrap(angle_deg: float) -> float:
     return math.remainder(angle_deg, 360.0)
 
-
-def _resized_mask(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    return np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize(size, Image.Resampling.NEAREST)) > 127

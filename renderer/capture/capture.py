@@ -27,8 +27,8 @@ from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
-SEGMENT_SIDE = 320
-SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement  # long side at which the photo is segmented and aligned (the colors use the full photo)
+SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
+SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,12 @@ def segment_photo(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path: 
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     sh, sw = small_rgb.shape[:2]
     mask = object_mask(small_rgb, small_alpha, path, photo_hints((sw, sh), (w, h), **hints))
-    return np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize((w, h), Image.Resampling.NEAREST)) > 127
+    return mask_at_size(mask, (w, h))
+
+
+def mask_at_size(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """A (H, W) bool mask resized to `size` (width, height), nearest pixel."""
+    return np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize(size, Image.Resampling.NEAREST)) > 127
 
 
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
@@ -131,13 +136,11 @@ def trusted_pixels(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path:
     the photo's shorter side from the mask's edge, where a pose a pixel off or a soft edge would mix in the
     background. None when the photo cannot be segmented: then every pixel counts, as before segmentation."""
     h, w = photo_rgb.shape[:2]
-    small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     try:
-        mask = object_mask(small_rgb, small_alpha, path)
+        mask = segment_photo(photo_rgb, alpha, path)
     except InputError:
         return None
-    full = np.asarray(Image.fromarray(mask.astype(np.uint8) * 255).resize((w, h), Image.Resampling.NEAREST)) > 127
-    return ndimage.distance_transform_edt(full) > max(1.0, TRUST_MARGIN * min(h, w))
+    return ndimage.distance_transform_edt(mask) > max(1.0, TRUST_MARGIN * min(h, w))
 
 
 def _downscale(rgb: np.ndarray, alpha: np.ndarray | None, long_side: int) -> tuple[np.ndarray, np.ndarray | None]:

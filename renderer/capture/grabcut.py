@@ -3,8 +3,8 @@ background fitted by graph cuts, started from what is known.
 
 What is known, strongest first: the user's strokes (sure object, sure background); the object's
 silhouette at a pose already found (eroded: sure object; itself: probable object; elsewhere
-probable background); the user's box (outside: sure background); the photo's border (background,
-unless the object is said to touch it). GrabCut's background model is a mixture of several colors, so
+probable background); the user's box (outside: sure background); the photo's border (background
+where nothing says object). GrabCut's background model is a mixture of several colors, so
 a floor and a sky behind the object are two background regions, not one; a shadow is floor, darker.
 The field's standard tool is used rather than a hand-made color model: it is what the photo's
 clutter needs, and it is maintained (opencv-python-headless).
@@ -66,7 +66,7 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
             pass  # the first cut stands, without the shadow
         labels[shadow] = cv2.GC_BGD
     mask = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
-    mask = _without_specks(mask)
+    mask = without_specks(mask, SPECK_FRACTION)
     if mask.mean() < MIN_OBJECT_FRACTION:
         raise InputError("found no object: nothing in the photo separates from the background", path)
     return mask
@@ -140,12 +140,13 @@ def shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
     return shadow
 
 
-def _without_specks(mask: np.ndarray) -> np.ndarray:
+def without_specks(mask: np.ndarray, fraction: float) -> np.ndarray:
+    """`mask` without its components smaller than `fraction` of the image (the largest stays if all are)."""
     labels, count = ndimage.label(mask)
     if count == 0:
         return mask
     sizes = ndimage.sum_labels(mask, labels, index=np.arange(1, count + 1))
-    keep = np.flatnonzero(sizes >= SPECK_FRACTION * mask.size) + 1
+    keep = np.flatnonzero(sizes >= fraction * mask.size) + 1
     if len(keep) == 0:
         keep = np.array([int(np.argmax(sizes)) + 1])
     return np.isin(labels, keep)

@@ -15,9 +15,8 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
-from renderer.capture.grabcut import Hints, grabcut_mask, shadow_pixels
+from renderer.capture.grabcut import Hints, grabcut_mask, shadow_pixels, without_specks
 from renderer.errors import InputError
 
 BORDER_FRACTION = 0.04  # width of the border band, as a fraction of the shorter side
@@ -92,13 +91,7 @@ def _differs_from_background(rgb: np.ndarray, path: str | Path | None) -> np.nda
         sigma = 1.4826 * np.median(residual[keep]) + 1e-4
         threshold = max(MIN_CONTRAST, NOISE_SIGMAS * sigma)
         keep = border & (residual < threshold)
-    mask = residual >= threshold
-    labels, count = ndimage.label(mask)
-    if count == 0:
-        return mask
-    sizes = ndimage.sum_labels(mask, labels, index=np.arange(1, count + 1))
-    large = np.flatnonzero(sizes >= SPECK_FRACTION * h * w) + 1
-    return np.isin(labels, large)
+    return without_specks(residual >= threshold, SPECK_FRACTION)
 
 
 def _quadratic_design(h: int, w: int) -> np.ndarray:
