@@ -114,7 +114,7 @@ def real_background(index: int, size: int) -> np.ndarray:
     import skimage.data
     from PIL import Image
 
-    photo = getattr(skimage.data, BACKGROUNDS[index % len(BACKGROUNDS)])()
+    photo = getattr(skimage.data, BACKGROUNDS[(index // len(STYLES)) % len(BACKGROUNDS)])()
     h, w = photo.shape[:2]
     side = min(h, w)
     rng = np.random.default_rng([7, index])

@@ -184,6 +184,8 @@ def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):
     captured = capture_appearance(rgba, colored, photo, None, None, search=True)
     assert rotation_error_deg(captured.pose.rotation_deg, truth.rotation_deg) < 5.0
     assert abs(captured.pose.camera.elevation_deg - truth.camera.elevation_deg) < 5.0
+    # The mask the pose was fitted to comes back at the photo's size (the colors use it: no second segmentation).
+    assert silhouette_iou(captured.alignment.mask, SilhouetteRenderer(chair).mask(truth)) > 0.9
     seen = captured.rgba[captured.visible, :3]
     assert len(seen) > 100
     assert np.median(seen[:, 0]) > np.median(seen[:, 1]) + 0.2  # red object, red colors (with its shading)

@@ -1,10 +1,12 @@
 """GrabCut segmentation on photos with a floor and a sky (renderer/capture/grabcut.py, segment.py)."""
 
+import cv2
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from renderer.capture.align import silhouette_iou
-from renderer.capture.grabcut import Hints, grabcut_mask
+from renderer.capture.grabcut import Hints, grabcut_mask, shadow_pixels
 from renderer.capture.segment import object_mask
 from renderer.errors import InputError
 
@@ -77,3 +79,42 @@ def test_a_silhouette_prior_is_taken_as_the_probable_object():
     rough[48:97, 58:102] = True  # a pose a little off: slightly larger than the object
     assert silhouette_iou(grabcut_mask(photo, Hints(prior=rough)), truth) > 0.9
 
+
+
+def test_an_object_darker_than_the_clutter_beside_it_is_not_taken_for_its_shadow():
+    """Clutter has no one floor color: the shadow test leaves alone an object that is, row by row, the
+    median of the clutter's colors darkened (which on a plain floor would be its shadow)."""
+    rng = np.random.default_rng(1)
+    tiles = rng.uniform(0.2, 0.9, (H // 10, W // 10, 3))
+    photo = np.kron(tiles, np.ones((10, 10, 1)))  # a wall of random colored tiles
+    truth = np.zeros((H, W), dtype=bool)
+    truth[45:85, 60:105] = True
+    for row in range(45, 85):
+        photo[row, 60:105] = 0.5 * np.median(photo[row, ~truth[row]], axis=0)
+    labels = np.full((H, W), cv2.GC_BGD, np.uint8)
+    labels[38:92, 52:112] = cv2.GC_PR_FGD  # a box around it
+    assert shadow_pixels(photo, labels)[truth].mean() < 0.02
+    floor = 2.0 * photo[np.clip(np.arange(H), 45, 84), 80][:, None, :]  # each row twice as bright as the object
+    plain = np.where(truth[..., None], photo, floor)  # on this floor, the same object looks like its shadow
+    assert shadow_pixels(plain, labels)[truth].mean() > 0.9
+
+
+def test_a_path_traced_floor_photo_loses_the_lights_spot_and_keeps_the_chair():
+    """The project's own scene type: a chair on a floor under the grey sky, the area light's bright spot on
+    the floor in view. The spot fades out softly, so it is floor, however unlike the border it looks."""
+    from renderer.camera import Camera
+    from renderer.capture.pose import PhotoPose
+    from renderer.capture.silhouette import SilhouetteRenderer
+    from renderer.objects import apply_appearance, generate_object
+    from renderer.pathtrace.path_tracer import render_pathtraced
+    from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
+
+    mesh, floor_color, _ = apply_appearance(generate_object("chair", 1000014), "textured", 1000014, "test")
+    truth = PhotoPose(Camera(48.9, 256, 256), rotation_deg=125.9, translation=(-0.206, -0.218), scale=(0.883,) * 3)
+    scene = Scene(object=truth.placed(ObjectSpec()), floor=FloorSpec(floor_color), light=LightSpec((0.51, 2.82, -0.19)),
+                  camera=CameraSpec(48.9), image_size=256)
+    photo = render_pathtraced(scene, mesh, spp=16, seed=14, denoise=True).image
+    chair = SilhouetteRenderer(mesh).mask(truth)
+    mask = object_mask(photo)
+    assert silhouette_iou(mask, chair) > 0.9  # 0.78 with the spot taken as object
+    assert (mask & ~ndimage.binary_dilation(chair, iterations=3)).sum() < 0.05 * mask.sum()

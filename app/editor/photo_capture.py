@@ -175,7 +175,8 @@ class PhotoAlignment:
     def colors(self, object_rgba: np.ndarray, pose: PhotoPose | None = None) -> np.ndarray:
         """`object_rgba` recolored from the photo seen at `pose` (default: the current one); occupancy unchanged."""
         pose = self.pose if pose is None else pose
-        return capture_appearance(object_rgba, None, self.rgb, self.alpha, pose, search=False, path=self.path).rgba
+        return capture_appearance(object_rgba, self.mesh, self.rgb, self.alpha, pose, search=False, path=self.path,
+                                  **self.hints()).rgba
 
 
 def scene_with_photo_view(scene: Scene, pose: PhotoPose) -> Scene:

@@ -53,6 +53,7 @@ class Alignment:
     iou: float  # silhouette overlap at the refinement size
     rays: int  # silhouette rays cast
     seconds: float
+    mask: np.ndarray | None = None  # the photo's object mask the pose was fitted to
 
 
 def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial: PhotoPose | None = None,
@@ -88,7 +89,7 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
     finals = [fine.compass(params, steps, final_steps) for params in starts]
     best_params, best_iou = max(finals, key=lambda item: item[1])
     pose = fine.pose(best_params).at_size(w, h)
-    return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start)
+    return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start, photo_mask)
 
 
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:

@@ -50,6 +50,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
 
     Without an alpha channel, segmentation and pose search alternate: the first pose's silhouette starts
     the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times.
+    The result's mask is the last segmentation, at the photo's size.
     """
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
@@ -67,7 +68,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
             break  # the pose's silhouette gave nothing better: keep the pose found
         alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
         rays, seconds = rays + alignment.rays, seconds + alignment.seconds
-    return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds)
+    return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
 
 
 def photo_hints(small: tuple[int, int], full: tuple[int, int], box=None, object_strokes=None,
@@ -86,13 +87,16 @@ def photo_hints(small: tuple[int, int], full: tuple[int, int], box=None, object_
 
 
 def segment_photo(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None,
-                  **hints) -> np.ndarray:
-    """The object's mask at the photo's size, segmented at SEGMENT_SIDE with the user's hints (box, strokes)."""
+                  silhouette: np.ndarray | None = None, **hints) -> np.ndarray:
+    """The object's mask at the photo's size, segmented at SEGMENT_SIDE with the user's hints (box, strokes) and
+    the object's `silhouette` at a known pose (photo size) as prior."""
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     sh, sw = small_rgb.shape[:2]
-    mask = object_mask(small_rgb, small_alpha, path, photo_hints((sw, sh), (w, h), **hints))
-    return mask_at_size(mask, (w, h))
+    small_hints = photo_hints((sw, sh), (w, h), **hints)
+    if silhouette is not None:
+        small_hints = replace(small_hints, prior=mask_at_size(silhouette, (sw, sh)))
+    return mask_at_size(object_mask(small_rgb, small_alpha, path, small_hints), (w, h))
 
 
 def mask_at_size(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -102,13 +106,16 @@ def mask_at_size(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
-                       path: str | Path | None = None, free_focal: bool = False,
-                       box: tuple[int, int, int, int] | None = None) -> Capture:
-    """Color `object_rgba` (voxels of `mesh`, which only the search needs) from the photo.
+                       path: str | Path | None = None, free_focal: bool = False, mask: np.ndarray | None = None,
+                       **hints) -> Capture:
+    """Color `object_rgba` (voxels of `mesh`) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
     without a pose the search covers every rotation and elevation. A pose made for another size
-    of the same photo is scaled to it; another aspect ratio is an error.
+    of the same photo is scaled to it; another aspect ratio is an error. Colors come from pixels well
+    inside the object's mask: `mask` when given, else the search's last segmentation, else the photo
+    segmented with the user's `hints` (box, strokes: see find_pose) and the pose's silhouette (when `mesh`
+    is given).
     """
     if pose is None and not search:
         raise InputError("a photo needs a camera file or the automatic alignment", path)
@@ -117,29 +124,34 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
         raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
     if search:
-        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, box)
+        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, **hints)
         pose = alignment.pose
+        mask = alignment.mask if mask is None else mask
     pose = pose.at_size(w, h)
+    if mask is None:
+        try:
+            mask = segment_photo(photo_rgb, alpha, path,
+                                 silhouette=None if mesh is None else SilhouetteRenderer(mesh).mask(pose), **hints)
+        except InputError:
+            mask = None  # nothing separates: every pixel the object projects to counts
     occupied = object_rgba[..., 3] > 0.5
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
     try:
         colors = color_voxels_from_photo(object_rgba, pose.object_to_world(), photo_rgb, pose.camera, mirror=mirror,
-                                         trusted=trusted_pixels(photo_rgb, alpha, path))
+                                         trusted=trusted_pixels(mask))
     except InputError as exc:
         raise InputError(exc.problem, path) from None
     return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment)
 
 
-def trusted_pixels(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None) -> np.ndarray | None:
-    """The pixels surely on the object: its mask (the alpha channel, or segmented) farther than TRUST_MARGIN of
-    the photo's shorter side from the mask's edge, where a pose a pixel off or a soft edge would mix in the
-    background. None when the photo cannot be segmented: then every pixel counts, as before segmentation."""
-    h, w = photo_rgb.shape[:2]
-    try:
-        mask = segment_photo(photo_rgb, alpha, path)
-    except InputError:
+def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:
+    """The pixels surely on the object: its mask farther than TRUST_MARGIN of the photo's shorter side from the
+    mask's edge, where a pose a pixel off or a soft edge would mix in the background. None without a mask:
+    then every pixel counts."""
+    if mask is None:
         return None
+    h, w = mask.shape
     return ndimage.distance_transform_edt(mask) > max(1.0, TRUST_MARGIN * min(h, w))
 
 

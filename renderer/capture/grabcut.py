@@ -29,6 +29,10 @@ SPECK_FRACTION = 0.001  # object components smaller than this share of the image
 SHADOW_CHROMA = 0.03  # largest chromaticity difference from the row's background that can still be shadow
 SHADOW_MIN_COLOR = 0.03  # the background's chromaticity must be at least this far from grey for the test
 SHADOW_DARKEST, SHADOW_LIGHTEST = 0.15, 0.9  # brightness of a shadow relative to the lit background beside it
+SHADOW_PLAIN_ROW = 0.02  # the row's background varies in chromaticity (median deviation) by less than this: a floor,
+# not clutter, whose median color says nothing about a shadow (the test took a box's object pixels for shadow)
+SOFT_EDGE = 0.03  # sRGB change per pixel (after a 1-pixel blur) below which an edge is soft: light on the floor
+# (a highlight's or a penumbra's edge changes by about 0.01 a pixel), not an object's outline (0.09-0.35)
 
 
 @dataclass(frozen=True)
@@ -57,14 +61,15 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:
         raise InputError("cannot tell the object from the background (one of them has no colors to model)", path) from None
-    shadow = shadow_pixels(rgb, labels)
-    if shadow.any():  # the floor in shadow is background: cut again with it as such
-        labels[shadow] = cv2.GC_BGD
+    # The floor in shadow and light on the floor (the light's bright spot) are background: cut again with them as such.
+    lighting = shadow_pixels(rgb, labels) | soft_edged_pixels(rgb, labels)
+    if lighting.any():
+        labels[lighting] = cv2.GC_BGD
         try:
             cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
         except cv2.error:
-            pass  # the first cut stands, without the shadow
-        labels[shadow] = cv2.GC_BGD
+            pass  # the first cut stands, without the lighting
+        labels[lighting] = cv2.GC_BGD
     mask = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
     mask = without_specks(mask, SPECK_FRACTION)
     if mask.mean() < MIN_OBJECT_FRACTION:
@@ -111,33 +116,51 @@ def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
 
 
 def shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """Pixels taken as probable object that look like the background of their row in shadow: the same
-    chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST (rows whose background is nearly grey are
-    left alone). A floor's shadow is floor; what the user or a pose said is object (sure labels) is never
-    changed."""
+    """Pixels taken as probable object that look like the background of their rows (+-2) in shadow: the same
+    chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST. Rows whose background is nearly grey, or not
+    of one color (clutter, or a floor whitened by the light's spot), are left alone. A floor's shadow is floor;
+    what the user or a pose said is object (sure labels) is never changed."""
     import cv2
 
     probable = labels == cv2.GC_PR_FGD
     background = (labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)
+    shadow = np.zeros(labels.shape, dtype=bool)
     if not probable.any() or not background.any():
-        return np.zeros(labels.shape, dtype=bool)
+        return shadow
     brightness = rgb.sum(axis=2) + 1e-6
     chroma = rgb / brightness[..., None]
-    shadow = np.zeros(labels.shape, dtype=bool)
-    rows = np.flatnonzero(probable.any(axis=1))
-    for row in rows:
-        band = background[max(0, row - 2):row + 3]
+    for row in np.flatnonzero(probable.any(axis=1)):
+        rows = slice(max(0, row - 2), row + 3)
+        band = background[rows]
         if band.sum() < 4:
             continue
-        reference_chroma = np.median(chroma[max(0, row - 2):row + 3][band], axis=0)
+        band_chroma = chroma[rows][band]
+        reference_chroma = np.median(band_chroma, axis=0)
+        if np.median(np.abs(band_chroma - reference_chroma).max(axis=1)) > SHADOW_PLAIN_ROW:
+            continue  # no one color for the floor
         if np.abs(reference_chroma - 1.0 / 3.0).max() < SHADOW_MIN_COLOR:
             continue  # a grey background: a darker grey object cannot be told from its shadow by color
-        reference_brightness = np.median(brightness[max(0, row - 2):row + 3][band])
         cols = np.flatnonzero(probable[row])
+        ratio = brightness[row, cols] / np.median(brightness[rows][band])
         similar = np.abs(chroma[row, cols] - reference_chroma).max(axis=1) < SHADOW_CHROMA
-        ratio = brightness[row, cols] / reference_brightness
         shadow[row, cols[similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)]] = True
     return shadow
+
+
+def soft_edged_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Probable-object pixels reached from the cut's soft edges without crossing an edge: a highlight or a
+    penumbra on the floor fades into it, an object is outlined. Sure labels are never changed."""
+    import cv2
+
+    probable = labels == cv2.GC_PR_FGD
+    if not probable.any():
+        return np.zeros(labels.shape, dtype=bool)
+    blurred = ndimage.gaussian_filter(np.asarray(rgb, dtype=np.float64), sigma=(1.0, 1.0, 0.0))
+    gy, gx = np.gradient(blurred, axis=(0, 1))
+    smooth = ndimage.maximum_filter(np.sqrt((gx**2 + gy**2).sum(axis=2)), size=3) < SOFT_EDGE
+    cut = probable | (labels == cv2.GC_FGD)
+    soft_edge = cut & ~ndimage.binary_erosion(cut) & smooth
+    return ndimage.binary_propagation(soft_edge & probable, mask=probable & smooth)
 
 
 def without_specks(mask: np.ndarray, fraction: float) -> np.ndarray:

@@ -29,6 +29,8 @@ MAX_OBJECT_FRACTION = 0.9
 SPECK_FRACTION = 0.0005  # components smaller than this share of the image are noise
 OPAQUE = 0.5  # alpha at or above this is object
 SHADOW_SHARE = 0.05  # of the pixels that differ from a plain backdrop: more shadow-like ones than this mean a lit floor
+PLAIN_SIGMA = 0.01  # a border whose smooth color field leaves more residual than this (robust sRGB std) is not plain:
+# a studio backdrop leaves about 0.0013, a floor under a sky 0.017-0.1 (the horizon, the light's spot)
 
 
 def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Path | None = None,
@@ -50,7 +52,7 @@ def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Pa
     try:
         rough = _differs_from_background(rgb, path)
     except InputError:
-        rough = None  # a floor, a sky, a room: GrabCut starts from the frame's middle (or the hints)
+        rough = None  # a floor under a sky, a room: GrabCut starts from the frame's middle (or the hints)
     if rough is not None and not told:
         if rough.mean() < MIN_OBJECT_FRACTION:
             raise InputError("found no object: the photo looks like plain background", path)
@@ -84,13 +86,14 @@ def _differs_from_background(rgb: np.ndarray, path: str | Path | None) -> np.nda
     keep = border & (median_residual < START_TOLERANCE)
     for _ in range(4):
         if keep.sum() < MIN_BORDER_EXPLAINED * border.sum():
-            raise InputError("cannot tell the object from the background: the photo's border is not a plain "
-                             "background; give the photo an alpha channel or a camera file", path)
+            raise InputError("the photo's border is not a plain background", path)
         coefficients, *_ = np.linalg.lstsq(design[keep.ravel()], rgb[keep], rcond=None)
         residual = np.linalg.norm(rgb - (design @ coefficients).reshape(h, w, 3), axis=2)
         sigma = 1.4826 * np.median(residual[keep]) + 1e-4
         threshold = max(MIN_CONTRAST, NOISE_SIGMAS * sigma)
         keep = border & (residual < threshold)
+    if sigma > PLAIN_SIGMA:
+        raise InputError("the photo's border is not a plain background", path)
     return without_specks(residual >= threshold, SPECK_FRACTION)
 
 
