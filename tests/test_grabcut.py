@@ -118,3 +118,16 @@ def test_a_path_traced_floor_photo_loses_the_lights_spot_and_keeps_the_chair():
     mask = object_mask(photo)
     assert silhouette_iou(mask, chair) > 0.9  # 0.78 with the spot taken as object
     assert (mask & ~ndimage.binary_dilation(chair, iterations=3)).sum() < 0.05 * mask.sum()
+
+
+def test_a_box_models_the_background_from_around_it_not_from_the_far_side_of_the_photo():
+    """Far from the box the photo is full of the object's colors (another room, a shelf of the same blue);
+    around the box it is a plain wall: the cut inside the box follows what surrounds it."""
+    rng = np.random.default_rng(2)
+    photo = np.full((H, W, 3), [0.8, 0.75, 0.6])
+    photo[:, :90] = np.where((np.mgrid[0:H, 0:90][1] // 4 % 2 == 0)[..., None], [0.15, 0.2, 0.7], [0.3, 0.35, 0.85])
+    truth = np.zeros((H, W), dtype=bool)
+    truth[50:90, 110:140] = True
+    photo[truth] = np.where((np.mgrid[0:H, 0:W][1][truth] // 4 % 2 == 0)[:, None], [0.15, 0.2, 0.7], [0.3, 0.35, 0.85])
+    photo = np.clip(photo + rng.normal(0.0, 0.01, photo.shape), 0.0, 1.0)
+    assert silhouette_iou(grabcut_mask(photo, Hints(box=(104, 44, 146, 96))), truth) > 0.9  # the whole photo: none

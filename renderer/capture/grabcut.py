@@ -23,6 +23,7 @@ from renderer.errors import InputError
 ITERATIONS = 5
 BORDER_FRACTION = 0.02  # the border band taken as background, as a share of the shorter side
 PRIOR_MARGIN_FRACTION = 0.02  # a silhouette prior is eroded/dilated by this share of the shorter side
+BOX_CONTEXT = 1.0  # with a box, GrabCut sees the box grown by this share of its size on each side
 CENTER_MARGIN = 0.1  # without box or prior, the object is looked for inside this margin of the frame
 MIN_OBJECT_FRACTION = 0.002  # of the image: less than this is nothing
 SPECK_FRACTION = 0.001  # object components smaller than this share of the image are dropped
@@ -54,6 +55,8 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
     labels = _initial_labels(h, w, hints, path)
     if not np.isin(labels, (cv2.GC_FGD, cv2.GC_PR_FGD)).any() or not np.isin(labels, (cv2.GC_BGD, cv2.GC_PR_BGD)).any():
         raise InputError("the hints leave no room for object or for background", path)
+    window = _context(hints.box, h, w)  # with a box, the background is modelled from what is around it
+    rgb, labels = rgb[window], labels[window]
     image = np.ascontiguousarray(np.round(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)[..., ::-1])  # OpenCV: BGR
     background_model, object_model = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
     cv2.setRNGSeed(0)  # GrabCut's color models start from OpenCV's global random state: fix it, same photo same mask
@@ -70,11 +73,23 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         except cv2.error:
             pass  # the first cut stands, without the lighting
         labels[lighting] = cv2.GC_BGD
-    mask = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
+    mask = np.zeros((h, w), dtype=bool)
+    mask[window] = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
     mask = without_specks(mask, SPECK_FRACTION)
     if mask.mean() < MIN_OBJECT_FRACTION:
         raise InputError("found no object: nothing in the photo separates from the background", path)
     return mask
+
+
+def _context(box: tuple[int, int, int, int] | None, h: int, w: int) -> tuple[slice, slice]:
+    """The part of the photo GrabCut looks at: all of it, or the box grown by BOX_CONTEXT of its size on each side
+    (a background far from the object, a room's other end, says little about what surrounds it)."""
+    if box is None:
+        return slice(0, h), slice(0, w)
+    x0, y0, x1, y1 = (int(v) for v in box)
+    x0, x1, y0, y1 = min(x0, x1), max(x0, x1), min(y0, y1), max(y0, y1)
+    gx, gy = round(BOX_CONTEXT * (x1 - x0)), round(BOX_CONTEXT * (y1 - y0))
+    return slice(max(0, y0 - gy), min(h, y1 + gy)), slice(max(0, x0 - gx), min(w, x1 + gx))
 
 
 def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
