@@ -121,7 +121,7 @@ def cmd_voxelize(args: argparse.Namespace) -> None:
 
 
 def cmd_capture(args: argparse.Namespace) -> None:
-    from renderer.capture.capture import capture_appearance, captured_scene
+    from renderer.capture.capture import capture_appearance, captured_scene, fit_advice
     from renderer.capture.pose import load_pose, save_pose
     from renderer.io import load_image
     from renderer.mesh import load_mesh, normalise_mesh
@@ -137,8 +137,9 @@ def cmd_capture(args: argparse.Namespace) -> None:
     pose = None if args.camera is None else load_pose(args.camera)
     search = args.auto or pose is None
     rgba = voxelize(mesh, resolution=args.res)
+    box = _parse_box(args.box, photo.shape)
     captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
-                                  free_focal=args.free_focal, box=_parse_box(args.box, photo.shape))
+                                  free_focal=args.free_focal, box=box)
     save_voxels(voxels_out, captured.rgba)
     save_pose(camera_out, captured.pose)
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
@@ -148,6 +149,9 @@ def cmd_capture(args: argparse.Namespace) -> None:
     print(f"pose ({how}): rotation {p.rotation_deg:.1f} deg, elevation {p.camera.elevation_deg:.1f} deg, "
           f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}, "
           f"focal length {p.camera.focal_mm:.1f} mm")
+    advice = None if captured.alignment is None else fit_advice(captured.alignment, box is not None)
+    if advice:
+        print(f"warning: {advice}")
     seen = int(captured.visible.sum())
     occupied = int((captured.rgba[..., 3] > 0.5).sum())
     mirror = "used" if captured.mirror_used else "not used"

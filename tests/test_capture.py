@@ -299,3 +299,13 @@ def test_coloring_near_the_silhouette_never_takes_the_background_even_from_a_pos
 
     untrusted = color_voxels_from_photo(rgba, off.object_to_world(), photo, off.camera)
     assert (untrusted.rgba[occupied, 2] > 0.5).any()  # without it, the edge takes the backdrop's blue
+
+
+def test_a_loose_fit_advises_a_box_or_strokes():
+    from renderer.capture.align import Alignment
+    from renderer.capture.capture import fit_advice
+
+    pose = PhotoPose(Camera(30.0, 64, 64))
+    assert fit_advice(Alignment(pose, 0.95, 0, 0.0), hinted=False) is None
+    assert "--box" in fit_advice(Alignment(pose, 0.84, 0, 0.0), hinted=False)
+    assert "strokes" in fit_advice(Alignment(pose, 0.84, 0, 0.0), hinted=True)

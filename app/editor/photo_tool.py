@@ -21,7 +21,7 @@ from app.editor.jobs import BackgroundJob, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from app.editor.voxel_cache import VoxelCache
 from renderer.capture.align import Alignment
-from renderer.capture.capture import find_pose, segment_photo
+from renderer.capture.capture import find_pose, fit_advice, segment_photo
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.scene import Scene
 
@@ -93,6 +93,11 @@ class PhotoTool:
         def done(found: Alignment) -> None:
             alignment.set_pose(found.pose)
             p = found.pose
+            hints = alignment.hints()
+            advice = fit_advice(found, any(v is not None for v in hints.values()))
+            if advice:
+                self.app.say(f"aligned, but {advice}", error=True)
+                return
             self.app.say(f"aligned {'from scratch' if from_scratch else 'from the pose'}: silhouette IoU {found.iou:.3f} "
                          f"in {found.seconds:.1f} s (rotation {p.rotation_deg:.1f} deg, "
                          f"elevation {p.camera.elevation_deg:.1f} deg)")

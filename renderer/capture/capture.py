@@ -28,6 +28,8 @@ from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
 SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
+LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask less than this was fitted to a poor
+# mask (in clutter without a box: 0.80-0.88, against 0.94-0.99 where the mask is right)
 SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
 
 
@@ -69,6 +71,17 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
         alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
         rays, seconds = rays + alignment.rays, seconds + alignment.seconds
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
+
+
+def fit_advice(alignment: Alignment, hinted: bool) -> str | None:
+    """What to do when the found pose fits the photo's mask loosely (None when it fits well)."""
+    if alignment.iou >= LOOSE_FIT_IOU:
+        return None
+    if hinted:
+        return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): look at the mask and mark "
+                "what it gets wrong with object or background strokes")
+    return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): in a cluttered photo, draw "
+            "a box around the object (Photo tab, or nvr capture --box x0,y0,x1,y1)")
 
 
 def photo_hints(small: tuple[int, int], full: tuple[int, int], box=None, object_strokes=None,
