@@ -3,9 +3,11 @@ background fitted by graph cuts, started from what is known.
 
 What is known, strongest first: the user's strokes (sure object, sure background); the object's
 silhouette at a pose already found (eroded: sure object; itself: probable object; elsewhere
-probable background); the user's box (outside: sure background); the photo's border (background
-where nothing says object). GrabCut's background model is a mixture of several colors, so
-a floor and a sky behind the object are two background regions, not one; a shadow is floor, darker.
+probable background); the user's box (outside: sure background, and the background is modelled
+from what surrounds the box); the photo's border (background where nothing says object).
+GrabCut's background model is a mixture of several colors, so a floor and a sky behind the object
+are two background regions, not one. Light on the floor is background too: a shadow is the floor
+darker, and the light's bright spot fades out softly where an object is outlined.
 The field's standard tool is used rather than a hand-made color model: it is what the photo's
 clutter needs, and it is maintained (opencv-python-headless).
 """
