@@ -73,3 +73,21 @@ def test_peak_memory_sees_a_native_allocation():
     if memory.method.startswith("VmHWM"):  # the peak is reset per measurement
         memory.start()
         assert memory.peak_mb() < 50.0
+
+
+def test_capture_bench_boxes_hold_the_object_within_the_stated_margin_and_every_style_is_drawn():
+    from benchmarks.bench_capture import BOX_MARGIN, photo_list, user_box
+
+    mask = np.zeros((100, 120), dtype=bool)
+    mask[30:60, 2:50] = True  # near the left edge
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        x0, y0, x1, y1 = user_box(mask, rng)
+        assert x0 == 0  # clipped to the photo
+        assert 30 - BOX_MARGIN[1] * 100 <= y0 <= 30 - BOX_MARGIN[0] * 100 + 1
+        assert 60 + BOX_MARGIN[0] * 100 - 1 <= y1 <= 60 + BOX_MARGIN[1] * 100
+        assert 50 + BOX_MARGIN[0] * 100 - 1 <= x1 <= 50 + BOX_MARGIN[1] * 100
+    order = photo_list(8)
+    assert [style for style, _ in order].count("floor") == 8 and [s for s, _ in order].count("real") == 8
+    assert [s for s, _ in order].count("studio") == 2 and len(set(order)) == len(order)
+    assert user_box(np.zeros((10, 10), dtype=bool), rng) is None
