@@ -66,9 +66,11 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:
         raise InputError("cannot tell the object from the background (one of them has no colors to model)", path) from None
-    # The floor in shadow and light on the floor (the light's bright spot) are background: cut again with them as such.
-    lighting = shadow_pixels(rgb, labels) | soft_edged_pixels(rgb, labels)
+    # The floor in shadow and light on the floor (the light's bright spot) are background: cut again with them as
+    # such, within what the first cut took as object (the new color models must not take in more of the floor).
+    lighting = shadow_pixels(rgb, labels) | soft_lighting_pixels(rgb, labels)
     if lighting.any():
+        labels[labels == cv2.GC_PR_BGD] = cv2.GC_BGD
         labels[lighting] = cv2.GC_BGD
         try:
             cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
@@ -132,52 +134,64 @@ def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
     return labels
 
 
-def shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """Pixels taken as probable object that look like the background of their rows (+-2) in shadow: the same
-    chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST. Rows whose background is nearly grey, or not
-    of one color (clutter, or a floor whitened by the light's spot), are left alone. A floor's shadow is floor;
-    what the user or a pose said is object (sure labels) is never changed."""
+def _row_floor(rgb: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per row, the background beside the probable object when it is one plain color (a floor, not clutter,
+    nor a grey one): (plain (H,) bool, its chromaticity (H, 3), its brightness (H,)), and each pixel's
+    (chromaticity, brightness) as (H, W, 3), (H, W) in the last two."""
     import cv2
 
-    probable = labels == cv2.GC_PR_FGD
+    h = labels.shape[0]
     background = (labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)
-    shadow = np.zeros(labels.shape, dtype=bool)
-    if not probable.any() or not background.any():
-        return shadow
     brightness = rgb.sum(axis=2) + 1e-6
     chroma = rgb / brightness[..., None]
-    for row in np.flatnonzero(probable.any(axis=1)):
+    plain = np.zeros(h, dtype=bool)
+    floor_chroma, floor_brightness = np.zeros((h, 3)), np.ones(h)
+    for row in np.flatnonzero((labels == cv2.GC_PR_FGD).any(axis=1)):
         rows = slice(max(0, row - 2), row + 3)
         band = background[rows]
         if band.sum() < 4:
             continue
         band_chroma = chroma[rows][band]
-        reference_chroma = np.median(band_chroma, axis=0)
-        if np.median(np.abs(band_chroma - reference_chroma).max(axis=1)) > SHADOW_PLAIN_ROW:
-            continue  # no one color for the floor
-        if np.abs(reference_chroma - 1.0 / 3.0).max() < SHADOW_MIN_COLOR:
-            continue  # a grey background: a darker grey object cannot be told from its shadow by color
-        cols = np.flatnonzero(probable[row])
-        ratio = brightness[row, cols] / np.median(brightness[rows][band])
-        similar = np.abs(chroma[row, cols] - reference_chroma).max(axis=1) < SHADOW_CHROMA
-        shadow[row, cols[similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)]] = True
-    return shadow
+        floor_chroma[row] = np.median(band_chroma, axis=0)
+        floor_brightness[row] = np.median(brightness[rows][band])
+        plain[row] = (np.median(np.abs(band_chroma - floor_chroma[row]).max(axis=1)) <= SHADOW_PLAIN_ROW
+                      and np.abs(floor_chroma[row] - 1.0 / 3.0).max() >= SHADOW_MIN_COLOR)
+    return plain, floor_chroma, floor_brightness, chroma, brightness
 
 
-def soft_edged_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """Probable-object pixels reached from the cut's soft edges without crossing an edge: a highlight or a
-    penumbra on the floor fades into it, an object is outlined. Sure labels are never changed."""
+def shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Pixels taken as probable object that look like the floor of their rows (+-2) in shadow: the same
+    chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST. Rows whose background is grey (a darker
+    grey object cannot be told from its shadow by color) or not of one color (clutter, or a floor whitened
+    by the light's spot) are left alone. What the user or a pose said is object (sure labels) stays."""
     import cv2
 
     probable = labels == cv2.GC_PR_FGD
     if not probable.any():
         return np.zeros(labels.shape, dtype=bool)
+    plain, floor_chroma, floor_brightness, chroma, brightness = _row_floor(rgb, labels)
+    ratio = brightness / floor_brightness[:, None]
+    similar = np.abs(chroma - floor_chroma[:, None, :]).max(axis=2) < SHADOW_CHROMA
+    return probable & plain[:, None] & similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)
+
+
+def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """Probable-object pixels in rows with a plain floor reached from the cut's soft edges without crossing an
+    edge: the light's bright spot and a shadow's penumbra fade into the floor, an object is outlined (a smoothly
+    shaded object in clutter is not on a plain floor, so it is left alone). Sure labels are never changed."""
+    import cv2
+
+    probable = labels == cv2.GC_PR_FGD
+    if not probable.any():
+        return np.zeros(labels.shape, dtype=bool)
+    plain = _row_floor(rgb, labels)[0]
+    lit = probable & plain[:, None]
     blurred = ndimage.gaussian_filter(np.asarray(rgb, dtype=np.float64), sigma=(1.0, 1.0, 0.0))
     gy, gx = np.gradient(blurred, axis=(0, 1))
     smooth = ndimage.maximum_filter(np.sqrt((gx**2 + gy**2).sum(axis=2)), size=3) < SOFT_EDGE
     cut = probable | (labels == cv2.GC_FGD)
     soft_edge = cut & ~ndimage.binary_erosion(cut) & smooth
-    return ndimage.binary_propagation(soft_edge & probable, mask=probable & smooth)
+    return ndimage.binary_propagation(soft_edge & lit, mask=lit & smooth)
 
 
 def without_specks(mask: np.ndarray, fraction: float) -> np.ndarray:
