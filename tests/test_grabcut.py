@@ -131,3 +131,16 @@ def test_a_box_models_the_background_from_around_it_not_from_the_far_side_of_the
     photo[truth] = np.where((np.mgrid[0:H, 0:W][1][truth] // 4 % 2 == 0)[:, None], [0.15, 0.2, 0.7], [0.3, 0.35, 0.85])
     photo = np.clip(photo + rng.normal(0.0, 0.01, photo.shape), 0.0, 1.0)
     assert silhouette_iou(grabcut_mask(photo, Hints(box=(104, 44, 146, 96))), truth) > 0.9  # the whole photo: none
+
+
+def test_a_dark_object_before_a_plain_sky_is_not_all_taken_for_shadow():
+    """An object of the sky's hue, darker, looks everywhere like the sky in shadow: when taking the light out
+    leaves nothing, the first cut stands instead of a refusal."""
+    rng = np.random.default_rng(3)
+    y = np.mgrid[0:H, 0:W][0]
+    photo = np.array([0.2, 0.3, 0.6]) * (0.9 + 0.2 * y / H)[..., None]
+    truth = np.zeros((H, W), dtype=bool)
+    truth[40:80, 50:110] = True
+    photo[truth] *= 0.45
+    photo = np.clip(photo + rng.normal(0.0, 0.005, photo.shape), 0.0, 1.0)
+    assert silhouette_iou(grabcut_mask(photo, Hints(box=(44, 34, 116, 86))), truth) > 0.9

@@ -66,6 +66,7 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         cv2.grabCut(image, labels, None, background_model, object_model, ITERATIONS, cv2.GC_INIT_WITH_MASK)
     except cv2.error:
         raise InputError("cannot tell the object from the background (one of them has no colors to model)", path) from None
+    first_cut = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
     # The floor in shadow and light on the floor (the light's bright spot) are background: cut again with them as
     # such, within what the first cut took as object (the new color models must not take in more of the floor).
     lighting = shadow_pixels(rgb, labels) | soft_lighting_pixels(rgb, labels)
@@ -77,12 +78,20 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
         except cv2.error:
             pass  # the first cut stands, without the lighting
         labels[lighting] = cv2.GC_BGD
-    mask = np.zeros((h, w), dtype=bool)
-    mask[window] = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
-    mask = without_specks(mask, SPECK_FRACTION)
+    mask = _placed((labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD), window, h, w)
+    if mask.mean() < MIN_OBJECT_FRACTION:
+        # All of it looked like light on the floor: a dark object before a plain sky can. The first cut stands.
+        mask = _placed(first_cut, window, h, w)
     if mask.mean() < MIN_OBJECT_FRACTION:
         raise InputError("found no object: nothing in the photo separates from the background", path)
     return mask
+
+
+def _placed(cut: np.ndarray, window: tuple[slice, slice], h: int, w: int) -> np.ndarray:
+    """A cut of the window as a mask of the whole photo, without specks."""
+    mask = np.zeros((h, w), dtype=bool)
+    mask[window] = cut
+    return without_specks(mask, SPECK_FRACTION)
 
 
 def _context(box: tuple[int, int, int, int] | None, h: int, w: int) -> tuple[slice, slice]:
