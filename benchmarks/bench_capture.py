@@ -319,7 +319,9 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
     lines += ["", "Breakdown of the floor and boxed real photos from no pose:", "", header, rule]
     for kind in ("floor", "real + box"):
         for name, group in GROUPS.items():
-            lines.append(_table_row(f"{kind}: {name}", summary(rows, "none", kind, group)))
+            s = summary(rows, "none", kind, group)
+            if s["photos"]:
+                lines.append(_table_row(f"{kind}: {name}", s))
     refusals = sorted({r["failed"].split(": ", 1)[-1] for r in rows if "failed" in r})
     lines += ["", "Refusals said: " + ("; ".join(f'"{text}"' for text in refusals) if refusals else "none") + ".",
               "", "Goals (issue 17): median rotation error at most 3 degrees from no pose and 1 from a perturbed "
