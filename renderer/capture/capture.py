@@ -79,7 +79,7 @@ def fit_advice(alignment: Alignment, hinted: bool) -> str | None:
         return None
     if hinted:
         return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): look at the mask and mark "
-                "what it gets wrong with object or background strokes")
+                "what it gets wrong with object or background strokes (editor: Photo tab)")
     return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): in a cluttered photo, draw "
             "a box around the object (Photo tab, or nvr capture --box x0,y0,x1,y1)")
 
