@@ -56,9 +56,7 @@ def test_a_photo_without_camera_is_aligned_from_scratch_and_the_scene_takes_its_
                                                                                     model_file):
     run_editor(display, tmp_path, chair_scene, [
         {"action": "load_photo", "photo": str(chair_scene.parent / "photo.png")},
-        {"action": "align_photo", "from_scratch": True},
-        {"action": "match_photo_view"},
-        {"action": "save", "path": str(tmp_path / "aligned.json")},
+        *aligned_and_saved(tmp_path / "aligned.json"),
         {"action": "undo"},
         {"action": "save", "path": str(tmp_path / "undone.json")},
     ], "--model", str(model_file))
@@ -157,6 +155,12 @@ def test_dragging_on_the_photo_turns_shift_drag_moves_and_the_wheel_scales(displ
 
 
 
+def aligned_and_saved(path: Path) -> list[dict]:
+    """Replay actions: align from scratch, take the photo's view, save the scene to `path`."""
+    return [{"action": "align_photo", "from_scratch": True}, {"action": "match_photo_view"},
+            {"action": "save", "path": str(path)}]
+
+
 def cluttered_photo(chair_scene: Path, folder: Path) -> Path:
     """The chair's photo with a second blue thing at its left edge, written into `folder`."""
     photo = np.asarray(Image.open(chair_scene.parent / "photo.png").convert("RGB")).copy()
@@ -173,9 +177,7 @@ def test_a_box_drawn_on_the_photo_keeps_a_distractor_out_of_the_alignment(displa
     run_editor(display, tmp_path, chair_scene, [
         {"action": "load_photo", "photo": str(cluttered)},
         {"action": "photo_box", "box": box},
-        {"action": "align_photo", "from_scratch": True},
-        {"action": "match_photo_view"},
-        {"action": "save", "path": str(tmp_path / "boxed.json")},
+        *aligned_and_saved(tmp_path / "boxed.json"),
     ], "--model", str(model_file))
     aligned = load_scene(tmp_path / "boxed.json")
     assert rotation_error_deg(aligned.object.rotation_deg, TRUTH.rotation_deg) < 3.0
@@ -210,9 +212,7 @@ def test_a_background_stroke_keeps_a_distractor_out_and_the_mask_shows_over_the_
         {"action": "show_photo_mask"},
         {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": str(tmp_path / "mask.png")},
-        {"action": "align_photo", "from_scratch": True},
-        {"action": "match_photo_view"},
-        {"action": "save", "path": str(tmp_path / "stroked.json")},
+        *aligned_and_saved(tmp_path / "stroked.json"),
     ], "--model", str(model_file))
     aligned = load_scene(tmp_path / "stroked.json")
     assert rotation_error_deg(aligned.object.rotation_deg, TRUTH.rotation_deg) < 3.0

@@ -69,7 +69,8 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
     first_cut = (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
     # The floor in shadow and light on the floor (the light's bright spot) are background: cut again with them as
     # such, within what the first cut took as object (the new color models must not take in more of the floor).
-    lighting = shadow_pixels(rgb, labels) | soft_lighting_pixels(rgb, labels)
+    floor = row_floor(rgb, labels)
+    lighting = shadow_pixels(rgb, labels, floor) | soft_lighting_pixels(rgb, labels, floor)
     if lighting.any():
         labels[labels == cv2.GC_PR_BGD] = cv2.GC_BGD
         labels[lighting] = cv2.GC_BGD
@@ -143,48 +144,54 @@ def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
     return labels
 
 
-def _row_floor(rgb: np.ndarray, labels: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per row, the background beside the probable object when it is one plain color (a floor, not clutter,
-    nor a grey one): (plain (H,) bool, its chromaticity (H, 3), its brightness (H,)), and each pixel's
-    (chromaticity, brightness) as (H, W, 3), (H, W) in the last two."""
+@dataclass(frozen=True)
+class RowFloor:
+    """Per row of the photo, the background beside the probable object, for telling light on a floor from objects."""
+
+    plain: np.ndarray  # (H,) bool: that background is one color, not grey (a floor, not clutter)
+    chroma: np.ndarray  # (H, 3) its median chromaticity
+    brightness: np.ndarray  # (H,) its median brightness (sum of the channels)
+
+
+def row_floor(rgb: np.ndarray, labels: np.ndarray) -> RowFloor:
+    """The background of each row (+-2 rows) that holds probable object, from GrabCut's labels."""
     import cv2
 
     h = labels.shape[0]
     background = (labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)
     brightness = rgb.sum(axis=2) + 1e-6
-    chroma = rgb / brightness[..., None]
-    plain = np.zeros(h, dtype=bool)
-    floor_chroma, floor_brightness = np.zeros((h, 3)), np.ones(h)
+    floor = RowFloor(np.zeros(h, dtype=bool), np.zeros((h, 3)), np.ones(h))
     for row in np.flatnonzero((labels == cv2.GC_PR_FGD).any(axis=1)):
         rows = slice(max(0, row - 2), row + 3)
         band = background[rows]
         if band.sum() < 4:
             continue
-        band_chroma = chroma[rows][band]
-        floor_chroma[row] = np.median(band_chroma, axis=0)
-        floor_brightness[row] = np.median(brightness[rows][band])
-        plain[row] = (np.median(np.abs(band_chroma - floor_chroma[row]).max(axis=1)) <= SHADOW_PLAIN_ROW
-                      and np.abs(floor_chroma[row] - 1.0 / 3.0).max() >= SHADOW_MIN_COLOR)
-    return plain, floor_chroma, floor_brightness, chroma, brightness
+        band_chroma = rgb[rows][band] / brightness[rows][band][:, None]
+        floor.chroma[row] = np.median(band_chroma, axis=0)
+        floor.brightness[row] = np.median(brightness[rows][band])
+        floor.plain[row] = (np.median(np.abs(band_chroma - floor.chroma[row]).max(axis=1)) <= SHADOW_PLAIN_ROW
+                            and np.abs(floor.chroma[row] - 1.0 / 3.0).max() >= SHADOW_MIN_COLOR)
+    return floor
 
 
-def shadow_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """Pixels taken as probable object that look like the floor of their rows (+-2) in shadow: the same
-    chromaticity, darker by SHADOW_DARKEST to SHADOW_LIGHTEST. Rows whose background is grey (a darker
-    grey object cannot be told from its shadow by color) or not of one color (clutter, or a floor whitened
-    by the light's spot) are left alone. What the user or a pose said is object (sure labels) stays."""
+def shadow_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = None) -> np.ndarray:
+    """Pixels taken as probable object that look like the floor of their rows in shadow: the same chromaticity,
+    darker by SHADOW_DARKEST to SHADOW_LIGHTEST. Rows whose background is grey (a darker grey object cannot be
+    told from its shadow by color) or not of one color (clutter, or a floor whitened by the light's spot) are
+    left alone. What the user or a pose said is object (sure labels) stays. `floor`: row_floor's, if known."""
     import cv2
 
     probable = labels == cv2.GC_PR_FGD
     if not probable.any():
         return np.zeros(labels.shape, dtype=bool)
-    plain, floor_chroma, floor_brightness, chroma, brightness = _row_floor(rgb, labels)
-    ratio = brightness / floor_brightness[:, None]
-    similar = np.abs(chroma - floor_chroma[:, None, :]).max(axis=2) < SHADOW_CHROMA
-    return probable & plain[:, None] & similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)
+    floor = row_floor(rgb, labels) if floor is None else floor
+    brightness = rgb.sum(axis=2) + 1e-6
+    ratio = brightness / floor.brightness[:, None]
+    similar = np.abs(rgb / brightness[..., None] - floor.chroma[:, None, :]).max(axis=2) < SHADOW_CHROMA
+    return probable & floor.plain[:, None] & similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)
 
 
-def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
+def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = None) -> np.ndarray:
     """Probable-object pixels in rows with a plain floor reached from the cut's soft edges without crossing an
     edge: the light's bright spot and a shadow's penumbra fade into the floor, an object is outlined (a smoothly
     shaded object in clutter is not on a plain floor, so it is left alone). Sure labels are never changed."""
@@ -193,8 +200,8 @@ def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray) -> np.ndarray:
     probable = labels == cv2.GC_PR_FGD
     if not probable.any():
         return np.zeros(labels.shape, dtype=bool)
-    plain = _row_floor(rgb, labels)[0]
-    lit = probable & plain[:, None]
+    floor = row_floor(rgb, labels) if floor is None else floor
+    lit = probable & floor.plain[:, None]
     blurred = ndimage.gaussian_filter(np.asarray(rgb, dtype=np.float64), sigma=(1.0, 1.0, 0.0))
     gy, gx = np.gradient(blurred, axis=(0, 1))
     smooth = ndimage.maximum_filter(np.sqrt((gx**2 + gy**2).sum(axis=2)), size=3) < SOFT_EDGE
