@@ -152,17 +152,40 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     the caller knows one; grid voxels there take the empty row P instead, the same values, and only the
     box is sampled. (The ground lies below every object box, so no ground voxel is affected.)
     """
+    n_rows = int(np.prod([-(-resolution // f) for f in factors]))
+    indices = np.full((grid_size,) * 3, n_rows, dtype=np.int32)
+    indices[ground_mask(elevation_deg, grid_size)] = n_rows + 1
+    ranges, rows, inside = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
+    if rows is not None:
+        window = indices[tuple(slice(lo, hi) for lo, hi in ranges)]  # a view: writing it writes `indices`
+        window[inside] = rows[inside]
+    return indices
+
+
+def object_window_indices(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec,
+                          elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
+    """The object alone, sampled only where it can be: the first grid index of object_window and the table rows
+    (d, h, w) int32 of its voxels as sample_indices gives them, but the empty row P for the ground too.
+    Work in proportion to the object's box, not the grid (the voxel shader needs nothing else)."""
+    n_rows = int(np.prod([-(-resolution // f) for f in factors]))
+    ranges, rows, inside = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, None)
+    start = tuple(lo for lo, _ in ranges)
+    if rows is None:
+        return start, np.full([max(hi - lo, 0) for lo, hi in ranges], n_rows, dtype=np.int32)
+    return start, np.where(inside, rows, np.int32(n_rows))
+
+
+def _sample_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
+                   grid_size: int, within: tuple[tuple[int, int], ...] | None):
+    """The object_window ranges, and over them the merged voxel each grid voxel centre falls in (flat row index)
+    and whether it falls in one at all; (ranges, None, None) when the window is empty."""
     pooled_shape = tuple(-(-resolution // f) for f in factors)
     first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
     block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)  # merged voxel sides, object units
-    n_rows = int(np.prod(pooled_shape))
-    indices = np.full((grid_size,) * 3, n_rows, dtype=np.int32)
-    indices[ground_mask(elevation_deg, grid_size)] = n_rows + 1
-
     grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
     ranges = object_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
     if any(lo >= hi for lo, hi in ranges):
-        return indices
+        return ranges, None, None
     d, r, c = (np.arange(lo, hi) + 0.5 for lo, hi in ranges)
     inside = np.ones((len(d), len(r), len(c)), dtype=bool)
     flat = np.zeros(inside.shape, dtype=np.int32)
@@ -175,10 +198,7 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
         inside &= (cell >= first[axis]) & (cell < stop[axis])
         flat *= pooled_shape[axis]
         flat += np.clip(cell, 0, pooled_shape[axis] - 1, out=cell).astype(np.int32)
-    (d0, d1), (r0, r1), (c0, c1) = ranges
-    window = indices[d0:d1, r0:r1, c0:c1]  # a view: writing it writes `indices`
-    window[inside] = flat[inside]
-    return indices
+    return ranges, flat, inside
 
 
 def object_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
@@ -190,6 +210,18 @@ def object_window(resolution: int, factors: tuple[int, int, int], object_spec: O
     block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)
     grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
     return _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block, grid_size)
+
+
+def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:
+    """Bounding box of the True entries of a 3D mask as one (start, stop) span per axis; None if there are none."""
+    plane = mask.any(axis=2)  # one pass over the mask; the three projections come from this and its columns
+    spans = []
+    for projection in (plane.any(axis=1), plane.any(axis=0), mask.any(axis=(0, 1))):
+        hits = np.flatnonzero(projection)
+        if hits.size == 0:
+            return None
+        spans.append((int(hits[0]), int(hits[-1]) + 1))
+    return tuple(spans)
 
 
 def _affine_over_grid(kd: float, kr: float, kc: float, k0: float, d: np.ndarray, r: np.ndarray, c: np.ndarray,

@@ -19,7 +19,6 @@ from models.engine.render_engine import (
     RenderEngine,
     changed_spans,
     ground_grid,
-    occupied_spans,
     resolve_precision,
 )
 from models.networks.checkpoint import save_model
@@ -29,7 +28,7 @@ from models.networks.nvr import build_model
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
-from renderer.grid import scene_grid
+from renderer.grid import occupied_spans, scene_grid
 from renderer.objects.demo import DEMO_DIR
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, load_scene
 from renderer.shading import shade_grid
@@ -216,13 +215,6 @@ def test_crop_around_a_small_part_of_the_object_box_equals_the_full_grid(model, 
     image = live.render(corner)
     assert 0.0 < live.last_report.grid_fraction < 0.1
     np.testing.assert_allclose(image, engine(model, crop=False).render(corner), rtol=0, atol=1e-5)
-
-
-def test_occupied_spans_bound_the_true_entries():
-    mask = np.zeros((6, 7, 8), dtype=bool)
-    assert occupied_spans(mask) is None
-    mask[1, 5, 2] = mask[3, 2, 6] = True
-    assert occupied_spans(mask) == ((1, 4), (2, 6), (2, 7))
 
 
 def test_preview_is_the_splat_over_the_lit_floor_unless_only_the_light_changed(model, scene):

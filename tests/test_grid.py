@@ -11,7 +11,10 @@ from renderer.camera import Camera, camera_to_grid_index, grid_centers_camera
 from renderer.grid import (
     gather,
     grid_index_to_world,
+    ground_mask,
     object_window,
+    object_window_indices,
+    occupied_spans,
     pool_factors,
     pool_voxels,
     repool_voxels,
@@ -194,6 +197,34 @@ def test_sampling_within_the_non_empty_box_gives_the_same_grid(elevation, rotati
         window = object_window(20, factors, spec, elevation, within=box)
         taken = np.argwhere(indices < pooled[..., 0].size)
         assert all(lo <= taken[:, axis].min() and taken[:, axis].max() < hi for axis, (lo, hi) in enumerate(window))
+
+
+@pytest.mark.parametrize("elevation, rotation, translation, scale", [
+    (30.0, 25.0, (0.2, -0.3), (1.0, 1.0, 1.0)),
+    (0.0, -140.0, (-0.9, 0.6), (0.5, 1.7, 1.2)),
+    (10.0, 0.0, (3.0, 0.0), (1.0, 1.0, 1.0)),  # outside the grid: an empty window
+])
+def test_the_object_window_alone_samples_what_the_whole_grid_does(elevation, rotation, translation, scale):
+    """The window's rows are the full grid's there, the ground left empty; nothing of the object lies outside it."""
+    rgba = sphere_voxels()
+    spec = ObjectSpec(translation=translation, rotation_deg=rotation, scale=scale)
+    factors = pool_factors(rgba.shape[0], scale)
+    empty_row = pool_voxels(rgba, factors)[..., 0].size
+    full = sample_indices(rgba.shape[0], factors, spec, elevation)
+    start, rows = object_window_indices(rgba.shape[0], factors, spec, elevation)
+    box = tuple(slice(a, a + n) for a, n in zip(start, rows.shape))
+    expected = np.where(ground_mask(elevation)[box], empty_row, full[box])
+    np.testing.assert_array_equal(rows, expected)
+    outside = full.copy()
+    outside[box] = empty_row
+    assert np.all(outside >= empty_row)  # every object row of the full grid is inside the window
+
+
+def test_occupied_spans_bound_the_true_entries():
+    mask = np.zeros((6, 7, 8), dtype=bool)
+    assert occupied_spans(mask) is None
+    mask[1, 5, 2] = mask[3, 2, 6] = True
+    assert occupied_spans(mask) == ((1, 4), (2, 6), (2, 7))
 
 
 @pytest.mark.parametrize("factors", [(2, 2, 2), (3, 1, 2), (1, 1, 1)])

@@ -11,8 +11,9 @@ from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
-from renderer.scene import LIGHT_RADIANCE, LIGHT_SIZE, ObjectSpec
-from renderer.shading import kernels, shade_grid
+from renderer.scene import LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
+from renderer.shading import kernels, shade_grid, shade_scene
+from renderer.shading.staged import StagedShader
 
 FLOOR = (0.6, 0.6, 0.6)
 SIZE = 96
@@ -183,3 +184,37 @@ def test_closing_and_filling_make_a_shell_solid():
     shell[4:8, 4:8, 4:8] = False
     solid = _solid(shell)
     assert solid[3:9, 3:9, 3:9].all() and solid.sum() == 6**3
+
+
+def test_the_staged_shader_equals_shading_from_scratch_after_every_edit():
+    """Cached stages (and the object's window of the grid instead of the whole grid) give the very image the
+    uncached shader gives the whole grid, after a move, a light move, a camera tilt, a floor color and a paint."""
+    rgba = ball(24, color=(0.7, 0.3, 0.2))
+    painted = rgba.copy()
+    painted[:12, ..., :3] = (0.1, 0.5, 0.9)
+    scene = Scene(object=ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7)), light=LightSpec((0.6, 2.7, 0.4)),
+                  image_size=SIZE)
+    moved = scene.with_changes(object=ObjectSpec(voxels="v.npz", translation=(0.3, -0.2), rotation_deg=40.0,
+                                                 scale=(0.7, 0.7, 0.7)))
+    lit = moved.with_changes(light=LightSpec((-0.9, 2.6, 0.2)))
+    tilted = lit.with_changes(camera=CameraSpec(elevation_deg=55.0))
+    green = (0.3, 0.5, 0.3)
+    edits = [  # each from the one before
+        ("start", scene, rgba, FLOOR),
+        ("move", moved, rgba, FLOOR),
+        ("light", lit, rgba, FLOOR),
+        ("camera", tilted, rgba, FLOOR),
+        ("floor", tilted, rgba, green),
+        ("paint", tilted, painted, green),
+        ("outside the grid", tilted.with_changes(object=ObjectSpec(voxels="v.npz", translation=(3.0, 0.0))), painted, green),
+    ]
+    staged, reran = StagedShader(), {}
+    for name, edited, voxels, floor in edits:
+        cached = staged.render(edited, id(voxels), voxels, floor, SIZE)
+        reran[name] = set(staged.stage_ms)
+        fresh = shade_scene(edited, voxels, floor, SIZE)
+        for part in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
+            np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
+    assert reran["light"] == {"shade"}  # the light-dependent stage alone
+    assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels stay
+    assert reran["paint"] == {"pool", "window", "geometry", "surface", "shade"}

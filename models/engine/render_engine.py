@@ -81,6 +81,7 @@ from renderer.grid import (
     grid_index_to_world,
     ground_mask,
     object_window,
+    occupied_spans,
     pool_factors,
     pool_voxels,
     repool_voxels,
@@ -90,7 +91,7 @@ from renderer.grid import (
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
 from renderer.scene import Scene
-from renderer.shading import ShadedImage, network_buffers, object_geometry, shade, visible_surface
+from renderer.shading import ObjectGeometry, ShadedImage, network_buffers, object_geometry, shade, visible_surface
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
@@ -116,6 +117,7 @@ class RenderReport:
 class _Placement(NamedTuple):
     indices: np.ndarray  # (D, H, W) table row per grid voxel (renderer.grid.sample_indices)
     plan: CropPlan | None  # where the object changes the voxel branch; None if it is outside the grid
+    window: list[tuple[int, int]]  # grid ranges holding every object voxel (renderer.grid.object_window)
 
 
 class _Pooled(NamedTuple):
@@ -311,7 +313,7 @@ class RenderEngine:
         indices = sample_indices(n, factors, scene.object, elevation, g, within)
         window = object_window(n, factors, scene.object, elevation, g, within)
         spans = changed_spans(indices, pooled, ground_mask(elevation, g), window)
-        return _Placement(indices, None if spans is None else self.encoder.plan(spans))
+        return _Placement(indices, None if spans is None else self.encoder.plan(spans), window)
 
     def _splat_layout(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> SplatLayout:
         shell = self._stage("shell", keys.layout[0], lambda: Shell(occupancy(painted)))  # paint keeps occupancy
@@ -326,11 +328,13 @@ class RenderEngine:
         """The voxel shader's image of the scene, from its three cached stages (renderer/shading/)."""
         elevation = scene.camera.elevation_deg
 
-        def full_grid() -> np.ndarray:  # the voxel branch itself reads only the object's crop of the grid
+        def geometry_of_window() -> ObjectGeometry:  # the shader reads only the grid's window that holds the object
             pooled, placement = self._placed(scene, painted, keys)
-            return gather(voxel_table(pooled, floor), placement.indices)
+            box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
+            window = gather(voxel_table(pooled, floor), placement.indices[box])
+            return object_geometry(window, elevation, tuple(s.start for s in box), self.config.grid_size)
 
-        geometry = self._stage("shade_geometry", keys.grid, lambda: object_geometry(full_grid(), elevation))
+        geometry = self._stage("shade_geometry", keys.grid, geometry_of_window)
         surface = self._stage("shade_surface", keys.grid, lambda: visible_surface(geometry, self.output_size))
         return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor))
 
@@ -450,18 +454,6 @@ def _non_zero(pooled: np.ndarray) -> np.ndarray:
     """Which merged voxels (D, H, W) of `pooled` (D, H, W, 4) are not all zero (-0.0 counts as non-zero: a larger crop)."""
     bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4).view(np.uint64)  # a voxel: two 8-byte words
     return ((bits[:, 0] | bits[:, 1]) != 0).reshape(pooled.shape[:-1])
-
-
-def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:
-    """Bounding box of the True entries of a 3D mask as one (start, stop) span per axis; None if there are none."""
-    plane = mask.any(axis=2)  # one pass over the mask; the three projections come from this and its columns
-    spans = []
-    for projection in (plane.any(axis=1), plane.any(axis=0), mask.any(axis=(0, 1))):
-        hits = np.flatnonzero(projection)
-        if hits.size == 0:
-            return None
-        spans.append((int(hits[0]), int(hits[-1]) + 1))
-    return tuple(spans)
 
 
 def _voxel_source(scene: Scene) -> tuple:

@@ -35,7 +35,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import grid_index_to_world, ground_mask, scene_grid
+from renderer.grid import grid_index_to_world, ground_mask, occupied_spans, scene_grid
 from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import kernels
 from renderer.splat import floor_mask
@@ -121,23 +121,33 @@ class ShadedImage:
 # --- stage 1 ----------------------------------------------------------------------------------
 
 
-def object_geometry(grid: np.ndarray, elevation_deg: float) -> ObjectGeometry:
-    """The object's part of a (D, H, W, 4) camera-aligned grid at `elevation_deg`, ready to shade."""
+def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, int, int] = (0, 0, 0),
+                    grid_size: int | None = None) -> ObjectGeometry:
+    """The object's part of a (D, H, W, 4) camera-aligned grid at `elevation_deg`, ready to shade.
+
+    `grid` is the whole scene grid, or a window of a `grid_size`^3 one from grid index `start` that holds every
+    object voxel (renderer.grid.object_window_indices): the shader then never touches the rest of the grid.
+    """
     grid = np.asarray(grid)
-    if grid.ndim != 4 or grid.shape[3] != 4 or len(set(grid.shape[:3])) != 1:
-        raise InputError(f"a scene grid must be (N, N, N, 4), got {grid.shape}")
-    n = grid.shape[0]
-    occupied_grid = (grid[..., 3] > 0.5) & ~ground_mask(float(elevation_deg), n)
+    n = grid.shape[0] if grid_size is None else int(grid_size)
+    start = np.asarray(start, dtype=int)
+    if (grid.ndim != 4 or grid.shape[3] != 4 or start.shape != (3,)
+            or np.any(start < 0) or np.any(start + grid.shape[:3] > n)):
+        raise InputError(f"a scene grid must be (N, N, N, 4) or a window of one, got {grid.shape} from {start.tolist()} "
+                         f"in {n}^3")
+    window = tuple(slice(a, a + size) for a, size in zip(start, grid.shape[:3]))
+    occupied_window = (grid[..., 3] > 0.5) & ~ground_mask(float(elevation_deg), n)[window]
     grid_to_world = grid_index_to_world(float(elevation_deg), n)
-    found = np.argwhere(occupied_grid)
+    spans = occupied_spans(occupied_window)  # argwhere over the object's box only, not the whole window
+    found = (np.zeros((0, 3), dtype=int) if spans is None else
+             np.argwhere(occupied_window[tuple(slice(*span) for span in spans)]) + start + [lo for lo, _ in spans])
     if found.size == 0:
         lo = np.zeros(3, dtype=int)
         hi = np.ones(3, dtype=int)
     else:
         lo = np.maximum(found.min(axis=0) - CROP_MARGIN, 0)
         hi = np.minimum(found.max(axis=0) + CROP_MARGIN + 1, n)
-    box = tuple(slice(a, b) for a, b in zip(lo, hi))
-    occupied = np.ascontiguousarray(occupied_grid[box])
+    occupied = _in_box(occupied_window, start, lo, hi)
     solid = _solid(occupied)
     raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
     distance = ndimage.gaussian_filter(raw, DISTANCE_SIGMA, truncate=BLUR_TRUNCATE)
@@ -148,9 +158,19 @@ def object_geometry(grid: np.ndarray, elevation_deg: float) -> ObjectGeometry:
     occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(
         elevation_deg=float(elevation_deg), offset=lo, occupied=occupied,
-        rgb=np.ascontiguousarray(grid[box][..., :3], dtype=np.float32),
+        rgb=_in_box(np.asarray(grid[..., :3], dtype=np.float32), start, lo, hi),
         distance=distance, core=ndimage.minimum_filter(distance, CORE_SIZE), smooth=smooth, broad=_broad(solid),
         grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders))
+
+
+def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The box [lo, hi) of the grid (grid indices) from a window of it that starts at `start`; zero outside the window."""
+    out = np.zeros(tuple(hi - lo) + window.shape[3:], dtype=window.dtype)
+    a, b = np.maximum(lo, start), np.minimum(hi, start + window.shape[:3])
+    if np.all(a < b):
+        out[tuple(slice(x - y, z - y) for x, y, z in zip(a, lo, b))] = window[tuple(slice(x - y, z - y)
+                                                                                    for x, y, z in zip(a, start, b))]
+    return out
 
 
 # --- stage 2 ----------------------------------------------------------------------------------

@@ -2,8 +2,8 @@
 
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
-    grid       pool, placement, elevation, floor color                     paint, object move, camera, floor color
-    geometry   grid                                                        the same
+    window     pool, placement, elevation, floor color                     paint, object move, camera, floor color
+    geometry   window                                                      the same
     surface    geometry, image size                                        the same
     shade      surface, light position, floor color                        any of the above, a light move
 
@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 
-from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, voxel_table
-from renderer.scene import Scene
+from renderer.grid import gather, object_window_indices, pool_factors, pool_voxels, voxel_table
+from renderer.scene import GRID_SIZE, ObjectSpec, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
 
 
@@ -39,9 +39,9 @@ class StagedShader:
         factors = pool_factors(n, o.scale)
         pooled = self._stage("pool", (voxels_key, factors), lambda: pool_voxels(object_rgba, factors))
         grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
-        grid = self._stage("grid", grid_key, lambda: gather(voxel_table(pooled, floor),
-                                                            sample_indices(n, factors, o, elevation)))
-        geometry = self._stage("geometry", grid_key, lambda: object_geometry(grid, elevation))
+        # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
+        start, window = self._stage("window", grid_key, lambda: _object_window(pooled, n, factors, o, elevation, floor))
+        geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, GRID_SIZE))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         return self._stage("shade", (grid_key, size, scene.light.position, floor),
                            lambda: shade(geometry, surface, scene.light.position, floor))
@@ -54,3 +54,10 @@ class StagedShader:
         self.stage_ms[name] = (time.perf_counter() - start) * 1000.0
         self._memo[name] = (key, value)
         return value
+
+
+def _object_window(pooled: np.ndarray, resolution: int, factors: tuple[int, int, int], placement: ObjectSpec,
+                   elevation: float, floor: tuple) -> tuple[tuple[int, int, int], np.ndarray]:
+    """The first grid index and the voxels (d, h, w, 4) of the grid's window that can hold the object."""
+    start, rows = object_window_indices(resolution, factors, placement, elevation)
+    return start, gather(voxel_table(pooled, floor), rows)
