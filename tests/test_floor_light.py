@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from scipy import ndimage
 
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
-from renderer.floor_light import lit_floor_image
+from renderer.floor_light import COARSE_STEP, _coarse_geometry, _upsample, lit_floor_image
 from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.scene import AMBIENT_RADIANCE, CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 from renderer.splat import background_color, floor_mask
@@ -90,6 +91,21 @@ def test_odd_sizes_interpolate_to_every_pixel():
     camera = Camera(elevation_deg=30.0, width=37, height=21)
     image = lit_floor_image(camera, (0.0, 2.75, 0.0), (0.5, 0.5, 0.5))
     assert image.shape == (21, 37, 3) and np.all(np.isfinite(image))
+
+
+@pytest.mark.parametrize("width, height", [(256, 256), (37, 21)])
+def test_the_coarse_shading_is_interpolated_bilinearly(width, height):
+    """Against scipy's linear interpolation at the pixel centres, in the coarse samples' coordinates."""
+    geometry = _coarse_geometry(Camera(elevation_deg=30.0, width=width, height=height))
+    coarse = np.random.default_rng(0).random((geometry.points.shape[0],
+                                              geometry.points.shape[1], 4)).astype(np.float32)
+    rows = np.append(np.arange(0.5, height, COARSE_STEP), height - 0.5)[: coarse.shape[0]]
+    cols = np.append(np.arange(0.5, width, COARSE_STEP), width - 0.5)[: coarse.shape[1]]
+    at_r = np.interp(np.arange(height) + 0.5, rows, np.arange(len(rows)))
+    at_c = np.interp(np.arange(width) + 0.5, cols, np.arange(len(cols)))
+    rr, cc = np.meshgrid(at_r, at_c, indexing="ij")
+    expected = np.stack([ndimage.map_coordinates(coarse[..., k], [rr, cc], order=1) for k in range(4)], axis=-1)
+    np.testing.assert_allclose(_upsample(coarse, geometry), expected, atol=1e-5)
 
 
 @pytest.mark.parametrize("light,color,match", [
