@@ -163,12 +163,13 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
 
 
 def object_window_indices(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec,
-                          elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
+                          elevation_deg: float, grid_size: int = GRID_SIZE,
+                          within: tuple[tuple[int, int], ...] | None = None) -> tuple[tuple[int, int, int], np.ndarray]:
     """The object alone, sampled only where it can be: the first grid index of object_window and the table rows
-    (d, h, w) int32 of its voxels as sample_indices gives them, but the empty row P for the ground too.
-    Work in proportion to the object's box, not the grid (the voxel shader needs nothing else)."""
+    (d, h, w) int32 of its voxels as sample_indices gives them (`within` as there), but the empty row P for the
+    ground too. Work in proportion to the object's box, not the grid (the voxel shader needs nothing else)."""
     n_rows = int(np.prod([-(-resolution // f) for f in factors]))
-    ranges, rows, inside = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, None)
+    ranges, rows, inside = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
     start = tuple(lo for lo, _ in ranges)
     if rows is None:
         return start, np.full([max(hi - lo, 0) for lo, hi in ranges], n_rows, dtype=np.int32)

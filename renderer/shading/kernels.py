@@ -50,21 +50,46 @@ def _box_interval(ox, oy, oz, dx, dy, dz, n0, n1, n2):
 
 
 @njit(cache=True, inline="always")
-def _gap(distance, core, level, thin, x, y, z):
-    """How far (in voxels of distance) a point lies outside the surface; negative inside."""
-    return sample(distance, x, y, z) - max(level, sample(core, x, y, z) + thin)
+def sample_pair(fields, x, y, z):
+    """`sample` of both fields of (n0, n1, n2, 2) `fields` at once (the same weights, neighbouring memory)."""
+    n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
+    x = min(max(x - 0.5, 0.0), n0 - 1.000001)
+    y = min(max(y - 0.5, 0.0), n1 - 1.000001)
+    z = min(max(z - 0.5, 0.0), n2 - 1.000001)
+    i, j, k = int(x), int(y), int(z)
+    fx, fy, fz = x - i, y - j, z - k
+    i1, j1, k1 = min(i + 1, n0 - 1), min(j + 1, n1 - 1), min(k + 1, n2 - 1)
+    out0, out1 = 0.0, 0.0
+    for f in range(2):
+        c00 = fields[i, j, k, f] * (1 - fz) + fields[i, j, k1, f] * fz
+        c01 = fields[i, j1, k, f] * (1 - fz) + fields[i, j1, k1, f] * fz
+        c10 = fields[i1, j, k, f] * (1 - fz) + fields[i1, j, k1, f] * fz
+        c11 = fields[i1, j1, k, f] * (1 - fz) + fields[i1, j1, k1, f] * fz
+        value = (c00 * (1 - fy) + c01 * fy) * (1 - fx) + (c10 * (1 - fy) + c11 * fy) * fx
+        if f == 0:
+            out0 = value
+        else:
+            out1 = value
+    return out0, out1
+
+
+@njit(cache=True, inline="always")
+def _gap(fields, level, thin, x, y, z):
+    """How far (in voxels of distance) a point lies outside the surface; negative inside. `fields`: distance, core."""
+    distance, core = sample_pair(fields, x, y, z)
+    return distance - max(level, core + thin)
 
 
 @njit(cache=True, parallel=True)
-def trace_surface(distance, core, level, thin, probe, origin, pixel_to_ray, pixels, hits, points, deepest, cores):
+def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits, points, deepest, cores):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
-    nearest occupied voxel) falls to the surface level: `level`, or `thin` above the part's core where that
+    nearest occupied voxel, fields[..., 0]) falls to the surface level: `level`, or `thin` above the part's core where that
     is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
     direction is pixel_to_ray @ (u, v, 1), made unit. hits[i] = ray parameter (FAR if none),
     points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
     far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
-    the hit (the least distance of the part around it: 0 inside a thick part, more in a thin one)."""
-    n0, n1, n2 = distance.shape
+    the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one)."""
+    n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
     for i in prange(pixels.shape[0]):
         u, v = pixels[i, 0], pixels[i, 1]
         dx = pixel_to_ray[0, 0] * u + pixel_to_ray[0, 1] * v + pixel_to_ray[0, 2]
@@ -80,29 +105,28 @@ def trace_surface(distance, core, level, thin, probe, origin, pixel_to_ray, pixe
             if t > t_end:
                 break
             x, y, z = origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz
-            gap = _gap(distance, core, level, thin, x, y, z)
+            gap = _gap(fields, level, thin, x, y, z)
             if gap < 0.0 and t > previous:
                 # Stepped past the surface: bisect between the last point outside and this one.
                 inside = t
                 for _ in range(6):
                     middle = 0.5 * (previous + inside)
-                    if _gap(distance, core, level, thin, origin[0] + middle * dx, origin[1] + middle * dy,
+                    if _gap(fields, level, thin, origin[0] + middle * dx, origin[1] + middle * dy,
                             origin[2] + middle * dz) < 0.0:
                         inside = middle
                     else:
                         previous = middle
                 t = inside
                 x, y, z = origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz
-                gap = _gap(distance, core, level, thin, x, y, z)
+                gap = _gap(fields, level, thin, x, y, z)
             if gap < 0.02:
                 hits[i] = t
                 points[i, 0], points[i, 1], points[i, 2] = x, y, z
-                least = sample(distance, x, y, z)
+                least, cores[i] = sample_pair(fields, x, y, z)
                 for k in range(1, 9):
                     s = t + probe * k / 8.0
-                    least = min(least, sample(distance, origin[0] + s * dx, origin[1] + s * dy, origin[2] + s * dz))
+                    least = min(least, sample_pair(fields, origin[0] + s * dx, origin[1] + s * dy, origin[2] + s * dz)[0])
                 deepest[i] = least
-                cores[i] = sample(core, x, y, z)
                 break
             previous = t
             t += max(gap, 0.3)

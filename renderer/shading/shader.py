@@ -25,8 +25,11 @@ and the shading already baked into photo-colored voxels.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from scipy import ndimage, special
@@ -76,8 +79,8 @@ class ObjectGeometry:
     offset: np.ndarray  # (3,) grid index of the crop's first voxel
     occupied: np.ndarray  # (d, r, c) bool: object voxels (the ground left out)
     rgb: np.ndarray  # (d, r, c, 3) float32 sRGB
-    distance: np.ndarray  # (d, r, c) float32: voxels from the nearest occupied voxel centre
-    core: np.ndarray  # least `distance` within CORE_SIZE voxels
+    distance_and_core: np.ndarray  # (d, r, c, 2) float32: voxels from the nearest occupied voxel centre, and
+    # the least of that within CORE_SIZE voxels (side by side: a ray's step reads both with one lookup)
     smooth: np.ndarray  # distance blurred by NORMAL_SIGMA: its gradient is the normal
     broad: np.ndarray  # occupancy blurred by BROAD_SIGMA
     grid_to_world: np.ndarray  # 4x4, continuous grid index -> world
@@ -148,19 +151,34 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
         lo = np.maximum(found.min(axis=0) - CROP_MARGIN, 0)
         hi = np.minimum(found.max(axis=0) + CROP_MARGIN + 1, n)
     occupied = _in_box(occupied_window, start, lo, hi)
-    solid = _solid(occupied)
+    # A chain of array filters, two at a time where they are independent (scipy's filters let go of the GIL).
+    solid, rgb = _two_at_once(lambda: _solid(occupied),
+                              lambda: _in_box(np.asarray(grid[..., :3], dtype=np.float32), start, lo, hi))
     raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
-    distance = ndimage.gaussian_filter(raw, DISTANCE_SIGMA, truncate=BLUR_TRUNCATE)
+    distance, broad = _two_at_once(lambda: ndimage.gaussian_filter(raw, DISTANCE_SIGMA, truncate=BLUR_TRUNCATE),
+                                   lambda: _broad(solid))
     # Normals from the distance blurred by NORMAL_SIGMA in all: blur `distance` by what is missing.
     extra = math.sqrt(max(NORMAL_SIGMA**2 - DISTANCE_SIGMA**2, 0.0))
-    smooth = ndimage.gaussian_filter(distance, extra, truncate=BLUR_TRUNCATE) if extra > 0.0 else distance
+    smooth, core = _two_at_once(
+        lambda: ndimage.gaussian_filter(distance, extra, truncate=BLUR_TRUNCATE) if extra > 0.0 else distance,
+        lambda: ndimage.minimum_filter(distance, CORE_SIZE))
     centres = found + 0.5
     occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(
-        elevation_deg=float(elevation_deg), offset=lo, occupied=occupied,
-        rgb=_in_box(np.asarray(grid[..., :3], dtype=np.float32), start, lo, hi),
-        distance=distance, core=ndimage.minimum_filter(distance, CORE_SIZE), smooth=smooth, broad=_broad(solid),
+        elevation_deg=float(elevation_deg), offset=lo, occupied=occupied, rgb=rgb,
+        distance_and_core=np.stack([distance, core], axis=-1), smooth=smooth, broad=broad,
         grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders))
+
+
+def _two_at_once(first: Callable[[], Any], second: Callable[[], Any]) -> tuple[Any, Any]:
+    """Both results, `second` computed on a helper thread while this one computes `first`."""
+    pending = _helper_thread().submit(second)
+    return first(), pending.result()
+
+
+@lru_cache(maxsize=1)
+def _helper_thread() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="shader")
 
 
 def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -259,7 +277,7 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, 
     points = np.zeros((count, 3))
     deepest = np.empty(count)
     cores = np.zeros(count)
-    kernels.trace_surface(geometry.distance, geometry.core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, origin,
+    kernels.trace_surface(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, origin,
                           pixel_to_ray, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points,
                           deepest, cores)
     level = np.maximum(SURFACE_LEVEL, cores + THIN_LEVEL)  # the surface level where each ray stopped

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from renderer.grid import gather, object_window_indices, pool_factors, pool_voxels, voxel_table
+from renderer.grid import gather, object_window_indices, occupied_spans, pool_factors, pool_voxels, voxel_table
 from renderer.scene import GRID_SIZE, ObjectSpec, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
 
@@ -37,10 +37,11 @@ class StagedShader:
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
         factors = pool_factors(n, o.scale)
-        pooled = self._stage("pool", (voxels_key, factors), lambda: pool_voxels(object_rgba, factors))
+        pooled, within = self._stage("pool", (voxels_key, factors), lambda: _pooled(object_rgba, factors))
         grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
-        start, window = self._stage("window", grid_key, lambda: _object_window(pooled, n, factors, o, elevation, floor))
+        start, window = self._stage("window", grid_key, lambda: _object_window(pooled, within, n, factors, o, elevation,
+                                                                                   floor))
         geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, GRID_SIZE))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         return self._stage("shade", (grid_key, size, scene.light.position, floor),
@@ -56,8 +57,16 @@ class StagedShader:
         return value
 
 
-def _object_window(pooled: np.ndarray, resolution: int, factors: tuple[int, int, int], placement: ObjectSpec,
-                   elevation: float, floor: tuple) -> tuple[tuple[int, int, int], np.ndarray]:
+def _pooled(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.ndarray, tuple | None]:
+    """The merged voxels, and the box of those that are not all zero (None if none is): only it is sampled."""
+    pooled = pool_voxels(object_rgba, factors)
+    return pooled, occupied_spans(np.any(pooled != 0.0, axis=-1))
+
+
+def _object_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
+                   placement: ObjectSpec, elevation: float, floor: tuple) -> tuple[tuple[int, int, int], np.ndarray]:
     """The first grid index and the voxels (d, h, w, 4) of the grid's window that can hold the object."""
-    start, rows = object_window_indices(resolution, factors, placement, elevation)
+    if within is None:  # nothing to sample: an empty window
+        within = ((0, 0),) * 3
+    start, rows = object_window_indices(resolution, factors, placement, elevation, within=within)
     return start, gather(voxel_table(pooled, floor), rows)
