@@ -80,7 +80,7 @@ def _gap(fields, level, thin, x, y, z):
     return distance - max(level, core + thin)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
 def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits, points, deepest, cores):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
     nearest occupied voxel, fields[..., 0]) falls to the surface level: `level`, or `thin` above the part's core where that
