@@ -124,10 +124,12 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         timing_only = _random_engines(settings, trained)
         for engine in timing_only:
             rows.append(bench_network(engine, scenes, settings, memory, None))
-        # The edit latencies are the shipped NVR+'s when it is benched (else any compact NVR+).
+        # The edit latencies are the shipped NVR+'s when it is benched (else any compact NVR+), in float32: the
+        # targets are for CPUs without bfloat16, and float32 is what they run.
         shipped = f"({SHIPPED_MODELS['nvr+'].name})"
-        live = next((e for e in trained if e.kind == "nvr+" and e.model_name.endswith(shipped)), None) or next(
-            (e for e in trained + timing_only if e.kind == "nvr+" and e.config.name == "compact"), None)
+        candidates = sorted(trained + timing_only, key=lambda e: e.precision != "fp32")
+        live = next((e for e in candidates if e.kind == "nvr+" and e.model_name.endswith(shipped)), None) or next(
+            (e for e in candidates if e.kind == "nvr+" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         networks = bench_networks(settings)
     peak = matmul_peak_gflops(settings.matmul_size)
@@ -258,7 +260,7 @@ def bench_edits(engine: RenderEngine, bench: BenchScene, settings: BenchSettings
             engine.crop = True
             engine.clear()
         out[name] = row
-    return {"model": engine.model_name, "scene": bench.name, **out}
+    return {"model": f"{engine.model_name}, {engine.precision}", "scene": bench.name, **out}
 
 
 def _edit_pairs(scene: Scene, paint_seed: tuple[int, int, int]) -> dict[str, tuple[Scene, Scene]]:
