@@ -106,6 +106,18 @@ class VisibleSurface:
     floor: np.ndarray  # (H, W) bool
     floor_points: np.ndarray  # (F, 3) world points of the floor pixels, row-major over `floor`
     floor_occlusion: np.ndarray  # (F,) ambient light reaching the floor point, 0..1
+    images: SurfaceImages  # the same per pixel: what a shaded image shows that does not depend on the light
+
+
+@dataclass(frozen=True)
+class SurfaceImages:
+    """The light-independent buffers of a shaded image (H, W, ...), made once per surface and shared (read-only)."""
+
+    albedo: np.ndarray  # linear object albedo (0 where no object)
+    albedo_srgb: np.ndarray  # the same in sRGB, as a network reads it
+    normal: np.ndarray  # world normal (0 where no object)
+    depth: np.ndarray  # view-axis distance of the object point (0 where none)
+    occlusion: np.ndarray  # share of the sky seen: object points, and floor points
 
 
 @dataclass(frozen=True)
@@ -115,6 +127,7 @@ class ShadedImage:
     image: np.ndarray  # sRGB in [0, 1]
     coverage: np.ndarray  # object share of the pixel
     albedo: np.ndarray  # linear object albedo (0 where no object)
+    albedo_srgb: np.ndarray  # the same in sRGB
     normal: np.ndarray  # world normal (0 where no object)
     depth: np.ndarray  # view-axis distance of the object point (0 where none)
     visibility: np.ndarray  # share of the light seen: object points, and floor points
@@ -244,9 +257,28 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
 
     floor, floor_points = _floor_points(camera)
     floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_grid)
+    albedo = srgb_to_linear(np.clip(colors, 0.0, 1.0)).astype(np.float32)
+    images = _surface_images(size, pixels, np.clip(colors, 0.0, 1.0), albedo, normals_world, depth, occlusion, floor,
+                             floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
-                          albedo=srgb_to_linear(np.clip(colors, 0.0, 1.0)).astype(np.float32), occlusion=occlusion,
-                          depth=depth, floor=floor, floor_points=floor_points, floor_occlusion=floor_occlusion)
+                          albedo=albedo, occlusion=occlusion, depth=depth, floor=floor, floor_points=floor_points,
+                          floor_occlusion=floor_occlusion, images=images)
+
+
+def _surface_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
+                    depth: np.ndarray, occlusion: np.ndarray, floor: np.ndarray, floor_occlusion: np.ndarray) -> SurfaceImages:
+    """The visible points' values drawn into images (the floor's occlusion too); read-only, as they are shared."""
+    r, c = pixels[:, 0], pixels[:, 1]
+    images = {name: np.zeros((size, size) + shape, dtype=np.float32)
+              for name, shape in (("albedo", (3,)), ("albedo_srgb", (3,)), ("normal", (3,)), ("depth", ()))}
+    images["occlusion"] = np.ones((size, size), dtype=np.float32)
+    images["occlusion"][floor] = floor_occlusion
+    for name, values in (("albedo", albedo), ("albedo_srgb", colors), ("normal", normals), ("depth", depth),
+                         ("occlusion", occlusion)):
+        images[name][r, c] = values
+    for image in images.values():
+        image.flags.writeable = False
+    return SurfaceImages(**images)
 
 
 def _pixel_window(geometry: ObjectGeometry, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
@@ -405,27 +437,23 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
 
     size = surface.size
     visibility = np.ones((size, size), dtype=np.float32)
-    occlusion = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
                          _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, 0.25 * voxel))
-    occlusion[floor] = surface.floor_occlusion
+    sky = np.ones((size, size), dtype=np.float32)  # the floor's share of the sky (behind the object too)
+    sky[floor] = surface.floor_occlusion
     background = np.float32(AMBIENT_RADIANCE)
-    ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * occlusion[..., None], background)
-
-    albedo = np.zeros((size, size, 3), dtype=np.float32)
-    normal = np.zeros((size, size, 3), dtype=np.float32)
-    depth = np.zeros((size, size), dtype=np.float32)
+    ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * sky[..., None], background)
     image = ground
     if len(surface.points):
         radiance, seen = _object_radiance(surface, lights, maps, bounds, voxel, floor_color)
         r, c = surface.pixels[:, 0], surface.pixels[:, 1]
         cover = surface.coverage[r, c][:, None]
-        image = ground.copy()
         image[r, c] = ground[r, c] * (1.0 - cover) + radiance * cover
-        albedo[r, c], normal[r, c], depth[r, c] = surface.albedo, surface.normals, surface.depth
-        visibility[r, c], occlusion[r, c] = seen, surface.occlusion
+        visibility[r, c] = seen
+    images = surface.images
     return ShadedImage(image=np.clip(linear_to_srgb(image), 0.0, 1.0).astype(np.float32), coverage=surface.coverage,
-                       albedo=albedo, normal=normal, depth=depth, visibility=visibility, occlusion=occlusion)
+                       albedo=images.albedo, albedo_srgb=images.albedo_srgb, normal=images.normal, depth=images.depth,
+                       visibility=visibility, occlusion=images.occlusion)
 
 
 def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
@@ -495,7 +523,7 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
     share of the light and of the sky each point sees, and the object's coverage; 0 where there is no object."""
     on_object = shaded.coverage > 0.0
     depth = np.where(on_object, (shaded.depth - CAMERA_DISTANCE) / (0.5 * GRID_EXTENT), 0.0)
-    return np.concatenate([shaded.image, linear_to_srgb(shaded.albedo), shaded.normal, depth[..., None],
+    return np.concatenate([shaded.image, shaded.albedo_srgb, shaded.normal, depth[..., None],
                            shaded.visibility[..., None], shaded.occlusion[..., None], shaded.coverage[..., None]],
                           axis=-1).astype(np.float32)
 
