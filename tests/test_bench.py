@@ -23,10 +23,10 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms"):
         assert math.isfinite(results[key]) and results[key] > 0.0
     # A light edit reruns only the stages after the light enters (timings are the benchmark's business,
-    # not a test's): the last one, and the shader's light stage (or the lit floor) and the splat branch for
+    # not a test's): the last one, and the shader's light stages (or the lit floor) and the splat branch for
     # a model that reads them.
     shipped = load_model(shipped_model("nvr+"))[1]
-    first = ["shade"] if shipped.shading_input else ["floor_light"] if shipped.floor_light_input else []
+    first = ["shade_floor", "shade"] if shipped.shading_input else ["floor_light"] if shipped.floor_light_input else []
     expected = [*first, "splat_branch", "light"] if first else ["light"]
     assert results["edits"]["light"]["stages"] == expected
     labels = {row["label"] for row in results["renderers"]}

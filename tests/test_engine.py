@@ -461,7 +461,7 @@ def test_refiner_cached_render_equals_uncached(scene, edit):
     live.render(scene)
     image = live.render(edited)
     if edit == "light":  # the object's geometry and what the camera sees of it are kept
-        assert list(live.last_report.stages_run) == ["shade", "splat_branch", "light"]
+        assert list(live.last_report.stages_run) == ["shade_floor", "shade", "splat_branch", "light"]
     np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
     assert np.abs(image - live.render(scene)).max() > 1e-4
 

@@ -215,6 +215,6 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit():
         fresh = shade_scene(edited, voxels, floor, SIZE)
         for part in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
-    assert reran["light"] == {"shade"}  # the light-dependent stage alone
-    assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels stay
+    assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
+    assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels and the lit floor stay
     assert reran["paint"] == {"pool", "window", "geometry", "surface", "shade"}

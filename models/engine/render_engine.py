@@ -21,12 +21,18 @@ when those change:
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
                                                                           it, and previews)
-    splat_branch  as splat (and floor_light, if the network reads it)     splat features (encode_splat)
+    shade_geometry  as gather                                             the voxel shader's object geometry (networks
+    shade_surface   as gather                                             that read the shader: renderer/shading/), the
+    shade_floor     as floor_light                                        surface the camera sees, the empty floor's
+    shade           as gather, and the light position                     lighting, the shaded image and buffers
+    splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
+                  reads them)
     light         all of the above and the light position                 image (render_from_latent)
 
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
-runs only for networks that read the lit floor, like the shipped compact NVR+; for the others a
-light move reruns the light stage alone):
+runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
+networks that read the shader, like the shipped NVR+, after every edit below that reruns gather, and
+shade_floor and shade after a light move; for the others a light move reruns the light stage alone):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -75,7 +81,7 @@ from models.networks.inference import prepare_for_inference
 from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
 from renderer.camera import Camera
 from renderer.errors import InputError
-from renderer.floor_light import lit_floor_image
+from renderer.floor_light import lit_floor_image, lit_floor_terms
 from renderer.grid import (
     gather,
     grid_index_to_world,
@@ -325,7 +331,7 @@ class RenderEngine:
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
 
     def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> ShadedImage:
-        """The voxel shader's image of the scene, from its three cached stages (renderer/shading/)."""
+        """The voxel shader's image of the scene, from its cached stages (renderer/shading/)."""
         elevation = scene.camera.elevation_deg
 
         def geometry_of_window() -> ObjectGeometry:  # the shader reads only the grid's window that holds the object
@@ -336,7 +342,10 @@ class RenderEngine:
 
         geometry = self._stage("shade_geometry", keys.grid, geometry_of_window)
         surface = self._stage("shade_surface", keys.grid, lambda: visible_surface(geometry, self.output_size))
-        return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor))
+        floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
+            Camera.from_scene(scene, self.output_size), scene.light.position, floor))
+        return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
+                                                              floor_terms))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""

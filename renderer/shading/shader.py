@@ -425,10 +425,15 @@ def light_points(light_position) -> np.ndarray:
     return np.stack([light[0] + x.ravel(), np.full(x.size, light[1]), light[2] + z.ravel()], axis=1)
 
 
-def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color) -> ShadedImage:
-    """The shaded image of the visible surface under the light at `light_position` (world)."""
-    camera = Camera(geometry.elevation_deg, width=surface.size, height=surface.size)
-    from_light, from_ambient, floor = lit_floor_terms(camera, light_position, floor_color)
+def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
+          floor_terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> ShadedImage:
+    """The shaded image of the visible surface under the light at `light_position` (world). `floor_terms`: the
+    empty floor's lighting, lit_floor_terms(camera, light_position, floor_color), if the caller keeps it (it does
+    not change when the object does)."""
+    if floor_terms is None:
+        floor_terms = lit_floor_terms(Camera(geometry.elevation_deg, width=surface.size, height=surface.size),
+                                      light_position, floor_color)
+    from_light, from_ambient, floor = floor_terms
     lights = light_points(light_position)
     voxel = float(np.linalg.norm(geometry.grid_to_world[:3, 0]))
     maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)

@@ -5,10 +5,12 @@
     window     pool, placement, elevation, floor color                     paint, object move, camera, floor color
     geometry   window                                                      the same
     surface    geometry, image size                                        the same
-    shade      surface, light position, floor color                        any of the above, a light move
+    floor      elevation, image size, light position, floor color          camera, floor color, a light move
+    shade      surface, floor                                              any of the above
 
-So a light move reruns only `shade`, the light-dependent part. The caller names the painted voxels by
-a key (anything hashable that changes when they do), so the cache never compares voxel arrays.
+So a light move reruns only `floor` and `shade`, the light-dependent part, and an object move all but `floor`.
+The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
+compares voxel arrays.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from renderer.camera import Camera
+from renderer.floor_light import lit_floor_terms
 from renderer.grid import gather, object_window_indices, occupied_spans, pool_factors, pool_voxels, voxel_table
 from renderer.scene import GRID_SIZE, ObjectSpec, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
@@ -44,8 +48,11 @@ class StagedShader:
                                                                                    floor))
         geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, GRID_SIZE))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
-        return self._stage("shade", (grid_key, size, scene.light.position, floor),
-                           lambda: shade(geometry, surface, scene.light.position, floor))
+        light = scene.light.position
+        floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
+            Camera(elevation, width=size, height=size), light, floor))
+        return self._stage("shade", (grid_key, size, light, floor), lambda: shade(geometry, surface, light, floor,
+                                                                                 floor_terms))
 
     def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
         if name in self._memo and self._memo[name][0] == key:
