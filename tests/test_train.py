@@ -5,6 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 from safetensors.torch import load_file
@@ -293,3 +294,20 @@ def test_a_run_killed_during_a_checkpoint_write_resumes_from_the_last_good_one(d
     train(tmp_path / "whole", config(data, steps=4), progress=False)
     a, b = weights(tmp_path / "whole" / CHECKPOINT), weights(run / CHECKPOINT)
     assert a.keys() == b.keys() and all(torch.equal(a[key], b[key]) for key in a)
+
+
+def test_the_thread_count_holds_after_a_compiled_shader_kernel():
+    """numba's OpenMP layer would set OpenMP's count back to every core, and torch follows it."""
+    import numba
+
+    from models.threads import set_threads
+    from renderer.shading import kernels
+
+    before = torch.get_num_threads(), numba.get_num_threads()
+    try:
+        set_threads(1)
+        kernels.distance_to_occupied(np.zeros((6, 6, 6), dtype=bool))
+        assert torch.get_num_threads() == 1 and numba.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(before[0])
+        numba.set_num_threads(before[1])

@@ -79,6 +79,7 @@ from models.engine.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, 
 from models.engine.paint_replay import PaintReplay
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
+from models.threads import set_threads
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image, lit_floor_terms
@@ -157,7 +158,7 @@ class RenderEngine:
 
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
                  precision: str = "auto", device: str = "auto"):
-        torch.set_num_threads(threads or default_threads())
+        set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"

@@ -28,6 +28,7 @@ import torch
 from safetensors.torch import load_file, save_file
 from torch import nn
 
+from models.threads import set_threads
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_json, remove_stale_temporaries, save_json
 
@@ -247,7 +248,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     out = Path(out)
     dist_info = Distributed.from_environment(config.device)
     if config.threads:
-        torch.set_num_threads(config.threads)
+        set_threads(config.threads)
     if config.batch % dist_info.world:
         raise InputError(f"--batch {config.batch} must be divisible by the number of processes {dist_info.world}")
     if config.device.startswith("cuda") and not torch.cuda.is_available():
