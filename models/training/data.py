@@ -39,12 +39,15 @@ def image_tensor(path: Path) -> torch.Tensor:
 
 
 def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """The voxel grid (4, D, H, W) and scaled camera-space light (3,) the network reads for a scene."""
+    """The voxel grid (4, D, H, W) (a view of channels-last memory) and scaled camera-space light (3,) the network
+    reads for a scene."""
     from models.networks.nvr import light_to_network
     from renderer.grid import scene_grid
 
     grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size=grid_size)
-    voxels = torch.from_numpy(np.ascontiguousarray(grid.transpose(3, 0, 1, 2), dtype=np.float32))
+    # A channels-first view of the channels-last grid, not a copy: stacking a batch copies it anyway, 7x faster
+    # than numpy's transposing copy per sample (0.1 s against 0.7 s for 10 grids, a fifth of a training step).
+    voxels = torch.from_numpy(np.asarray(grid, dtype=np.float32)).permute(3, 0, 1, 2)
     light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg).astype(np.float32))
     return voxels, light
 
