@@ -284,7 +284,7 @@ def cmd_train(args: argparse.Namespace) -> None:
         data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
         steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
         lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, threads=args.threads,
-        checkpoint_minutes=args.checkpoint_minutes, perceptual_weights=args.vgg_weights,
+        loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes, perceptual_weights=args.vgg_weights,
         perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
     print(f"wrote {train(args.out, config, resume=args.resume)}")
@@ -467,6 +467,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="cpu", help="cpu or cuda")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: torch's default)")
+    p.add_argument("--loader-workers", type=int, default=1,
+                   help="processes preparing the next batches while a step runs (0: between steps, in this process)")
     p.add_argument("--checkpoint-minutes", type=float, default=5.0)
     p.add_argument("--vgg-weights", default=None, help="torchvision VGG16 state dict for the perceptual loss")
     p.add_argument("--perceptual-crop", type=int, default=128, help="side of the perceptual loss crop (0: whole image)")

@@ -311,3 +311,11 @@ def test_the_thread_count_holds_after_a_compiled_shader_kernel():
     finally:
         torch.set_num_threads(before[0])
         numba.set_num_threads(before[1])
+
+
+def test_a_loader_worker_prepares_the_very_batches_of_the_training_process(data, tmp_path):
+    """Batches made by a worker process while steps run give the same weights as batches made between steps."""
+    train(tmp_path / "here", config(data, steps=3), progress=False)
+    train(tmp_path / "worker", config(data, steps=3, loader_workers=1), progress=False)
+    a, b = weights(tmp_path / "here" / CHECKPOINT), weights(tmp_path / "worker" / CHECKPOINT)
+    assert a.keys() == b.keys() and all(torch.equal(a[key], b[key]) for key in a)

