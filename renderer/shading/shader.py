@@ -5,17 +5,19 @@ camera elevation, the floor color) and the scene's fixed constants (renderer/sce
 what the path tracer would, approximately:
 
 1. object_geometry (depends on the grid: the object, its placement, the camera): the object's
-   voxels without the ground, cropped to their box; the distance to the nearest occupied voxel
+   voxels without the ground, cropped to their box (from the whole grid or from the window of it
+   that can hold the object, which is all a live caller samples); the distance to the nearest occupied voxel
    (the surface is where it equals SURFACE_LEVEL, a little inside the voxel hull, which is fatter
    than the mesh; thin parts stay as tubes); the occupancy smoothed for normals and, more broadly,
    for ambient occlusion; the occupied voxels' world positions, which cast the shadows.
 2. visible_surface (adds the image size): per pixel, the first surface point a camera ray meets
    (sphere tracing the distance), anti-aliased at silhouettes by 2 x 2 rays, its normal, albedo
-   and ambient occlusion; the floor points, and how much of their sky the object blocks.
+   and ambient occlusion; the floor points, and how much of their sky the object blocks; these as
+   images too (SurfaceImages), shared by every light's shaded image.
 3. shade (adds the light and the floor color): soft shadows from shadow maps seen from
    LIGHT_POINTS^2 points on the square light, direct light (Lambert), ambient light with occlusion,
-   light bounced up from the floor, the lit floor (renderer/floor_light.py) times the object's
-   shadow; composited over the background, converted to sRGB.
+   light bounced up from the floor, the lit floor (renderer/floor_light.py, which a caller may keep
+   while the object moves) times the object's shadow; composited over the background, in sRGB.
 
 A light move reruns only `shade`, an object move all three. Known gaps (a network's job): the
 floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
