@@ -213,6 +213,12 @@ def object_window(resolution: int, factors: tuple[int, int, int], object_spec: O
     return _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block, grid_size)
 
 
+def non_empty_voxels(pooled: np.ndarray) -> np.ndarray:
+    """Which merged voxels (D, H, W) of `pooled` (D, H, W, 4) are not all zero (-0.0 counts as non-zero: a larger crop)."""
+    bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4).view(np.uint64)  # a voxel: two 8-byte words
+    return ((bits[:, 0] | bits[:, 1]) != 0).reshape(pooled.shape[:-1])
+
+
 def occupied_spans(mask: np.ndarray) -> tuple[tuple[int, int], ...] | None:
     """Bounding box of the True entries of a 3D mask as one (start, stop) span per axis; None if there are none."""
     plane = mask.any(axis=2)  # one pass over the mask; the three projections come from this and its columns

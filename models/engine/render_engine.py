@@ -87,6 +87,7 @@ from renderer.grid import (
     gather,
     grid_index_to_world,
     ground_mask,
+    non_empty_voxels,
     object_window,
     occupied_spans,
     pool_factors,
@@ -316,7 +317,7 @@ class RenderEngine:
 
     def _place(self, n: int, factors: tuple[int, int, int], scene: Scene, pooled: np.ndarray) -> _Placement:
         g, elevation = self.config.grid_size, scene.camera.elevation_deg
-        within = occupied_spans(_non_zero(pooled))
+        within = occupied_spans(non_empty_voxels(pooled))
         indices = sample_indices(n, factors, scene.object, elevation, g, within)
         window = object_window(n, factors, scene.object, elevation, g, within)
         spans = changed_spans(indices, pooled, ground_mask(elevation, g), window)
@@ -453,17 +454,11 @@ def changed_spans(indices: np.ndarray, pooled: np.ndarray, ground: np.ndarray,
     box = tuple(slice(*span) for span in window)
     taken = np.ascontiguousarray(indices[box])
     rows = int(np.prod(pooled.shape[:-1]))
-    non_zero = np.append(_non_zero(pooled).reshape(-1), [False, False])  # the empty and floor rows: no object
+    non_zero = np.append(non_empty_voxels(pooled).reshape(-1), [False, False])  # the empty and floor rows: no object
     changed = np.take(non_zero.view(np.uint8), taken).view(bool)  # np.take: twice as fast as fancy indexing
     changed |= ground[box] & (taken != rows + 1)
     spans = occupied_spans(changed)
     return None if spans is None else tuple((lo + s.start, hi + s.start) for (lo, hi), s in zip(spans, box))
-
-
-def _non_zero(pooled: np.ndarray) -> np.ndarray:
-    """Which merged voxels (D, H, W) of `pooled` (D, H, W, 4) are not all zero (-0.0 counts as non-zero: a larger crop)."""
-    bits = np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4).view(np.uint64)  # a voxel: two 8-byte words
-    return ((bits[:, 0] | bits[:, 1]) != 0).reshape(pooled.shape[:-1])
 
 
 def _voxel_source(scene: Scene) -> tuple:

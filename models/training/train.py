@@ -397,10 +397,9 @@ def crop_box(config: TrainConfig, step: int, size: int) -> tuple[int, int, int] 
     return top, left, side
 
 
-def collate(items: list[dict[str, torch.Tensor]], device: torch.device | None = None) -> dict[str, torch.Tensor]:
-    """Stack samples into a batch (on `device`, if given)."""
-    batch = {key: torch.stack([item[key] for item in items]) for key in items[0]}
-    return batch if device is None else {key: value.to(device) for key, value in batch.items()}
+def collate(items: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+    """Stack samples into a batch."""
+    return {key: torch.stack([item[key] for item in items]) for key in items[0]}
 
 
 class _StepIndices(torch.utils.data.Sampler):

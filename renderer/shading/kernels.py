@@ -17,15 +17,20 @@ FAR = np.float32(3.0e38)
 
 
 @njit(cache=True, inline="always")
-def sample(field, x, y, z):
-    """Trilinear sample of `field` at crop coordinates (x, y, z); clamped to the crop's edge voxels."""
-    n0, n1, n2 = field.shape
+def _cell(n0, n1, n2, x, y, z):
+    """The voxel centres around crop coordinates (x, y, z), clamped to the crop's edge voxels: the lower and upper
+    indices per axis and the weights of the upper ones."""
     x = min(max(x - 0.5, 0.0), n0 - 1.000001)
     y = min(max(y - 0.5, 0.0), n1 - 1.000001)
     z = min(max(z - 0.5, 0.0), n2 - 1.000001)
     i, j, k = int(x), int(y), int(z)
-    fx, fy, fz = x - i, y - j, z - k
-    i1, j1, k1 = min(i + 1, n0 - 1), min(j + 1, n1 - 1), min(k + 1, n2 - 1)
+    return i, j, k, min(i + 1, n0 - 1), min(j + 1, n1 - 1), min(k + 1, n2 - 1), x - i, y - j, z - k
+
+
+@njit(cache=True, inline="always")
+def sample(field, x, y, z):
+    """Trilinear sample of `field` at crop coordinates (x, y, z); clamped to the crop's edge voxels."""
+    i, j, k, i1, j1, k1, fx, fy, fz = _cell(field.shape[0], field.shape[1], field.shape[2], x, y, z)
     c00 = field[i, j, k] * (1 - fz) + field[i, j, k1] * fz
     c01 = field[i, j1, k] * (1 - fz) + field[i, j1, k1] * fz
     c10 = field[i1, j, k] * (1 - fz) + field[i1, j, k1] * fz
@@ -52,25 +57,18 @@ def _box_interval(ox, oy, oz, dx, dy, dz, n0, n1, n2):
 @njit(cache=True, inline="always")
 def sample_pair(fields, x, y, z):
     """`sample` of both fields of (n0, n1, n2, 2) `fields` at once (the same weights, neighbouring memory)."""
-    n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
-    x = min(max(x - 0.5, 0.0), n0 - 1.000001)
-    y = min(max(y - 0.5, 0.0), n1 - 1.000001)
-    z = min(max(z - 0.5, 0.0), n2 - 1.000001)
-    i, j, k = int(x), int(y), int(z)
-    fx, fy, fz = x - i, y - j, z - k
-    i1, j1, k1 = min(i + 1, n0 - 1), min(j + 1, n1 - 1), min(k + 1, n2 - 1)
-    out0, out1 = 0.0, 0.0
-    for f in range(2):
-        c00 = fields[i, j, k, f] * (1 - fz) + fields[i, j, k1, f] * fz
-        c01 = fields[i, j1, k, f] * (1 - fz) + fields[i, j1, k1, f] * fz
-        c10 = fields[i1, j, k, f] * (1 - fz) + fields[i1, j, k1, f] * fz
-        c11 = fields[i1, j1, k, f] * (1 - fz) + fields[i1, j1, k1, f] * fz
-        value = (c00 * (1 - fy) + c01 * fy) * (1 - fx) + (c10 * (1 - fy) + c11 * fy) * fx
-        if f == 0:
-            out0 = value
-        else:
-            out1 = value
-    return out0, out1
+    i, j, k, i1, j1, k1, fx, fy, fz = _cell(fields.shape[0], fields.shape[1], fields.shape[2], x, y, z)
+    return (_blend(fields, 0, i, j, k, i1, j1, k1, fx, fy, fz), _blend(fields, 1, i, j, k, i1, j1, k1, fx, fy, fz))
+
+
+@njit(cache=True, inline="always")
+def _blend(fields, f, i, j, k, i1, j1, k1, fx, fy, fz):
+    """Field `f` of `fields` interpolated between the eight voxel centres of a `_cell`."""
+    c00 = fields[i, j, k, f] * (1 - fz) + fields[i, j, k1, f] * fz
+    c01 = fields[i, j1, k, f] * (1 - fz) + fields[i, j1, k1, f] * fz
+    c10 = fields[i1, j, k, f] * (1 - fz) + fields[i1, j, k1, f] * fz
+    c11 = fields[i1, j1, k, f] * (1 - fz) + fields[i1, j1, k1, f] * fz
+    return (c00 * (1 - fy) + c01 * fy) * (1 - fx) + (c10 * (1 - fy) + c11 * fy) * fx
 
 
 @njit(cache=True, inline="always")

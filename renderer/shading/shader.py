@@ -120,6 +120,7 @@ class SurfaceImages:
     normal: np.ndarray  # world normal (0 where no object)
     depth: np.ndarray  # view-axis distance of the object point (0 where none)
     occlusion: np.ndarray  # share of the sky seen: object points, and floor points
+    floor_occlusion: np.ndarray  # the floor's alone, behind the object too (what the ground under it gets)
 
 
 @dataclass(frozen=True)
@@ -273,8 +274,9 @@ def _surface_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: n
     r, c = pixels[:, 0], pixels[:, 1]
     images = {name: np.zeros((size, size) + shape, dtype=np.float32)
               for name, shape in (("albedo", (3,)), ("albedo_srgb", (3,)), ("normal", (3,)), ("depth", ()))}
-    images["occlusion"] = np.ones((size, size), dtype=np.float32)
-    images["occlusion"][floor] = floor_occlusion
+    images["floor_occlusion"] = np.ones((size, size), dtype=np.float32)
+    images["floor_occlusion"][floor] = floor_occlusion
+    images["occlusion"] = images["floor_occlusion"].copy()
     for name, values in (("albedo", albedo), ("albedo_srgb", colors), ("normal", normals), ("depth", depth),
                          ("occlusion", occlusion)):
         images[name][r, c] = values
@@ -446,10 +448,9 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
                          _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, 0.25 * voxel))
-    sky = np.ones((size, size), dtype=np.float32)  # the floor's share of the sky (behind the object too)
-    sky[floor] = surface.floor_occlusion
     background = np.float32(AMBIENT_RADIANCE)
-    ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * sky[..., None], background)
+    ground = np.where(floor[..., None], from_light * visibility[..., None]
+                      + from_ambient * surface.images.floor_occlusion[..., None], background)
     image = ground
     if len(surface.points):
         radiance, seen = _object_radiance(surface, lights, maps, bounds, voxel, floor_color)

@@ -23,7 +23,15 @@ import numpy as np
 
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import gather, object_window_indices, occupied_spans, pool_factors, pool_voxels, voxel_table
+from renderer.grid import (
+    gather,
+    non_empty_voxels,
+    object_window_indices,
+    occupied_spans,
+    pool_factors,
+    pool_voxels,
+    voxel_table,
+)
 from renderer.scene import GRID_SIZE, ObjectSpec, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
 
@@ -67,13 +75,11 @@ class StagedShader:
 def _pooled(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.ndarray, tuple | None]:
     """The merged voxels, and the box of those that are not all zero (None if none is): only it is sampled."""
     pooled = pool_voxels(object_rgba, factors)
-    return pooled, occupied_spans(np.any(pooled != 0.0, axis=-1))
+    return pooled, occupied_spans(non_empty_voxels(pooled))
 
 
 def _object_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
                    placement: ObjectSpec, elevation: float, floor: tuple) -> tuple[tuple[int, int, int], np.ndarray]:
     """The first grid index and the voxels (d, h, w, 4) of the grid's window that can hold the object."""
-    if within is None:  # nothing to sample: an empty window
-        within = ((0, 0),) * 3
     start, rows = object_window_indices(resolution, factors, placement, elevation, within=within)
     return start, gather(voxel_table(pooled, floor), rows)
