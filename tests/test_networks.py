@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from models.networks.config import CompactConfig, NVRConfig, PaperConfig
+from models.networks.config import CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
 from models.networks.inference import prepare_for_inference
-from models.networks.nvr import LIGHT_SCALE, NVR, NVRPlus, build_model, light_to_network
+from models.networks.layers import cat_channels
+from models.networks.nvr import LIGHT_SCALE, NVR, SHADING_CHANNELS, NVRPlus, build_model, light_to_network
 from models.training.loss import RenderLoss
 from renderer.scene import CAMERA_DISTANCE, LOOK_AT
 
@@ -215,3 +216,35 @@ def test_config_round_trip_and_validation() -> None:
         NVRConfig.from_dict({k: v for k, v in CompactConfig().to_dict().items() if k != "latent_channels"})
     with pytest.raises(ValueError, match="non-negative integer"):
         CompactConfig(latent_channels=-1)
+
+
+def test_cat_channels_keeps_channels_last_and_the_values() -> None:
+    gen = torch.Generator().manual_seed(0)
+    # As the engine passes images: (H, W, C) arrays seen as (1, C, H, W), i.e. channels-last.
+    a = torch.rand(1, 5, 7, 3, generator=gen).permute(0, 3, 1, 2)
+    b = torch.rand(1, 5, 7, 13, generator=gen).permute(0, 3, 1, 2)
+    joined = cat_channels([a, b])
+    assert joined.shape == (1, 16, 5, 7) and joined.is_contiguous(memory_format=torch.channels_last)
+    assert torch.equal(joined[:, :3], a) and torch.equal(joined[:, 3:], b)
+    mixed = cat_channels([a, b.contiguous()])  # one channels-first input: torch.cat's layout
+    assert torch.equal(mixed, joined) and mixed.is_contiguous()
+
+
+def test_shader_refiner_corrects_the_shaded_image_the_same_in_either_layout() -> None:
+    config = ShaderRefinerConfig(grid_size=16, output_size=32)
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", config).eval()
+    for parameter in model.rerender.to_rgb.parameters():  # a trained correction, not the zero one it starts as
+        torch.nn.init.normal_(parameter, std=0.05)
+    voxels, light, splat = make_inputs(config, batch=1)
+    shading = torch.rand(1, SHADING_CHANNELS, 32, 32, generator=torch.Generator().manual_seed(1))
+    with torch.no_grad():
+        image = model(voxels, light, splat, shading=shading)
+        last = model.rerender(model.to_features(model._features(model.encode_voxels(voxels), light))
+                              + model.encode_splat(splat, shading=shading))
+        channels_last = [t.permute(0, 2, 3, 1).contiguous().permute(0, 3, 1, 2) for t in (splat, shading)]
+        image_last = model(voxels, light, channels_last[0], shading=channels_last[1])
+    expected = shading[:, :3] * torch.exp(last[:, :3]) + last[:, 3:]
+    torch.testing.assert_close(image, expected, rtol=0, atol=1e-6)
+    torch.testing.assert_close(image_last, image, rtol=0, atol=1e-6)
+    assert (image - shading[:, :3]).abs().max() > 1e-3  # the correction is not zero

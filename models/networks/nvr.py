@@ -38,6 +38,7 @@ from models.networks.layers import (
     ResidualBlock2d,
     ResidualBlock3d,
     ResidualStack,
+    cat_channels,
     conv_2d,
     conv_block_2d,
     conv_block_3d,
@@ -235,7 +236,7 @@ class NVRPlus(_VoxelRenderer):
                 raise ValueError(f"this network reads the {label} too (config.{name}_input): pass {name}")
             _check_shape(name, tensor, (channels, s, s))
             inputs.append(tensor)
-        return self.splat_encoder(inputs[0] if len(inputs) == 1 else torch.cat(inputs, dim=1))
+        return self.splat_encoder(cat_channels(inputs))
 
     def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
                            splat_features: torch.Tensor | None = None, shaded: torch.Tensor | None = None) -> torch.Tensor:
@@ -250,7 +251,8 @@ class NVRPlus(_VoxelRenderer):
         if shaded is None:
             raise ValueError("this network corrects the shaded image (config.shading_input): pass shaded")
         gain, offset = out[:, :IMAGE_CHANNELS], out[:, IMAGE_CHANNELS:]
-        return shaded * torch.exp(gain) + offset
+        # exp of a dense copy (clone keeps the layout): on a strided channel slice it is not vectorised, 10x slower
+        return torch.addcmul(offset, shaded, gain.clone().exp())
 
     def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None,
                 floor_light: torch.Tensor | None = None, shading: torch.Tensor | None = None) -> torch.Tensor:
