@@ -9,6 +9,10 @@ rendered silhouette best overlaps the object's mask in the photo (intersection o
 3. Local refinement of all five numbers by compass search on the IoU: try a step up and
    down in each, keep what improves, halve the steps when nothing does.
 All of it at a reduced photo size; the result is the pose at the photo's own size.
+
+A photo without an alpha channel has only a segmented mask, wrong where object and background share
+colors; `refine_by_colors` then refines a pose by the same compass search on how well its silhouette
+separates the photo's colors (renderer/capture/color_fit.py), the mesh's shape deciding the boundary.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from renderer.camera import Camera
+from renderer.capture.color_fit import color_separation, quantised_colors
 from renderer.capture.pose import PhotoPose
 from renderer.capture.silhouette import SilhouetteRenderer
 
@@ -92,6 +97,28 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
     return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start, photo_mask)
 
 
+def refine_by_colors(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoPose, photo_mask: np.ndarray,
+                     region: np.ndarray | None = None, free_focal: bool = False) -> Alignment:
+    """`pose` refined by the colors its silhouette separates in `photo_rgb` ((H, W, 3)) within `region` ((H, W) bool;
+    None: the whole photo). `photo_mask`, the photo's segmented object, only gives the reported IoU (and is kept
+    as the alignment's mask). `free_focal`: the focal length is refined too."""
+    start = time.perf_counter()
+    rays_before = silhouettes.rays_cast
+    h, w = photo_mask.shape
+    side = min(REFINE_SIDE, max(h, w))
+    problem = _ColorProblem(silhouettes, _resize_mask(photo_mask, side), pose.at_size(w, h), photo_rgb,
+                            None if region is None else _resize_mask(region, side))
+    params = np.array([pose.rotation_deg, pose.camera.elevation_deg, *pose.translation, 0.0])  # scale and lens: pose's
+    steps, final_steps = INITIAL_STEPS / 2, FINAL_STEPS
+    if free_focal:
+        params, steps, final_steps = np.append(params, 0.0), np.append(steps, FOCAL_STEP / 2), np.append(final_steps, FOCAL_FINAL_STEP)
+    params, _ = problem.compass(params, steps, final_steps)
+    found = problem.pose(params)
+    iou = silhouette_iou(silhouettes.mask(found), problem.target)
+    return Alignment(found.at_size(w, h), float(iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start,
+                     photo_mask)
+
+
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
     """Intersection over union of two boolean masks (1 when both are empty)."""
     union = np.count_nonzero(a | b)
@@ -131,6 +158,10 @@ class _Problem:
     def iou(self, params: np.ndarray) -> float:
         return silhouette_iou(self.mask(params), self.target)
 
+    def score(self, params: np.ndarray) -> float:
+        """What the compass search maximises: here the IoU with the photo's mask."""
+        return self.iou(params)
+
     def place(self, params: np.ndarray, iterations: int = 3) -> np.ndarray:
         """Translation and scale that put the silhouette's centroid and size on the photo's (Gauss-Newton)."""
         params = np.array(params, dtype=np.float64)
@@ -152,9 +183,9 @@ class _Problem:
         return params
 
     def compass(self, params: np.ndarray, steps: np.ndarray, final_steps: np.ndarray) -> tuple[np.ndarray, float]:
-        """Compass search on the IoU from `params` until every step is below `final_steps`."""
+        """Compass search on the score from `params` until every step is below `final_steps`."""
         params = np.array(params, dtype=np.float64)
-        best = self.iou(params)
+        best = self.score(params)
         steps = np.array(steps, dtype=np.float64)
         while np.any(steps >= final_steps):
             improved = False
@@ -165,13 +196,26 @@ class _Problem:
                     probe = _clip_params(probe)
                     if np.array_equal(probe, params):
                         continue
-                    value = self.iou(probe)
+                    value = self.score(probe)
                     if value > best:
                         params, best, improved = probe, value, True
                         break
             if not improved:
                 steps = steps / 2.0
         return params, best
+
+
+class _ColorProblem(_Problem):
+    """The same five numbers scored by the colors the silhouette separates in the photo, within a region."""
+
+    def __init__(self, silhouettes: SilhouetteRenderer, target: np.ndarray, base: PhotoPose, photo_rgb: np.ndarray,
+                 region: np.ndarray | None):
+        super().__init__(silhouettes, target, base)
+        self.bins = quantised_colors(photo_rgb, target.shape)
+        self.region = region
+
+    def score(self, params: np.ndarray) -> float:
+        return color_separation(self.mask(params), self.bins, self.region)
 
 
 def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.ndarray]:

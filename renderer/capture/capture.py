@@ -16,8 +16,8 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from renderer.capture.align import Alignment, align_pose
-from renderer.capture.grabcut import Hints
+from renderer.capture.align import Alignment, align_pose, refine_by_colors
+from renderer.capture.grabcut import Hints, context_window
 from renderer.capture.pose import PhotoPose
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
@@ -51,8 +51,13 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is.
 
     Without an alpha channel, segmentation and pose search alternate: the first pose's silhouette starts
-    the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times.
-    The result's mask is the last segmentation, at the photo's size.
+    the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times. With a
+    box, each search is followed by a refinement on the colors the silhouette separates around the box (a mask
+    cut from clutter is wrong where object and background share colors; the mesh's shape is not): on 30 cluttered
+    photos the median rotation error fell from 6.7 to 2.9 degrees. Without a box the mask alone decides: on 30
+    floor photos the colors changed little (median 0.86 -> 0.62 degrees, one more photo off by over 10), and a
+    photo's floor and sky are what GrabCut separates well. The result's mask is the last segmentation, at the
+    photo's size.
     """
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
@@ -63,13 +68,21 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     silhouettes = SilhouetteRenderer(mesh)
     alignment = align_pose(silhouettes, mask, start, free_focal)
     rays, seconds = alignment.rays, alignment.seconds
-    for _ in range(SEGMENT_ROUNDS if small_alpha is None else 0):
-        try:
-            mask = object_mask(small_rgb, None, path, replace(hints, prior=silhouettes.mask(alignment.pose)))
-        except InputError:
-            break  # the pose's silhouette gave nothing better: keep the pose found
-        alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
-        rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+    by_colors = small_alpha is None and hints.box is not None
+    if by_colors:
+        region = np.zeros((sh, sw), dtype=bool)
+        region[context_window(hints.box, sh, sw)] = True  # the colors are compared where GrabCut modelled them
+    for round_ in range(SEGMENT_ROUNDS + 1 if small_alpha is None else 0):
+        if round_ > 0:
+            try:
+                mask = object_mask(small_rgb, None, path, replace(hints, prior=silhouettes.mask(alignment.pose)))
+            except InputError:
+                break  # the pose's silhouette gave nothing better: keep the pose found
+            alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
+            rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+        if by_colors:
+            alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
+            rays, seconds = rays + alignment.rays, seconds + alignment.seconds
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
 
 

@@ -57,7 +57,7 @@ def grabcut_mask(rgb: np.ndarray, hints: Hints = Hints(), path: str | Path | Non
     labels = _initial_labels(h, w, hints, path)
     if not np.isin(labels, (cv2.GC_FGD, cv2.GC_PR_FGD)).any() or not np.isin(labels, (cv2.GC_BGD, cv2.GC_PR_BGD)).any():
         raise InputError("the hints leave no room for object or for background", path)
-    window = _context(hints.box, h, w)  # with a box, the background is modelled from what is around it
+    window = context_window(hints.box, h, w)  # with a box, the background is modelled from what is around it
     rgb, labels = rgb[window], labels[window]
     image = np.ascontiguousarray(np.round(np.clip(rgb, 0.0, 1.0) * 255.0).astype(np.uint8)[..., ::-1])  # OpenCV: BGR
     background_model, object_model = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
@@ -95,7 +95,7 @@ def _placed(cut: np.ndarray, window: tuple[slice, slice], h: int, w: int) -> np.
     return without_specks(mask, SPECK_FRACTION)
 
 
-def _context(box: tuple[int, int, int, int] | None, h: int, w: int) -> tuple[slice, slice]:
+def context_window(box: tuple[int, int, int, int] | None, h: int, w: int) -> tuple[slice, slice]:
     """The part of the photo GrabCut looks at: all of it, or the box grown by BOX_CONTEXT of its size on each side
     (a background far from the object, a room's other end, says little about what surrounds it)."""
     if box is None:
