@@ -1,19 +1,16 @@
 """Test-session set-up that must happen before torch is imported."""
 
-import os
+# OpenMP's waiting as the live engine sets it (models/engine/__init__.py): it takes effect only
+# before torch loads, and spinning threads slow the tests' own subprocesses up to 10x.
+import models.engine  # noqa: F401
 
-# Idle OpenMP threads sleep instead of spinning: on a shared 2-core machine spinning threads
-# slow every other process (and the tests' own subprocesses) by up to 10x. The live engine sets
-# the same; it only takes effect before torch loads, hence here.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# isort: split
+import shutil
+import subprocess
+import time
+from pathlib import Path
 
-
-import shutil  # noqa: E402
-import subprocess  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import pytest  # noqa: E402  (after the environment is set, on purpose)
+import pytest
 
 XVFB_SCREEN = (1280, 800)
 

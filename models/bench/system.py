@@ -126,6 +126,7 @@ def machine_description() -> dict[str, str]:
         "cpu": f"{cpu}, {cores} cores usable, {'native bfloat16 (AVX512-BF16)' if bf16 else 'no native bfloat16'}",
         "os": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
-        "torch": f"{torch.__version__}, {torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', 'unset')}",
+        "torch": f"{torch.__version__}, {torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', 'unset')}, "
+                 f"GOMP_SPINCOUNT={os.environ.get('GOMP_SPINCOUNT', 'unset')}",
         "gpu": torch.cuda.get_device_name(0) if torch.cuda.is_available() else "none",
     }
