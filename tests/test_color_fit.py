@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from renderer.camera import Camera
-from renderer.capture.align import refine_by_colors, rotation_error_deg, silhouette_iou
+from renderer.capture.align import (
+    OUTSIDE_BOX_WEIGHT,
+    in_box_score,
+    refine_by_colors,
+    rotation_error_deg,
+    search_in_box,
+    silhouette_iou,
+)
 from renderer.capture.capture import find_pose
 from renderer.capture.color_fit import LEVELS, color_separation, quantised_colors
 from renderer.capture.grabcut import context_window
@@ -95,3 +102,41 @@ def test_a_boxed_capture_in_clutter_finds_the_pose(chair_photo):
     assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
     assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
     assert silhouette_iou(silhouettes.mask(found.pose), mask) > 0.9
+
+
+def _box_and_region(mask: np.ndarray, margin: int) -> tuple[tuple[int, int, int, int], np.ndarray]:
+    rows, cols = np.nonzero(mask)
+    box = (cols.min() - margin, rows.min() - margin, cols.max() + 1 + margin, rows.max() + 1 + margin)
+    region = np.zeros_like(mask)
+    region[context_window(box, *mask.shape)] = True
+    return box, region
+
+
+def test_the_search_in_a_box_finds_the_pose_without_a_mask(chair_photo):
+    _, silhouettes, truth, mask = chair_photo
+    photo = cluttered_photo(mask, block=12, seed=3)
+    box, region = _box_and_region(mask, margin=5)
+    nothing = np.zeros_like(mask)  # the search reads no mask: one that shows nothing changes nothing
+    found = search_in_box(silhouettes, photo, box, region, nothing)
+    assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
+    assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
+    assert silhouette_iou(silhouettes.mask(found.pose), mask) > 0.9
+    assert found.mask is nothing and found.iou == 0.0
+
+
+def test_the_score_in_a_box_keeps_the_silhouette_inside_it(chair_photo):
+    _, silhouettes, truth, mask = chair_photo
+    photo = cluttered_photo(mask, block=12, seed=3)
+    box, region = _box_and_region(mask, margin=5)
+    true_score = in_box_score(silhouettes, photo, box, region, truth)
+    assert true_score > 0.5
+    # The same silhouette moved so that about half of it leaves the box loses about half the weight.
+    moved = replace(truth, translation=(truth.translation[0] + 0.35, truth.translation[1]))
+    moved_mask = silhouettes.mask(moved)
+    rows, cols = np.nonzero(moved_mask)
+    outside = np.mean(cols >= box[2])
+    assert 0.2 < outside < 0.8
+    assert in_box_score(silhouettes, photo, box, region, moved) < true_score - OUTSIDE_BOX_WEIGHT * outside + 0.2
+    # A silhouette that is not there at all scores the least.
+    gone = replace(truth, translation=(50.0, 50.0))
+    assert in_box_score(silhouettes, photo, box, region, gone) == -OUTSIDE_BOX_WEIGHT

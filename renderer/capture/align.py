@@ -13,6 +13,8 @@ All of it at a reduced photo size; the result is the pose at the photo's own siz
 A photo without an alpha channel has only a segmented mask, wrong where object and background share
 colors; `refine_by_colors` then refines a pose by the same compass search on how well its silhouette
 separates the photo's colors (renderer/capture/color_fit.py), the mesh's shape deciding the boundary.
+With a box, `search_in_box` needs no mask at all: every rotation and elevation of a coarse grid is
+placed by the box and scored by the colors, and the best few are refined on that score.
 """
 
 from __future__ import annotations
@@ -50,6 +52,12 @@ FINAL_STEPS = np.array([0.25, 0.25, 0.002, 0.003, 0.003])
 FOCAL_STEP, FOCAL_FINAL_STEP = 0.05, 0.003  # log of the focal length factor, when it is free
 LENSES_MM = (24.0, 32.0, 40.0, 55.0, 80.0)  # focal lengths tried first when it is free
 EARLY_HALVINGS = 2  # compass halvings every candidate gets before the finalists are chosen
+BOX_ROTATIONS = np.arange(-180.0, 180.0, 20.0)  # the grid of the search in a box, every pose placed and scored
+BOX_ELEVATIONS = np.arange(0.0, 81.0, 10.0)
+BOX_CANDIDATES = 4  # distinct poses of that grid refined
+BOX_MARGIN = 1.1  # a user's box is about this much larger than the object (the bench's boxes: 1.04-1.16)
+OUTSIDE_BOX_WEIGHT = 2.0  # the score loses this times the silhouette's share outside the box: the object is
+# inside it, and over a whole window a silhouette drifted onto a distinct background patch can separate colors better
 
 
 @dataclass(frozen=True)
@@ -119,6 +127,50 @@ def refine_by_colors(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pos
                      photo_mask)
 
 
+def search_in_box(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tuple[float, float, float, float],
+                  region: np.ndarray, photo_mask: np.ndarray, free_focal: bool = False) -> Alignment:
+    """The pose whose silhouette best separates `photo_rgb`'s colors within `region` ((H, W) bool) while staying
+    inside `box` (x0, y0, x1, y1 pixels of the photo), found without a mask: each pose of a coarse grid of
+    rotations and elevations is placed so its bounding box fills the box, scored by `in_box_score`, and the best
+    distinct ones are refined on it. A mask cut from clutter can miss the object's shape entirely (a thin chair
+    over a busy photo); this search only needs the box to hold the object. `photo_mask` only gives the reported
+    IoU (and is kept as the alignment's mask), as in `refine_by_colors`."""
+    start = time.perf_counter()
+    rays_before = silhouettes.rays_cast
+    h, w = photo_rgb.shape[:2]
+    base = PhotoPose(Camera(elevation_deg=0.0, width=w, height=h))
+    coarse, early, fine = (_BoxProblem(silhouettes, photo_rgb, box, region, base, side)
+                           for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
+    scored = []
+    for rotation in BOX_ROTATIONS:
+        for elevation in BOX_ELEVATIONS:
+            params = coarse.place(np.array([rotation, elevation, 0.0, 0.0, 0.0]), iterations=2)
+            scored.append((coarse.score(params), params))
+    scored.sort(key=lambda item: -item[0])
+    chosen = _distinct([params for _, params in scored], BOX_CANDIDATES)
+    refined = sorted((early.compass(early.place(params, iterations=2), INITIAL_STEPS, INITIAL_STEPS / 2**EARLY_HALVINGS)
+                      for params in chosen), key=lambda item: -item[1])
+    steps, final_steps = INITIAL_STEPS / 2**EARLY_HALVINGS, FINAL_STEPS
+    starts = [params for params, _ in refined[:FINALISTS]]
+    if free_focal:
+        starts = [np.append(params, 0.0) for params in starts]
+        steps, final_steps = np.append(steps, FOCAL_STEP), np.append(final_steps, FOCAL_FINAL_STEP)
+    best_params, _ = max((fine.compass(params, steps, final_steps) for params in starts), key=lambda item: item[1])
+    iou = silhouette_iou(fine.mask(best_params), _resize_mask(photo_mask, max(fine.target.shape)))
+    return Alignment(fine.pose(best_params).at_size(w, h), float(iou), silhouettes.rays_cast - rays_before,
+                     time.perf_counter() - start, photo_mask)
+
+
+def in_box_score(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tuple[float, float, float, float],
+                 region: np.ndarray, pose: PhotoPose) -> float:
+    """What `search_in_box` maximises, for one pose: the color separation of its silhouette within `region`, less
+    OUTSIDE_BOX_WEIGHT times its share outside `box`; at REFINE_SIDE, so poses found in different ways compare."""
+    h, w = photo_rgb.shape[:2]
+    problem = _BoxProblem(silhouettes, photo_rgb, box, region, PhotoPose(Camera(elevation_deg=0.0, width=w, height=h)),
+                          REFINE_SIDE)
+    return problem.score_mask(silhouettes.mask(pose.at_size(*reversed(problem.target.shape))))
+
+
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
     """Intersection over union of two boolean masks (1 when both are empty)."""
     union = np.count_nonzero(a | b)
@@ -138,7 +190,7 @@ class _Problem:
         self.target = target
         h, w = target.shape
         self.base = base.at_size(w, h)
-        self.target_moments = _moments(target)
+        self.target_moments = self.moments(target)
 
     def pose(self, params: np.ndarray) -> PhotoPose:
         rotation, elevation, tx, tz, log_scale = params[:5]
@@ -155,6 +207,10 @@ class _Problem:
     def mask(self, params: np.ndarray) -> np.ndarray:
         return self.silhouettes.mask(self.pose(params))
 
+    def moments(self, mask: np.ndarray) -> tuple[float, float, float] | None:
+        """What `place` matches between a silhouette and the target: centroid and square root of the area."""
+        return _moments(mask)
+
     def iou(self, params: np.ndarray) -> float:
         return silhouette_iou(self.mask(params), self.target)
 
@@ -163,18 +219,18 @@ class _Problem:
         return self.iou(params)
 
     def place(self, params: np.ndarray, iterations: int = 3) -> np.ndarray:
-        """Translation and scale that put the silhouette's centroid and size on the photo's (Gauss-Newton)."""
+        """Translation and scale that put the silhouette's `moments` on the target's (Gauss-Newton)."""
         params = np.array(params, dtype=np.float64)
         deltas = np.array([0.02, 0.02, 0.02])
         for _ in range(iterations):
-            current = _moments(self.mask(params))
+            current = self.moments(self.mask(params))
             if current is None or self.target_moments is None:
                 return params
             jacobian = np.zeros((3, 3))
             for j in range(3):
                 probe = params.copy()
                 probe[2 + j] += deltas[j]
-                moved = _moments(self.mask(probe))
+                moved = self.moments(self.mask(probe))
                 if moved is None:
                     return params
                 jacobian[:, j] = (np.array(moved) - np.array(current)) / deltas[j]
@@ -218,6 +274,42 @@ class _ColorProblem(_Problem):
         return color_separation(self.mask(params), self.bins, self.region)
 
 
+class _BoxProblem(_ColorProblem):
+    """The colors' score within a box the object lies in, at `side` pixels on the photo's long side; `place`
+    fits the silhouette's bounding box to the box (there is no mask to match)."""
+
+    def __init__(self, silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tuple[float, float, float, float],
+                 region: np.ndarray, base: PhotoPose, side: int):
+        h, w = photo_rgb.shape[:2]
+        side = min(side, max(h, w))
+        factor = side / max(h, w)
+        shape = (max(1, round(h * factor)), max(1, round(w * factor)))
+        x0, y0, x1, y1 = (v * factor for v in box)
+        self.box_moments = ((x0 + x1) / 2.0, (y0 + y1) / 2.0, math.sqrt(max(x1 - x0, 1.0) * max(y1 - y0, 1.0)) / BOX_MARGIN)
+        super().__init__(silhouettes, np.zeros(shape, dtype=bool), base, photo_rgb, _resize_mask(region, side))
+        self.target_moments = self.box_moments
+        self.in_box = np.zeros(shape, dtype=bool)
+        self.in_box[max(0, math.floor(y0)):max(0, math.ceil(y1)), max(0, math.floor(x0)):max(0, math.ceil(x1))] = True
+
+    def moments(self, mask: np.ndarray) -> tuple[float, float, float] | None:
+        """The centre of the mask's bounding box and the square root of its area, in pixels; None when empty."""
+        rows, cols = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        if len(rows) == 0:
+            return None
+        (r0, r1), (c0, c1) = (rows[0], rows[-1] + 1), (cols[0], cols[-1] + 1)
+        return (c0 + c1) / 2.0, (r0 + r1) / 2.0, math.sqrt((c1 - c0) * (r1 - r0))
+
+    def score(self, params: np.ndarray) -> float:
+        return self.score_mask(self.mask(params))
+
+    def score_mask(self, mask: np.ndarray) -> float:
+        area = np.count_nonzero(mask)
+        if area == 0:
+            return -OUTSIDE_BOX_WEIGHT
+        outside = np.count_nonzero(mask & ~self.in_box) / area
+        return color_separation(mask, self.bins, self.region) - OUTSIDE_BOX_WEIGHT * outside
+
+
 def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.ndarray]:
     """The best distinct (rotation, elevation) of the coarse grid, as full parameter vectors."""
     if initial is None:
@@ -238,12 +330,17 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
             mask = problem.mask(params)
             scored.append((silhouette_iou(_canonical(mask), target), params))
     scored.sort(key=lambda item: -item[0])
+    return _distinct([params for _, params in scored], CANDIDATES)
+
+
+def _distinct(ranked: list[np.ndarray], count: int) -> list[np.ndarray]:
+    """The first `count` of `ranked` parameter vectors that differ from every one taken before in rotation or elevation."""
     chosen: list[np.ndarray] = []
-    for _, params in scored:
+    for params in ranked:
         if all(rotation_error_deg(params[0], c[0]) >= DISTINCT_ROTATION_DEG or
                abs(params[1] - c[1]) >= DISTINCT_ELEVATION_DEG for c in chosen):
             chosen.append(params)
-        if len(chosen) == CANDIDATES:
+        if len(chosen) == count:
             break
     return chosen
 

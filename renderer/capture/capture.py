@@ -16,7 +16,7 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from renderer.capture.align import Alignment, align_pose, refine_by_colors
+from renderer.capture.align import Alignment, align_pose, in_box_score, refine_by_colors, search_in_box, silhouette_iou
 from renderer.capture.grabcut import Hints, context_window
 from renderer.capture.pose import PhotoPose
 from renderer.capture.segment import object_mask
@@ -54,7 +54,10 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times. With a
     box, each search is followed by a refinement on the colors the silhouette separates around the box (a mask
     cut from clutter is wrong where object and background share colors; the mesh's shape is not): on the capture
-    bench's 60 boxed photographs the median rotation error fell from 6.3 to 2.8 degrees. Without a box the mask
+    bench's 60 boxed photographs the median rotation error fell from 6.3 to 2.8 degrees. Then a search on those
+    colors alone, placed by the box (align.search_in_box), replaces the pose where it scores higher: it finds
+    objects whose mask GrabCut got wrong in shape (29 boxed photographs of the bench: median rotation error 2.9 ->
+    2.5 degrees, elevation 3.5 -> 1.6, within 10 degrees 59 -> 69 %). Without a box the mask
     alone decides: on 30 floor photos the colors changed little (median 0.86 -> 0.62 degrees, one more photo off
     by over 10), and a photo's floor and sky are what GrabCut separates well. The result's mask is the last
     segmentation, at the photo's size.
@@ -83,6 +86,17 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
         if by_colors:
             alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
             rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+    if by_colors:  # the search that needs no mask: it wins where its pose separates the colors in the box better
+        found = search_in_box(silhouettes, small_rgb, hints.box, region, mask, free_focal)
+        rays, seconds = rays + found.rays, seconds + found.seconds
+        scores = [in_box_score(silhouettes, small_rgb, hints.box, region, a.pose) for a in (alignment, found)]
+        if scores[1] > scores[0]:
+            silhouette = silhouettes.mask(found.pose)
+            try:
+                mask = object_mask(small_rgb, None, path, replace(hints, prior=silhouette))
+            except InputError:
+                mask = silhouette
+            alignment = replace(found, iou=silhouette_iou(silhouette, mask))
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
 
 
