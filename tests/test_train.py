@@ -148,6 +148,11 @@ def test_a_run_started_from_other_weights_records_them_and_their_steps(data, tmp
     # A run from that run's model counts both: its 1 step and the 77 behind its start.
     again = train(tmp_path / "again", config(data, steps=1, init=str(final)), progress=False)
     assert load_model(again)[2]["init_steps"] == "78"
+    # Resumed later, without --init, after the file it started from was overwritten: the start is as it was.
+    save_model(tmp_path / "old.safetensors", build_model("nvr_plus", old_config), old_config, {"steps": "5"})
+    resumed = train(tmp_path / "run", config(data, steps=2), resume=True, progress=False)
+    assert {k: load_model(resumed)[2][k] for k in ("init", "init_steps")} == {"init": str(tmp_path / "old.safetensors"),
+                                                                              "init_steps": "77"}
 
 
 def test_learning_rate_is_constant_then_falls_linearly_over_the_last_steps():

@@ -222,8 +222,11 @@ def load_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Opt
 # --- the loop -------------------------------------------------------------------------------
 
 
-def _prepare_run(out: Path, train: TrainConfig, resume: bool, net_config) -> None:
-    record = {"format": RUN_FORMAT, "train": train.to_dict(), "network": net_config.to_dict()}
+def _prepare_run(out: Path, train: TrainConfig, resume: bool, net_config) -> dict[str, str]:
+    """Write (or, on resume, update) the run's run.json; returns what the run started from (see `_init_record`),
+    read when the run began: the --init file may be overwritten by the run's own model before the run ends."""
+    record = {"format": RUN_FORMAT, "train": train.to_dict(), "network": net_config.to_dict(),
+              "started_from": _init_record(train.init)}
     run_file = out / "run.json"
     if run_file.exists():
         if not resume:
@@ -231,13 +234,16 @@ def _prepare_run(out: Path, train: TrainConfig, resume: bool, net_config) -> Non
         stored = load_json(run_file)
         if stored.get("network") != record["network"] or stored.get("train", {}).get("architecture") != train.architecture:
             raise InputError("holds a run of another network; choose another --out", out)
-        save_json(run_file, {**stored, "train": train.to_dict()})  # steps or batch may change on resume
+        started_from = stored.get("started_from", _init_record(stored.get("train", {}).get("init")))
+        save_json(run_file, {**stored, "train": train.to_dict(), "started_from": started_from})  # steps may change
+        return started_from
     else:
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise InputError(f"cannot create the run folder: {exc.strerror}", out) from None
         save_json(run_file, record)
+    return record["started_from"]
 
 
 def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: bool = True) -> Path:
@@ -264,8 +270,9 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
                              floor_light=reads_floor_light(config.architecture, net_config),
                              shading=reads_shading(config.architecture, net_config))
     dataset.check_samples(net_config.output_size)  # a broken or mis-sized sample is refused before step 0
+    started_from: dict[str, str] = {}
     if dist_info.is_main:
-        _prepare_run(out, config, resume, net_config)
+        started_from = _prepare_run(out, config, resume, net_config)
         remove_stale_temporaries(out)  # a checkpoint half-written when a run was killed
     torch.manual_seed(config.seed)  # identical initial weights on every rank
     model = build_model(config.architecture, net_config)
@@ -324,7 +331,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         save_model(final, model, net_config, {"architecture": config.architecture, "steps": str(config.steps),
                                                "data": json.dumps(list(config.data)),
                                                "perceptual_weights": loss_fn.weights_name,
-                                               **_init_record(config.init)})
+                                               **started_from})
         log_file.close()
     return final
 
