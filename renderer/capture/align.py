@@ -168,7 +168,8 @@ def in_box_score(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tu
     h, w = photo_rgb.shape[:2]
     problem = _BoxProblem(silhouettes, photo_rgb, box, region, PhotoPose(Camera(elevation_deg=0.0, width=w, height=h)),
                           REFINE_SIDE)
-    return problem.score_mask(silhouettes.mask(pose.at_size(*reversed(problem.target.shape))))
+    height, width = problem.target.shape
+    return problem.score_mask(silhouettes.mask(pose.at_size(width, height)))
 
 
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
@@ -285,9 +286,9 @@ class _BoxProblem(_ColorProblem):
         factor = side / max(h, w)
         shape = (max(1, round(h * factor)), max(1, round(w * factor)))
         x0, y0, x1, y1 = (v * factor for v in box)
-        self.box_moments = ((x0 + x1) / 2.0, (y0 + y1) / 2.0, math.sqrt(max(x1 - x0, 1.0) * max(y1 - y0, 1.0)) / BOX_MARGIN)
         super().__init__(silhouettes, np.zeros(shape, dtype=bool), base, photo_rgb, _resize_mask(region, side))
-        self.target_moments = self.box_moments
+        self.target_moments = ((x0 + x1) / 2.0, (y0 + y1) / 2.0,
+                               math.sqrt(max(x1 - x0, 1.0) * max(y1 - y0, 1.0)) / BOX_MARGIN)
         self.in_box = np.zeros(shape, dtype=bool)
         self.in_box[max(0, math.floor(y0)):max(0, math.ceil(y1)), max(0, math.floor(x0)):max(0, math.ceil(x1))] = True
 
