@@ -92,6 +92,18 @@ def test_refining_by_colors_finds_the_pose_a_poor_mask_hides(chair_photo):
     assert found.mask is poor and found.iou == pytest.approx(silhouette_iou(silhouettes.mask(found.pose), poor), abs=0.05)
 
 
+def test_the_mask_weight_adds_the_masks_overlap_to_the_colors(chair_photo):
+    _, silhouettes, truth, mask = chair_photo
+    plain = np.full(mask.shape + (3,), 0.5)  # colors that tell nothing: every silhouette separates them equally (0)
+    start = replace(truth, rotation_deg=43.0, camera=replace(truth.camera, elevation_deg=28.0), translation=(0.12, -0.08))
+    alone = refine_by_colors(silhouettes, plain, start, mask)
+    assert alone.pose == start  # nothing to gain from the colors: the pose stays
+    both = refine_by_colors(silhouettes, plain, start, mask, mask_weight=3.0, first_steps=0.25)
+    assert rotation_error_deg(both.pose.rotation_deg, truth.rotation_deg) < 1.0
+    assert abs(both.pose.camera.elevation_deg - truth.camera.elevation_deg) < 1.0
+    assert both.iou > 0.95 and both.iou == pytest.approx(silhouette_iou(silhouettes.mask(both.pose), mask), abs=0.03)
+
+
 def test_a_boxed_capture_in_clutter_finds_the_pose(chair_photo):
     chair, silhouettes, truth, mask = chair_photo
     photo = cluttered_photo(mask, block=32)  # GrabCut's mask of it is poor (IoU 0.73): the mask alone gave a pose

@@ -106,20 +106,22 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
 
 
 def refine_by_colors(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoPose, photo_mask: np.ndarray,
-                     region: np.ndarray | None = None, free_focal: bool = False) -> Alignment:
+                     region: np.ndarray | None = None, free_focal: bool = False, mask_weight: float = 0.0,
+                     first_steps: float = 0.5) -> Alignment:
     """`pose` refined by the colors its silhouette separates in `photo_rgb` ((H, W, 3)) within `region` ((H, W) bool;
-    None: the whole photo). `photo_mask`, the photo's segmented object, only gives the reported IoU (and is kept
-    as the alignment's mask). `free_focal`: the focal length is refined too."""
+    None: the whole photo), plus `mask_weight` times its IoU with `photo_mask`, the photo's segmented object (0: the
+    mask only gives the reported IoU; it is kept as the alignment's mask). `free_focal`: the focal length is refined too.
+    `first_steps`: the search's first steps as a share of INITIAL_STEPS (smaller: stays nearer `pose`)."""
     start = time.perf_counter()
     rays_before = silhouettes.rays_cast
     h, w = photo_mask.shape
     side = min(REFINE_SIDE, max(h, w))
     problem = _ColorProblem(silhouettes, _resize_mask(photo_mask, side), pose.at_size(w, h), photo_rgb,
-                            None if region is None else _resize_mask(region, side))
+                            None if region is None else _resize_mask(region, side), mask_weight)
     params = np.array([pose.rotation_deg, pose.camera.elevation_deg, *pose.translation, 0.0])  # scale and lens: pose's
-    steps, final_steps = INITIAL_STEPS / 2, FINAL_STEPS
+    steps, final_steps = INITIAL_STEPS * first_steps, FINAL_STEPS
     if free_focal:
-        params, steps, final_steps = np.append(params, 0.0), np.append(steps, FOCAL_STEP / 2), np.append(final_steps, FOCAL_FINAL_STEP)
+        params, steps, final_steps = np.append(params, 0.0), np.append(steps, FOCAL_STEP * first_steps), np.append(final_steps, FOCAL_FINAL_STEP)
     params, _ = problem.compass(params, steps, final_steps)
     found = problem.pose(params)
     iou = silhouette_iou(silhouettes.mask(found), problem.target)
@@ -263,16 +265,20 @@ class _Problem:
 
 
 class _ColorProblem(_Problem):
-    """The same five numbers scored by the colors the silhouette separates in the photo, within a region."""
+    """The same five numbers scored by the colors the silhouette separates in the photo, within a region, plus
+    `mask_weight` times the silhouette's IoU with the target mask."""
 
     def __init__(self, silhouettes: SilhouetteRenderer, target: np.ndarray, base: PhotoPose, photo_rgb: np.ndarray,
-                 region: np.ndarray | None):
+                 region: np.ndarray | None, mask_weight: float = 0.0):
         super().__init__(silhouettes, target, base)
         self.bins = quantised_colors(photo_rgb, target.shape)
         self.region = region
+        self.mask_weight = mask_weight
 
     def score(self, params: np.ndarray) -> float:
-        return color_separation(self.mask(params), self.bins, self.region)
+        mask = self.mask(params)
+        separation = color_separation(mask, self.bins, self.region)
+        return separation + self.mask_weight * silhouette_iou(mask, self.target) if self.mask_weight else separation
 
 
 class _BoxProblem(_ColorProblem):
