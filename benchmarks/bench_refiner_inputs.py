@@ -17,10 +17,13 @@ from __future__ import annotations
 import argparse
 from collections import defaultdict
 
+import models.engine  # noqa: F401 - sets OpenMP's waiting before torch loads OpenMP
+
+# isort: split
+
 import numpy as np
 import torch
 
-import models.engine  # noqa: F401  (OpenMP's waiting policy before torch starts its threads)
 from models.evaluation.evaluate import SHIPPED_MODELS
 from models.evaluation.metrics import dssim, mse_255
 from models.networks.checkpoint import load_model
@@ -28,17 +31,19 @@ from models.networks.nvr import reads_shading
 from models.training.data import VoxelRenderSet
 from renderer.shading import BUFFER_CHANNELS
 
-IMAGE = slice(0, 3)
+# The shader buffers' channels by the group their names start with ("albedo r" -> albedo), and each group's row.
+BUFFER_GROUPS = {group: [i for i, name in enumerate(BUFFER_CHANNELS) if name.split()[0] == group]
+                 for group in dict.fromkeys(name.split()[0] for name in BUFFER_CHANNELS)}
+IMAGE = BUFFER_GROUPS["image"]
+BUFFER_ROWS = {"image": "no shaded image as an input (it is still corrected)", "albedo": "no albedo",
+               "normal": "no normals", "depth": "no depth", "visibility": "no light visibility (shadows)",
+               "occlusion": "no sky visibility (occlusion)", "coverage": "no coverage"}
 # Knock-outs: (row name, input, channels of the shader buffers or None for the whole input).
 KNOCKOUTS = [
     ("no voxels (an empty grid)", "voxels", None),
     ("no light position (the average light)", "light", None),
     ("no splat", "splat", None),
-    ("no shaded image as an input (it is still corrected)", "shading", IMAGE),
-    *[(f"no {name}", "shading", channels) for name, channels in (
-        ("albedo", slice(3, 6)), ("normals", slice(6, 9)), ("depth", slice(9, 10)),
-        ("light visibility (shadows)", slice(10, 11)), ("sky visibility (occlusion)", slice(11, 12)),
-        ("coverage", slice(12, 13)))],
+    *[(BUFFER_ROWS[group], "shading", channels) for group, channels in BUFFER_GROUPS.items()],
 ]
 
 
@@ -57,7 +62,6 @@ def main() -> None:
     model, config, _ = load_model(args.model)
     if not reads_shading(model.architecture, config):
         raise SystemExit(f"{args.model}: not a shader refiner (its config reads no shader buffers)")
-    assert len(BUFFER_CHANNELS) == 13, "the knock-outs above name the shader buffers' channels by position"
     dataset = VoxelRenderSet(args.data, grid_size=config.grid_size, shading=True)
     indices = range(0, len(dataset), args.every)
     samples = [dataset[i] for i in indices]
@@ -69,8 +73,10 @@ def main() -> None:
             target, scores = sample["target"][None], {}
             inputs = {key: sample[key][None] for key in ("voxels", "light", "splat", "shading")}
             shaded = inputs["shading"][:, IMAGE]
+            latent = model.encode_voxels(inputs["voxels"])  # each stage once; a knock-out reruns only what reads it
+            features = model.encode_splat(inputs["splat"], None, inputs["shading"])
             scores["shader alone (no correction)"] = shaded
-            scores["full network"] = model(**inputs)
+            scores["full network"] = model.render_from_latent(latent, inputs["light"], features, shaded)
             for row, key, channels in KNOCKOUTS:
                 changed = dict(inputs)
                 if key == "voxels":
@@ -81,9 +87,10 @@ def main() -> None:
                     changed[key] = inputs[key].clone()
                     changed[key][:, channels] = averages[key][channels].expand_as(changed[key][0, channels])
                 # The output corrects the true shaded image whatever the network was shown.
-                features = model.encode_splat(changed["splat"], None, changed["shading"])
-                latent = model.encode_voxels(changed["voxels"])
-                scores[row] = model.render_from_latent(latent, changed["light"], features, shaded)
+                row_latent = model.encode_voxels(changed["voxels"]) if key == "voxels" else latent
+                row_features = (model.encode_splat(changed["splat"], None, changed["shading"])
+                                if key in ("splat", "shading") else features)
+                scores[row] = model.render_from_latent(row_latent, changed["light"], row_features, shaded)
             for row, prediction in scores.items():
                 prediction = prediction.clamp(0.0, 1.0)
                 rows[row][setting].append((float(mse_255(prediction, target)[0]), float(dssim(prediction, target)[0])))

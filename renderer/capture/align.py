@@ -277,8 +277,7 @@ class _ColorProblem(_Problem):
 
     def score(self, params: np.ndarray) -> float:
         mask = self.mask(params)
-        separation = color_separation(mask, self.bins, self.region)
-        return separation + self.mask_weight * silhouette_iou(mask, self.target) if self.mask_weight else separation
+        return color_separation(mask, self.bins, self.region) + self.mask_weight * silhouette_iou(mask, self.target)
 
 
 class _BoxProblem(_ColorProblem):
