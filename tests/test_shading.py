@@ -186,6 +186,27 @@ def test_closing_and_filling_make_a_shell_solid():
     assert solid[3:9, 3:9, 3:9].all() and solid.sum() == 6**3
 
 
+def test_specks_inside_a_covered_part_close_and_openings_stay():
+    from renderer.shading.shader import SPECK_PIXELS, _close_specks
+
+    cover = np.zeros((40, 40), dtype=np.float32)
+    cover[5:35, 5:35] = 1.0
+    cover[5, 5:35] = cover[34, 5:35] = 0.5  # a partly covered silhouette row at the part's edge: touches the empty
+    cover[10:12, 10:13] = 0.3  # a speck of 6 pixels, all around it covered: a panel the rays went through too shallow
+    cover[20:23, 20:23] = 0.4  # an opening: partly covered pixels around an empty one the rays passed through
+    cover[21, 21] = 0.0
+    side = int(np.ceil(np.sqrt(SPECK_PIXELS))) + 1  # a partly covered patch larger than a speck stays as it is
+    cover[24:24 + side, 8:8 + side] = 0.6
+    closed = _close_specks(cover, 256)
+    assert np.all(closed[10:12, 10:13] == 1.0)
+    np.testing.assert_array_equal(closed[20:23, 20:23], cover[20:23, 20:23])
+    np.testing.assert_array_equal(closed[5], cover[5])
+    np.testing.assert_array_equal(closed[24:24 + side, 8:8 + side], cover[24:24 + side, 8:8 + side])
+    # The speck size follows the image's area: at twice the size the larger patch is a speck too.
+    assert np.all(_close_specks(cover, 512)[24:24 + side, 8:8 + side] == 1.0)
+    assert np.array_equal(_close_specks(np.zeros((4, 4), np.float32), 256), np.zeros((4, 4)))
+
+
 def test_the_staged_shader_equals_shading_from_scratch_after_every_edit():
     """Cached stages (and the object's window of the grid instead of the whole grid) give the very image the
     uncached shader gives the whole grid, after a move, a light move, a camera tilt, a floor color and a paint."""
