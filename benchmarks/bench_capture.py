@@ -302,8 +302,8 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         "free. `real + box`: the same photos with a box as a user drags it in the Photo tab or gives with "
         "`nvr capture --box` (the object's bounds grown by 2-8 % of the side on each edge); with a box each "
         "search on the mask is followed by a refinement on the colors the silhouette separates around the box, and a "
-        "search on those colors alone, placed by the box, replaces the pose where it separates them better; a last short "
-        "refinement scores the colors and the overlap with the last mask together.",
+        "search on those colors alone, placed by the box, replaces the pose where it separates them better; last, elevation, "
+        "position and scale are refined on the colors and the overlap with the last mask together, the rotation kept.",
         "- `studio` (no floor, plain backdrop, no alpha) and `cutout` (the floor scene with an alpha channel): a "
         "quarter as many, to check that plain photos keep their accuracy.",
         "",

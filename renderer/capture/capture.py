@@ -16,7 +16,15 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from renderer.capture.align import Alignment, align_pose, in_box_score, refine_by_colors, search_in_box, silhouette_iou
+from renderer.capture.align import (
+    Alignment,
+    align_pose,
+    in_box_score,
+    refine_by_colors,
+    refine_placement,
+    search_in_box,
+    silhouette_iou,
+)
 from renderer.capture.grabcut import Hints, context_window
 from renderer.capture.pose import PhotoPose
 from renderer.capture.segment import object_mask
@@ -30,8 +38,6 @@ TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo'
 SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
 LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask less than this was fitted to a poor
 # mask (0.80-0.88 on four cluttered photos searched without a box; 0.94 on a path-traced floor photo aligned right)
-POLISH_MASK_WEIGHT = 3.0  # the last refinement with a box scores the colors plus this times the IoU with the last mask
-POLISH_FIRST_STEPS = 0.25  # ... starting from a quarter of the searches' first steps: it corrects, it does not search
 SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
 
 
@@ -60,10 +66,10 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     colors alone, placed by the box (align.search_in_box), replaces the pose where it scores higher: it finds
     objects whose mask GrabCut got wrong in shape (the bench's 60 boxed photographs: median rotation error 2.8 ->
     1.7 degrees, elevation 3.7 -> 2.1, within 10 degrees 57 -> 69 %; those taken with a 60 mm lens 21 -> 1.8).
-    Last, a short refinement on the colors and the last mask together. Without a box the mask alone decides: on 30
-    floor photos the colors changed little (median 0.86 -> 0.62 degrees, one more photo off by over 10), and a
-    photo's floor and sky are what GrabCut separates well. The result's mask is the last
-    segmentation, at the photo's size.
+    Last, elevation, position and scale are refined on the colors and the last mask together, the rotation kept.
+    Without a box the mask alone decides: on 30 floor photos the colors changed little (median 0.86 -> 0.62 degrees,
+    one more photo off by over 10), and a photo's floor and sky are what GrabCut separates well. The result's mask is
+    the last segmentation, at the photo's size.
     """
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
@@ -100,11 +106,10 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
             except InputError:
                 mask = silhouette
             alignment = replace(found, iou=silhouette_iou(silhouette, mask))
-        # The colors alone settle where the mask is wrong but leave elevation and size loose; the last mask (cut with
-        # the pose's silhouette as prior) pins them (the capture bench's 60 boxed photographs: elevation 2.1 -> 1.5
-        # deg, IoU 0.89 -> 0.95, while the rotation error rose from 1.7 to 2.2).
-        alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal,
-                                     mask_weight=POLISH_MASK_WEIGHT, first_steps=POLISH_FIRST_STEPS)
+        # The colors alone leave elevation and size loose; the last mask (cut with the pose's silhouette as prior)
+        # pins them. Letting it move the rotation too pulled the rotation towards the mask's errors (the capture
+        # bench's 60 boxed photographs from no pose: rotation 2.2 deg that way, 1.7 this way; elevation 1.5 and 1.8).
+        alignment = refine_placement(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
         rays, seconds = rays + alignment.rays, seconds + alignment.seconds
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
 
