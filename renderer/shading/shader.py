@@ -275,8 +275,8 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
 
 
 def _close_specks(cover: np.ndarray, size: int) -> np.ndarray:
-    """`cover` with each group of partly covered pixels (8-connected) that no empty pixel touches and that holds
-    at most SPECK_PIXELS * (size / 256)^2 pixels covered fully (see SPECK_PIXELS)."""
+    """`cover` in which each group of partly covered pixels (8-connected) that no empty pixel touches and that has
+    at most SPECK_PIXELS * (size / 256)^2 pixels is covered fully (see SPECK_PIXELS)."""
     partial = (cover > 0.0) & (cover < 1.0)
     labels, count = ndimage.label(partial, structure=np.ones((3, 3), dtype=bool))
     if count == 0:
