@@ -138,7 +138,7 @@ def _refine(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoP
     problem = _ColorProblem(silhouettes, _resize_mask(photo_mask, side), pose.at_size(w, h), photo_rgb,
                             None if region is None else _resize_mask(region, side), mask_weight)
     params = np.array([pose.rotation_deg, pose.camera.elevation_deg, *pose.translation, 0.0])
-    steps, final_steps = INITIAL_STEPS * first_steps, FINAL_STEPS.copy()
+    steps, final_steps = INITIAL_STEPS * first_steps, FINAL_STEPS
     if not rotation:
         steps[0] = 0.0  # a zero step leaves the parameter where it is
     if free_focal:
