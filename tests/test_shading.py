@@ -13,6 +13,7 @@ from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
 from renderer.scene import LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
 from renderer.shading import kernels, shade_grid, shade_scene
+from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates, object_geometry
 from renderer.shading.staged import StagedShader
 
 FLOOR = (0.6, 0.6, 0.6)
@@ -239,3 +240,36 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit():
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
     assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels and the lit floor stay
     assert reran["paint"] == {"pool", "window", "geometry", "surface", "shade"}
+
+
+def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
+    """One-voxel bars along all three axes, `bars` per side: thin parts and many openings."""
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    at = np.linspace(0, n - 1, bars).astype(int)
+    for a in at:
+        for b in at:
+            rgba[a, b, :, 3] = rgba[a, :, b, 3] = rgba[:, a, b, 3] = 1.0
+    rgba[..., :3] = 0.7
+    return rgba
+
+
+@pytest.mark.parametrize("shape, elevation, translation", [("ball", 30.0, (0.0, 0.0)), ("lattice", 30.0, (0.0, 0.0)),
+                                                           ("lattice", 0.0, (0.0, 0.0)), ("lattice", 89.0, (0.0, 0.0)),
+                                                           ("ball", 30.0, (1.1, 0.2))])
+def test_skipped_rays_are_rays_that_miss(shape, elevation, translation):
+    # The centre pass traces only the pixels whose ray may stop on the surface: tracing every pixel of the window
+    # instead must give the same hits, points and coverage, and the skip must leave out most of the window's misses.
+    spec = ObjectSpec(voxels="v.npz", translation=translation, scale=(0.6, 0.6, 0.6))
+    geometry = object_geometry(scene_grid(ball() if shape == "ball" else lattice(), spec, FLOOR, elevation), elevation)
+    camera = Camera(elevation, width=128, height=128)
+    world_to_grid = np.linalg.inv(geometry.grid_to_world)
+    origin = world_to_grid[:3, :3] @ camera.position + world_to_grid[:3, 3] - geometry.offset
+    rows, cols = _pixel_window(geometry, camera)
+    every = _trace(geometry, camera, world_to_grid, origin, rows[:, None] + 0.5, cols[None, :] + 0.5)
+    skipping = _trace_candidates(geometry, camera, world_to_grid, origin, rows, cols)
+    for full, fast in zip(every, skipping):
+        np.testing.assert_array_equal(fast, full)
+    hits = every[0] < kernels.FAR
+    assert 0 < hits.sum() < hits.size
+    traced = _ray_candidates(geometry, camera, rows, cols)
+    assert np.all(traced[hits]) and traced[~hits].mean() < 0.6
