@@ -273,3 +273,13 @@ def test_skipped_rays_are_rays_that_miss(shape, elevation, translation):
     assert 0 < hits.sum() < hits.size
     traced = _ray_candidates(geometry, camera, rows, cols)
     assert np.all(traced[hits]) and traced[~hits].mean() < 0.6
+
+
+@pytest.mark.parametrize("light", [(0.0, 1.0, 2.5), (0.3, 1.0, 2.0), (-0.5, 1.2, 2.2)])
+def test_a_face_with_nothing_before_it_sees_the_whole_light(light):
+    # A low light in front of a cube: its front face (normal +z) sees all of the light, and read off the shadow
+    # maps it must not shadow itself (shadow acne: the maps hold depths measured straight down from the light).
+    out = shaded(cube(), ObjectSpec(voxels="v.npz", scale=(0.4, 0.4, 0.4)), np.array(light))
+    face = ndimage.binary_erosion((out.normal[..., 2] > 0.95) & (out.coverage >= 1.0), iterations=2)
+    assert face.sum() > 40
+    assert out.visibility[face].min() > 0.95

@@ -55,6 +55,9 @@ BLUR_TRUNCATE = 2.5  # gaussian kernels reach this many sigmas
 CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
 LIGHT_POINTS = 4  # per side of the light square: shadow maps and the direct-light sum
 SHADOW_MAP_SIZE = 96  # texels per side
+SHADOW_NORMAL_OFFSET = 1.0  # voxels along the normal an object point is moved before the shadow maps are read
+SHADOW_GRAZING_OFFSET = 1.5  # voxels more, times the sine of the angle between the normal and the light
+SHADOW_BIAS = 0.5  # voxels nearer the light an occluder must be than the moved point to shadow it
 FLOOR_SHADOW_STEP = 0.025  # world units between the floor points the shadow maps are read at
 OCCLUSION_DISTANCES = np.array([1.5, 3.0, 6.0, 12.0], dtype=np.float32)  # voxels along the normal
 OCCLUSION_WEIGHTS = np.array([0.35, 0.3, 0.25, 0.2], dtype=np.float32)
@@ -505,7 +508,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                       + from_ambient * surface.images.floor_occlusion[..., None], background)
     image = ground
     if len(surface.points):
-        radiance, seen = _object_radiance(surface, lights, maps, bounds, voxel, floor_color)
+        radiance, seen = _object_radiance(surface, light_position, lights, maps, bounds, voxel, floor_color)
         r, c = surface.pixels[:, 0], surface.pixels[:, 1]
         cover = surface.coverage[r, c][:, None]
         image[r, c] = ground[r, c] * (1.0 - cover) + radiance * cover
@@ -547,8 +550,8 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     return seen
 
 
-def _object_radiance(surface: VisibleSurface, lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray, voxel: float,
-                     floor_color) -> tuple[np.ndarray, np.ndarray]:
+def _object_radiance(surface: VisibleSurface, light_position, lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray,
+                     voxel: float, floor_color) -> tuple[np.ndarray, np.ndarray]:
     """Linear radiance (N, 3) of the visible object points and the share of the light each sees."""
     points, normals = surface.points, surface.normals
     form = np.empty(len(points))
@@ -558,7 +561,13 @@ def _object_radiance(surface: VisibleSurface, lights: np.ndarray, maps: np.ndarr
     seen = np.zeros(len(points))
     facing = form > 0.0
     seen_facing = np.empty(int(facing.sum()))
-    kernels.light_visibility(points[facing] + normals[facing] * voxel, 0.5 * voxel, lights, maps, bounds, seen_facing)
+    # Each point is read off the shadow maps a little way out along its normal, further where the light grazes it
+    # (there the depth the maps hold changes fastest across a texel).
+    to_light = np.asarray(light_position, dtype=np.float64) - points[facing]
+    cosine = np.clip(np.sum(normals[facing] * to_light, axis=1) / np.linalg.norm(to_light, axis=1), 0.0, 1.0)
+    offset = voxel * (SHADOW_NORMAL_OFFSET + SHADOW_GRAZING_OFFSET * np.sqrt(1.0 - cosine**2))
+    kernels.light_visibility(points[facing] + normals[facing] * offset[:, None], SHADOW_BIAS * voxel, lights, maps,
+                             bounds, seen_facing)
     seen[facing] = seen_facing
     direct = LIGHT_RADIANCE * seen * form
     # Ambient from the sky above the horizon, and light the floor below sends back up (the floor there
