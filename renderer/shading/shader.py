@@ -350,6 +350,7 @@ def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, 
 
 
 def _translation(offset: np.ndarray) -> np.ndarray:
+    """The 4x4 matrix that adds `offset` (crop coordinates -> grid indices)."""
     matrix = np.eye(4)
     matrix[:3, 3] = offset
     return matrix
@@ -564,7 +565,8 @@ def _object_radiance(surface: VisibleSurface, light_position, lights: np.ndarray
     # Each point is read off the shadow maps a little way out along its normal, further where the light grazes it
     # (there the depth the maps hold changes fastest across a texel).
     to_light = np.asarray(light_position, dtype=np.float64) - points[facing]
-    cosine = np.clip(np.sum(normals[facing] * to_light, axis=1) / np.linalg.norm(to_light, axis=1), 0.0, 1.0)
+    cosine = np.clip(np.sum(normals[facing] * to_light, axis=1) / np.maximum(np.linalg.norm(to_light, axis=1), 1e-12),
+                     0.0, 1.0)
     offset = voxel * (SHADOW_NORMAL_OFFSET + SHADOW_GRAZING_OFFSET * np.sqrt(1.0 - cosine**2))
     kernels.light_visibility(points[facing] + normals[facing] * offset[:, None], SHADOW_BIAS * voxel, lights, maps,
                              bounds, seen_facing)
