@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 FAR = np.float32(3.0e38)
+HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
 
 
 @njit(cache=True, inline="always")
@@ -117,7 +118,7 @@ def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits
                 t = inside
                 x, y, z = origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz
                 gap = _gap(fields, level, thin, x, y, z)
-            if gap < 0.02:
+            if gap < HIT_GAP:
                 hits[i] = t
                 points[i, 0], points[i, 1], points[i, 2] = x, y, z
                 least, cores[i] = sample_pair(fields, x, y, z)
@@ -134,10 +135,10 @@ def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits
 def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask):
     """mask[r, c] = True (image pixel row0 + r, col0 + c) where the centre ray may stop in `trace_surface`.
 
-    A ray stops only at a sample whose gap is below 0.02. A sample between voxel centres i..i+1, j..j+1,
+    A ray stops only at a sample whose gap is below HIT_GAP. A sample between voxel centres i..i+1, j..j+1,
     k..k+1 (a cell) interpolates those eight, so its distance is at least their least and its core at most
     their most: its gap is at least least - max(level, most + thin). Each cell where that bound is under
-    0.02 + `slack` marks the pixels whose centres fall in the image rectangle of the cell's box (the cells
+    HIT_GAP + `slack` marks the pixels whose centres fall in the image rectangle of the cell's box (the cells
     at the crop's faces reach to its faces, where samples are clamped). `projection`: 3x4, crop point ->
     (u * depth, v * depth, depth)."""
     n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
@@ -151,7 +152,7 @@ def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask
                         for c in range(k, k + 2):
                             least = min(least, fields[a, b, c, 0])
                             most = max(most, fields[a, b, c, 1])
-                if least - max(level, most + thin) >= 0.02 + slack:
+                if least - max(level, most + thin) >= HIT_GAP + slack:
                     continue
                 u0, u1, v0, v1 = 1e30, -1e30, 1e30, -1e30
                 for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):

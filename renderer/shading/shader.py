@@ -341,19 +341,12 @@ def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, 
     if min(geometry.occupied.shape) < 2:
         mask[...] = True
         return mask
-    crop_to_camera = camera.world_to_camera()[:3] @ geometry.grid_to_world @ _translation(geometry.offset)
-    (cx, cy), f = camera.principal_point, camera.focal_px
-    image = np.array([[f, 0.0, -cx], [0.0, -f, -cy], [0.0, 0.0, -1.0]])  # camera point -> (u, v, 1) * depth
+    grid_to_camera = camera.world_to_camera()[:3] @ geometry.grid_to_world
+    crop_to_camera = grid_to_camera + np.column_stack([np.zeros((3, 3)), grid_to_camera[:, :3] @ geometry.offset])
+    image = camera.intrinsics() @ np.diag([1.0, -1.0, -1.0])  # camera point -> (u, v, 1) * depth
     kernels.mark_surface_pixels(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, 0.01, image @ crop_to_camera,
                                 int(rows[0]), int(cols[0]), mask)
     return mask
-
-
-def _translation(offset: np.ndarray) -> np.ndarray:
-    """The 4x4 matrix that adds `offset` (crop coordinates -> grid indices)."""
-    matrix = np.eye(4)
-    matrix[:3, 3] = offset
-    return matrix
 
 
 def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
