@@ -123,42 +123,61 @@ def _light_terms(geometry: _Geometry, light: np.ndarray) -> tuple[np.ndarray, np
     """Per coarse pixel: the diffuse irradiance factor (integral of cos cos / r^2 over the light)
     and the coat's glossy reflectance towards the camera (the same integral weighted by its BRDF)."""
     offsets = ((np.arange(LIGHT_SAMPLES) + 0.5) / LIGHT_SAMPLES - 0.5) * LIGHT_SIZE
-    sample_x = (light[0] + offsets)[:, None].repeat(LIGHT_SAMPLES, 1).ravel().astype(np.float32)
-    sample_z = (light[2] + offsets)[None, :].repeat(LIGHT_SAMPLES, 0).ravel().astype(np.float32)
+    samples_x = (light[0] + offsets).astype(np.float32)
+    samples_z = (light[2] + offsets).astype(np.float32)
     area = np.float32(LIGHT_SIZE**2 / LIGHT_SAMPLES**2)
-    # Vectors from each floor point (y = 0) to each light sample, as separate (h, w, k) components.
-    dx = sample_x - geometry.points[..., 0:1]
-    dy = np.float32(light[1])
-    dz = sample_z - geometry.points[..., 2:3]
-    distance2 = np.maximum(dx * dx + dy * dy + dz * dz, np.float32(1e-12))
-    inv_distance = 1.0 / np.sqrt(distance2)
-    cos_in = dy * inv_distance  # the light faces straight down, so the cosine at the light is the same
-    solid = cos_in * cos_in / distance2 * area  # cos_floor * cos_light / r^2 dA
-    # Half vector between the light direction and the view direction.
-    vx, vy, vz = (geometry.view[..., i : i + 1] for i in range(3))
-    hx, hy, hz = dx * inv_distance + vx, cos_in + vy, dz * inv_distance + vz
-    inv_half = 1.0 / np.maximum(np.sqrt(hx * hx + hy * hy + hz * hz), np.float32(1e-12))
-    cos_half = np.clip(hy * inv_half, 0.0, 1.0)
-    cos_in_half = np.clip((dx * inv_distance * hx + cos_in * hy + dz * inv_distance * hz) * inv_half, 0.0, 1.0)
-    cos_in = np.maximum(cos_in, np.float32(1e-4))
-    brdf = (_schlick(cos_in_half) * _ggx(cos_half) * _smith_g1(cos_in)
-            * (geometry.view_masking / (4.0 * geometry.cos_view))[..., None] / cos_in)
-    return solid.sum(-1), (brdf * solid).sum(-1)
+    diffuse, glossy = (np.empty(geometry.cos_view.shape, dtype=np.float32) for _ in range(2))
+    _light_sums(geometry.points, geometry.view, geometry.cos_view, geometry.view_masking, samples_x, samples_z,
+                np.float32(light[1]), area, diffuse, glossy)
+    return diffuse, glossy
 
 
-def _ggx(cos_half: np.ndarray) -> np.ndarray:
+@njit(cache=True, parallel=True)
+def _light_sums(points, view, cos_view, view_masking, samples_x, samples_z, height, area, diffuse, glossy):
+    """_light_terms' sums over the light's samples x samples_z (at `height`, facing down), per coarse floor point:
+    compiled, one pass (the same sums over (h, w, samples) arrays took 1.2 ms a light edit in numpy)."""
+    for r in prange(points.shape[0]):
+        for c in range(points.shape[1]):
+            vx, vy, vz = view[r, c, 0], view[r, c, 1], view[r, c, 2]
+            view_term = view_masking[r, c] / (4.0 * cos_view[r, c])
+            solid_sum, glossy_sum = np.float32(0.0), np.float32(0.0)
+            for lx in samples_x:
+                for lz in samples_z:
+                    dx, dz = lx - points[r, c, 0], lz - points[r, c, 2]
+                    distance2 = max(dx * dx + height * height + dz * dz, np.float32(1e-12))
+                    inv_distance = 1.0 / math.sqrt(distance2)
+                    cos_in = height * inv_distance  # the light faces straight down: the same cosine at the light
+                    solid = cos_in * cos_in / distance2 * area  # cos_floor * cos_light / r^2 dA
+                    # The half vector between the light direction and the view direction.
+                    hx, hy, hz = dx * inv_distance + vx, cos_in + vy, dz * inv_distance + vz
+                    inv_half = 1.0 / max(math.sqrt(hx * hx + hy * hy + hz * hz), np.float32(1e-12))
+                    cos_half = min(max(hy * inv_half, 0.0), 1.0)
+                    cos_in_half = min(max((dx * inv_distance * hx + cos_in * hy + dz * inv_distance * hz) * inv_half,
+                                          0.0), 1.0)
+                    cos_in = max(cos_in, np.float32(1e-4))
+                    solid_sum += solid
+                    glossy_sum += _schlick(cos_in_half) * _ggx(cos_half) * _smith_g1(cos_in) * view_term / cos_in * solid
+            diffuse[r, c] = solid_sum
+            glossy[r, c] = glossy_sum
+
+
+# The coat's terms, compiled: _light_sums calls them per light sample, _Geometry on its arrays.
+@njit(cache=True)
+def _ggx(cos_half):
     a2 = FLOOR_ROUGHNESS**2
     denominator = cos_half**2 * (a2 - 1.0) + 1.0
     return a2 / (math.pi * denominator**2)
 
 
-def _smith_g1(cos_theta: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _smith_g1(cos_theta):
     a2 = FLOOR_ROUGHNESS**2
     tan2 = (1.0 - cos_theta**2) / (cos_theta**2)
     return 2.0 / (1.0 + np.sqrt(1.0 + a2 * tan2))
 
 
-def _schlick(cos_theta: np.ndarray) -> np.ndarray:
+@njit(cache=True)
+def _schlick(cos_theta):
     return COAT_F0 + (1.0 - COAT_F0) * (1.0 - cos_theta) ** 5
 
 

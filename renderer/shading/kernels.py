@@ -232,14 +232,14 @@ def build_shadow_maps(occluders, radius, lights, size, depth, bounds):
             h = ly - occluders[m, 1]
             if h <= radius:
                 continue
-            a = (occluders[m, 0] - lx) / h
-            b = (occluders[m, 2] - lz) / h
-            r = radius / h
+            inv_h = 1.0 / h
+            a = (occluders[m, 0] - lx) * inv_h
+            b = (occluders[m, 2] - lz) * inv_h
+            r = radius * inv_h
             a_min, a_max = min(a_min, a - r), max(a_max, a + r)
             b_min, b_max = min(b_min, b - r), max(b_max, b + r)
-        for u in range(size):
-            for v in range(size):
-                depth[k, u, v] = FAR
+        out = depth[k]
+        out[:, :] = FAR
         if a_min > a_max:
             bounds[k, 0], bounds[k, 1], bounds[k, 2] = 0.0, 0.0, 0.0
             continue
@@ -249,14 +249,20 @@ def build_shadow_maps(occluders, radius, lights, size, depth, bounds):
             h = ly - occluders[m, 1]
             if h <= radius:
                 continue
-            a = ((occluders[m, 0] - lx) / h - a_min) / texel
-            b = ((occluders[m, 2] - lz) / h - b_min) / texel
-            r = radius / h / texel
-            near = h - radius
+            scale = 1.0 / (h * texel)  # world units -> texels
+            a = (occluders[m, 0] - lx) * scale - a_min / texel
+            b = (occluders[m, 2] - lz) * scale - b_min / texel
+            r = radius * scale
+            reach = r * r + 0.5
+            near = np.float32(h - radius)
+            v0, v1 = max(int(b - r), 0), min(int(b + r) + 1, size)
             for u in range(max(int(a - r), 0), min(int(a + r) + 1, size)):
-                for v in range(max(int(b - r), 0), min(int(b + r) + 1, size)):
-                    if (u + 0.5 - a) ** 2 + (v + 0.5 - b) ** 2 <= r * r + 0.5 and near < depth[k, u, v]:
-                        depth[k, u, v] = near
+                du = u + 0.5 - a
+                left = reach - du * du
+                for v in range(v0, v1):
+                    dv = v + 0.5 - b
+                    if dv * dv <= left and near < out[u, v]:
+                        out[u, v] = near
 
 
 @njit(cache=True, parallel=True)
@@ -362,3 +368,41 @@ def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
         _distance_pass(lines)
         grid = np.moveaxis(lines, -1, axis)
     return np.sqrt(grid).astype(np.float32)
+
+
+@njit(cache=True, parallel=True)
+def composite(from_light, from_ambient, floor, visibility, floor_occlusion, background, rows, cols, radiance, cover,
+              out):
+    """The shaded image in linear light, in one pass: the lit floor (its light times `visibility`, its ambient
+    times `floor_occlusion`) or the `background` where there is no floor, then the object's `radiance` over it
+    at pixels (rows, cols) by their coverage."""
+    for r in prange(out.shape[0]):
+        for c in range(out.shape[1]):
+            if floor[r, c]:
+                lit, sky = visibility[r, c], floor_occlusion[r, c]
+                for k in range(3):
+                    out[r, c, k] = from_light[r, c, k] * lit + from_ambient[r, c, k] * sky
+            else:
+                for k in range(3):
+                    out[r, c, k] = background[k]
+    for i in prange(rows.shape[0]):
+        r, c, share = rows[i], cols[i], cover[i]
+        for k in range(3):
+            out[r, c, k] = out[r, c, k] * (1.0 - share) + radiance[i, k] * share
+
+
+@njit(cache=True, parallel=True)
+def pack_buffers(image, albedo, normal, depth, visibility, occlusion, coverage, depth_offset, depth_scale, out):
+    """out[r, c] = image, albedo, normal (3 each), (depth - depth_offset) * depth_scale (0 where nothing is covered),
+    visibility, occlusion, coverage: a network's buffers side by side in one pass (numpy's concatenation of
+    thirteen channels took 1.3 ms at 256^2)."""
+    for r in prange(out.shape[0]):
+        for c in range(out.shape[1]):
+            for k in range(3):
+                out[r, c, k] = image[r, c, k]
+                out[r, c, 3 + k] = albedo[r, c, k]
+                out[r, c, 6 + k] = normal[r, c, k]
+            out[r, c, 9] = (depth[r, c] - depth_offset) * depth_scale if coverage[r, c] > 0.0 else 0.0
+            out[r, c, 10] = visibility[r, c]
+            out[r, c, 11] = occlusion[r, c]
+            out[r, c, 12] = coverage[r, c]

@@ -497,18 +497,16 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
                          _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, 0.25 * voxel))
-    background = np.float32(AMBIENT_RADIANCE)
-    ground = np.where(floor[..., None], from_light * visibility[..., None]
-                      + from_ambient * surface.images.floor_occlusion[..., None], background)
-    image = ground
+    image = np.empty((size, size, 3), dtype=np.float32)
+    radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
         radiance, seen = _object_radiance(surface, light_position, lights, maps, bounds, voxel, floor_color)
-        r, c = surface.pixels[:, 0], surface.pixels[:, 1]
-        cover = surface.coverage[r, c][:, None]
-        image[r, c] = ground[r, c] * (1.0 - cover) + radiance * cover
-        visibility[r, c] = seen
+    r, c = surface.pixels[:, 0], surface.pixels[:, 1]
+    kernels.composite(from_light, from_ambient, floor, visibility, surface.images.floor_occlusion,
+                      np.full(3, AMBIENT_RADIANCE, dtype=np.float32), r, c, radiance, surface.coverage[r, c], image)
+    visibility[r, c] = seen  # the floor's visibility lit the floor behind partly covered pixels; now the object's
     images = surface.images
-    return ShadedImage(image=np.clip(linear_to_srgb(image), 0.0, 1.0).astype(np.float32), coverage=surface.coverage,
+    return ShadedImage(image=np.clip(linear_to_srgb(image), 0.0, 1.0), coverage=surface.coverage,
                        albedo=images.albedo, albedo_srgb=images.albedo_srgb, normal=images.normal, depth=images.depth,
                        visibility=visibility, occlusion=images.occlusion)
 
@@ -585,11 +583,10 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
     """(H, W, len(BUFFER_CHANNELS)) float32, each channel in about [-1, 1]: the shaded image (sRGB), the object's
     albedo (sRGB), its world normal, its depth (0 at the look-at distance, +-1 at the grid's faces), the
     share of the light and of the sky each point sees, and the object's coverage; 0 where there is no object."""
-    on_object = shaded.coverage > 0.0
-    depth = np.where(on_object, (shaded.depth - CAMERA_DISTANCE) / (0.5 * GRID_EXTENT), 0.0)
-    return np.concatenate([shaded.image, shaded.albedo_srgb, shaded.normal, depth[..., None],
-                           shaded.visibility[..., None], shaded.occlusion[..., None], shaded.coverage[..., None]],
-                          axis=-1).astype(np.float32)
+    out = np.empty(shaded.coverage.shape + (len(BUFFER_CHANNELS),), dtype=np.float32)
+    kernels.pack_buffers(shaded.image, shaded.albedo_srgb, shaded.normal, shaded.depth, shaded.visibility,
+                         shaded.occlusion, shaded.coverage, CAMERA_DISTANCE, 1.0 / (0.5 * GRID_EXTENT), out)
+    return out
 
 
 # --- all stages -------------------------------------------------------------------------------
