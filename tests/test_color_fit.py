@@ -9,6 +9,7 @@ import pytest
 from renderer.camera import Camera
 from renderer.capture.align import (
     OUTSIDE_BOX_WEIGHT,
+    WINDOW_ROTATION_DEG,
     in_box_score,
     refine_by_colors,
     refine_placement,
@@ -138,6 +139,19 @@ def test_the_search_in_a_box_finds_the_pose_without_a_mask(chair_photo):
     assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
     assert silhouette_iou(silhouettes.mask(found.pose), mask) > 0.9
     assert found.mask is nothing and found.iou == 0.0
+
+
+def test_the_search_in_a_box_from_a_rough_pose_stays_near_it(chair_photo):
+    _, silhouettes, truth, mask = chair_photo
+    photo = cluttered_photo(mask, block=12, seed=3)
+    box, region = _box_and_region(mask, margin=5)
+    # A rough pose facing the other way: the search keeps to its window (the box alone would find the truth, as above).
+    rough = replace(truth, rotation_deg=truth.rotation_deg + 180.0)
+    found = search_in_box(silhouettes, photo, box, region, np.zeros_like(mask), initial=rough)
+    assert rotation_error_deg(found.pose.rotation_deg, rough.rotation_deg) <= WINDOW_ROTATION_DEG + 10.0
+    near = replace(truth, rotation_deg=truth.rotation_deg + 25.0)
+    found = search_in_box(silhouettes, photo, box, region, np.zeros_like(mask), initial=near)
+    assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
 
 
 def test_the_score_in_a_box_keeps_the_silhouette_inside_it(chair_photo):

@@ -54,6 +54,7 @@ LENSES_MM = (24.0, 32.0, 40.0, 55.0, 80.0)  # focal lengths tried first when it 
 EARLY_HALVINGS = 2  # compass halvings every candidate gets before the finalists are chosen
 BOX_ROTATIONS = np.arange(-180.0, 180.0, 20.0)  # the grid of the search in a box, every pose placed and scored
 BOX_ELEVATIONS = np.arange(0.0, 81.0, 10.0)
+BOX_WINDOW_STEP_DEG = 10.0  # its grid's step in the window around a rough pose
 BOX_CANDIDATES = 4  # distinct poses of that grid refined
 BOX_MARGIN = 1.1  # a user's box is about this much larger than the object (the bench's boxes: 1.04-1.16)
 PLACEMENT_MASK_WEIGHT = 3.0  # refine_placement scores the colors plus this times the IoU with the mask
@@ -152,22 +153,27 @@ def _refine(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoP
 
 
 def search_in_box(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tuple[float, float, float, float],
-                  region: np.ndarray, photo_mask: np.ndarray, free_focal: bool = False) -> Alignment:
+                  region: np.ndarray, photo_mask: np.ndarray, free_focal: bool = False,
+                  initial: PhotoPose | None = None) -> Alignment:
     """The pose whose silhouette best separates `photo_rgb`'s colors within `region` ((H, W) bool) while staying
     inside `box` (x0, y0, x1, y1 pixels of the photo), found without a mask: each pose of a coarse grid of
     rotations and elevations is placed so its bounding box fills the box, scored by `in_box_score`, and the best
     distinct ones are refined on it. A mask cut from clutter can miss the object's shape entirely (a thin chair
     over a busy photo); this search only needs the box to hold the object. `photo_mask` only gives the reported
-    IoU (and is kept as the alignment's mask), as in `refine_by_colors`."""
+    IoU (and is kept as the alignment's mask), as in `refine_by_colors`. `initial`: a rough pose, whose window of
+    rotations and elevations (as in `align_pose`) is searched instead of all of them."""
     start = time.perf_counter()
     rays_before = silhouettes.rays_cast
     h, w = photo_rgb.shape[:2]
     base = PhotoPose(Camera(elevation_deg=0.0, width=w, height=h))
     coarse, early, fine = (_BoxProblem(silhouettes, photo_rgb, box, region, base, side)
                            for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
+    rotations, elevations = BOX_ROTATIONS, BOX_ELEVATIONS
+    if initial is not None:
+        rotations, elevations = _window(initial, BOX_WINDOW_STEP_DEG)
     scored = []
-    for rotation in BOX_ROTATIONS:
-        for elevation in BOX_ELEVATIONS:
+    for rotation in rotations:
+        for elevation in elevations:
             params = coarse.place(np.array([rotation, elevation, 0.0, 0.0, 0.0]), iterations=2)
             scored.append((coarse.score(params), params))
     scored.sort(key=lambda item: -item[0])
@@ -344,11 +350,7 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
         rotations, elevations = FULL_ROTATIONS, FULL_ELEVATIONS
         start_placement = np.zeros(3)
     else:
-        offsets = np.arange(-WINDOW_ROTATION_DEG, WINDOW_ROTATION_DEG + 1e-9, WINDOW_STEP_DEG)
-        rotations = initial.rotation_deg + offsets
-        e = initial.camera.elevation_deg
-        elevations = np.arange(max(0.0, e - WINDOW_ELEVATION_DEG), min(MAX_ELEVATION_DEG, e + WINDOW_ELEVATION_DEG) + 1e-9,
-                               WINDOW_STEP_DEG)
+        rotations, elevations = _window(initial, WINDOW_STEP_DEG)
         start_placement = np.array([*initial.translation, 0.0])
     target = _canonical(problem.target)
     scored = []
@@ -359,6 +361,14 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
             scored.append((silhouette_iou(_canonical(mask), target), params))
     scored.sort(key=lambda item: -item[0])
     return _distinct([params for _, params in scored], CANDIDATES)
+
+
+def _window(initial: PhotoPose, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """The rotations and elevations, `step` degrees apart, within the search window around a rough pose."""
+    rotations = initial.rotation_deg + np.arange(-WINDOW_ROTATION_DEG, WINDOW_ROTATION_DEG + 1e-9, step)
+    e = initial.camera.elevation_deg
+    elevations = np.arange(max(0.0, e - WINDOW_ELEVATION_DEG), min(MAX_ELEVATION_DEG, e + WINDOW_ELEVATION_DEG) + 1e-9, step)
+    return rotations, elevations
 
 
 def _distinct(ranked: list[np.ndarray], count: int) -> list[np.ndarray]:
