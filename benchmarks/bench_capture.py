@@ -32,8 +32,6 @@ import argparse
 import datetime
 import itertools
 import json
-import os
-import platform
 import statistics
 import time
 from dataclasses import dataclass, replace
@@ -42,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from models.bench.system import machine_description
 from renderer.camera import Camera
 from renderer.capture.align import rotation_error_deg, silhouette_iou
 from renderer.capture.capture import capture_appearance
@@ -287,7 +286,7 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         "# Appearance capture: accuracy of the pose search and the colors",
         "",
         f"`python -m benchmarks.bench_capture --photos {args.photos} --size {args.size} --spp {args.spp}` "
-        f"on {datetime.date.today()}, {platform.machine()} with {os.cpu_count()} cores; {note}.",
+        f"on {datetime.date.today()}, {machine_description()['cpu']}; {note}.",
         "",
         f"Photos, path traced at {args.size}^2 with {args.spp} spp + OIDN from random views (rotation in "
         "[-180, 180), elevation, floor position and scale over the training ranges, a random light): test-split "

@@ -15,6 +15,7 @@ from numba import njit, prange
 
 FAR = np.float32(3.0e38)
 HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
+EMPTY_DISTANCE2 = np.float32(1e20)  # squared distance from a line with nothing occupied (any transform stays below)
 
 
 @njit(cache=True, inline="always")
@@ -344,6 +345,26 @@ def _lower_envelope(f, n, out, v, z):
 
 
 @njit(cache=True, parallel=True)
+def _nearest_along_lines(occupied, out):
+    """out = squared distance along the last axis to the line's nearest occupied voxel (EMPTY_DISTANCE2 if none):
+    the transform's first pass, two scans per line (on a binary input the lower envelope is not needed)."""
+    rows, n = occupied.shape[0] * occupied.shape[1], occupied.shape[2]
+    lines, found = occupied.reshape(rows, n), out.reshape(rows, n)
+    for line in prange(rows):
+        last = -1
+        for q in range(n):
+            if lines[line, q]:
+                last = q
+            found[line, q] = EMPTY_DISTANCE2 if last < 0 else np.float32((q - last) ** 2)
+        after = -1
+        for q in range(n - 1, -1, -1):
+            if lines[line, q]:
+                after = q
+            if after >= 0:
+                found[line, q] = min(found[line, q], np.float32((after - q) ** 2))
+
+
+@njit(cache=True, parallel=True)
 def _distance_pass(grid):
     """One separable pass of the squared distance transform along the last (contiguous) axis, in place."""
     rows, n = grid.shape[0] * grid.shape[1], grid.shape[2]
@@ -360,10 +381,11 @@ def _distance_pass(grid):
 def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
     """Euclidean distance (float32, in voxels) from every voxel centre to the nearest occupied one: the
     exact separable transform (Felzenszwalb and Huttenlocher 2012), compiled, one axis at a time along
-    contiguous lines; scipy's distance_transform_edt gives the same but also computes the nearest
-    voxel's index, 3x slower here."""
-    grid = np.where(occupied, np.float32(0.0), np.float32(1e20))
-    for axis in range(3):
+    contiguous lines, the first by two scans; scipy's distance_transform_edt gives the same but also computes
+    the nearest voxel's index, 3x slower here."""
+    grid = np.empty(occupied.shape, dtype=np.float32)
+    _nearest_along_lines(np.ascontiguousarray(occupied, dtype=np.bool_), grid)
+    for axis in range(2):
         lines = np.ascontiguousarray(np.moveaxis(grid, axis, -1))
         _distance_pass(lines)
         grid = np.moveaxis(lines, -1, axis)
