@@ -283,3 +283,40 @@ def test_a_face_with_nothing_before_it_sees_the_whole_light(light):
     face = ndimage.binary_erosion((out.normal[..., 2] > 0.95) & (out.coverage >= 1.0), iterations=2)
     assert face.sum() > 40
     assert out.visibility[face].min() > 0.95
+
+
+def test_the_composite_lays_the_object_over_the_lit_floor_by_its_coverage():
+    rng = np.random.default_rng(4)
+    size = 12
+    from_light, from_ambient = (rng.random((size, size, 3), dtype=np.float32) for _ in range(2))
+    floor = rng.random((size, size)) < 0.7
+    visibility, floor_occlusion = (rng.random((size, size), dtype=np.float32) for _ in range(2))
+    background = np.array([0.1, 0.2, 0.3], dtype=np.float32)
+    rows, cols = np.array([0, 3, 7]), np.array([5, 3, 11])
+    radiance = rng.random((3, 3), dtype=np.float32)
+    cover = np.array([1.0, 0.25, 0.0], dtype=np.float32)
+    out = np.empty((size, size, 3), dtype=np.float32)
+    kernels.composite(from_light, from_ambient, floor, visibility, floor_occlusion, background, rows, cols, radiance,
+                      cover, out)
+    ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * floor_occlusion[..., None],
+                      background)
+    expected = ground.copy()
+    expected[rows, cols] = ground[rows, cols] * (1.0 - cover[:, None]) + radiance * cover[:, None]
+    np.testing.assert_allclose(out, expected, rtol=1e-6, atol=1e-7)
+
+
+def test_network_buffers_hold_the_shaded_image_and_its_buffers_in_order():
+    from renderer.scene import CAMERA_DISTANCE, GRID_EXTENT
+    from renderer.shading.shader import BUFFER_CHANNELS, network_buffers
+
+    image = shaded(cube(), ObjectSpec(voxels="v.npz", scale=(0.4, 0.4, 0.4)), (0.4, 2.7, 0.3), size=48)
+    buffers = network_buffers(image)
+    assert buffers.shape == (48, 48, len(BUFFER_CHANNELS)) and buffers.dtype == np.float32
+    on = image.coverage > 0.0
+    assert on.any() and (~on).any()
+    for start, field in ((0, image.image), (3, image.albedo_srgb), (6, image.normal)):
+        np.testing.assert_array_equal(buffers[..., start:start + 3], field)
+    np.testing.assert_allclose(buffers[on, 9], (image.depth[on] - CAMERA_DISTANCE) / (0.5 * GRID_EXTENT), atol=1e-6)
+    assert np.all(buffers[~on, 9] == 0.0)
+    for channel, field in ((10, image.visibility), (11, image.occlusion), (12, image.coverage)):
+        np.testing.assert_array_equal(buffers[..., channel], field)

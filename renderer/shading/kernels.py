@@ -1,4 +1,5 @@
-"""Compiled loops of the voxel shader (numba, cached on disk): rays through fields, shadow maps, occlusion.
+"""Compiled loops of the voxel shader (numba, cached on disk): rays through fields, shadow maps, occlusion,
+and the image's last passes (compositing, the network's buffers).
 
 numpy would need every ray's steps as arrays of (rays x steps); these loops stop each ray where it
 hits and skip empty space by the distance field, so their work follows the object, not the grid.
