@@ -247,13 +247,14 @@ def build_shadow_maps(occluders, radius, lights, size, depth, bounds):
             continue
         texel = max(a_max - a_min, b_max - b_min) / (size - 1)
         bounds[k, 0], bounds[k, 1], bounds[k, 2] = a_min, b_min, texel
+        a0, b0 = a_min / texel, b_min / texel
         for m in range(count):
             h = ly - occluders[m, 1]
             if h <= radius:
                 continue
             scale = 1.0 / (h * texel)  # world units -> texels
-            a = (occluders[m, 0] - lx) * scale - a_min / texel
-            b = (occluders[m, 2] - lz) * scale - b_min / texel
+            a = (occluders[m, 0] - lx) * scale - a0
+            b = (occluders[m, 2] - lz) * scale - b0
             r = radius * scale
             reach = r * r + 0.5
             near = np.float32(h - radius)
