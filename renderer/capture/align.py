@@ -54,7 +54,6 @@ LENSES_MM = (24.0, 32.0, 40.0, 55.0, 80.0)  # focal lengths tried first when it 
 EARLY_HALVINGS = 2  # compass halvings every candidate gets before the finalists are chosen
 BOX_ROTATIONS = np.arange(-180.0, 180.0, 20.0)  # the grid of the search in a box, every pose placed and scored
 BOX_ELEVATIONS = np.arange(0.0, 81.0, 10.0)
-BOX_WINDOW_STEP_DEG = 10.0  # its grid's step in the window around a rough pose
 BOX_CANDIDATES = 4  # distinct poses of that grid refined
 BOX_MARGIN = 1.1  # a user's box is about this much larger than the object (the bench's boxes: 1.04-1.16)
 PLACEMENT_MASK_WEIGHT = 3.0  # refine_placement scores the colors plus this times the IoU with the mask
@@ -170,7 +169,7 @@ def search_in_box(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: t
                            for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
     rotations, elevations = BOX_ROTATIONS, BOX_ELEVATIONS
     if initial is not None:
-        rotations, elevations = _window(initial, BOX_WINDOW_STEP_DEG)
+        rotations, elevations = _window(initial, WINDOW_STEP_DEG)
     scored = []
     for rotation in rotations:
         for elevation in elevations:
