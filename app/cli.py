@@ -278,14 +278,18 @@ def cmd_data_merge(args: argparse.Namespace) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> None:
+    import torch
+
+    from models.engine import resolve_precision
     from models.training.train import TrainConfig, train
 
+    precision = resolve_precision(args.precision, torch.device("cuda" if args.device.startswith("cuda") else "cpu"))
     config = TrainConfig(
         data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
         steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
-        lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, threads=args.threads,
-        loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes, perceptual_weights=args.vgg_weights,
-        perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
+        lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, precision=precision,
+        threads=args.threads, loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes,
+        perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
     print(f"wrote {train(args.out, config, resume=args.resume)}")
 
@@ -466,6 +470,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lr-final-fraction", type=float, default=0.1, help="the rate on the last step, as a share of --lr")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="cpu", help="cpu or cuda")
+    p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
+                   help="the forward pass in bf16 autocast, weights and Adam in fp32 (auto: bf16 on CPUs with native "
+                        "bfloat16, else fp32)")
     p.add_argument("--threads", type=int, default=0, help="CPU threads (0: torch's default)")
     p.add_argument("--loader-workers", type=int, default=1,
                    help="processes preparing the next batches while a step runs (0: between steps, in this process)")

@@ -10,6 +10,7 @@ import pytest
 import torch
 from safetensors.torch import load_file
 
+from models.engine.onednn import cpu_can_run_bfloat16
 from models.networks.checkpoint import load_model
 from models.training.train import CHECKPOINT, TrainConfig, batch_indices, train
 from renderer.errors import InputError
@@ -42,6 +43,19 @@ def test_a_few_steps_lower_the_loss(data, tmp_path):
     assert sum(losses[-5:]) / 5 < 0.8 * sum(losses[:5]) / 5
 
 
+@pytest.mark.skipif(not cpu_can_run_bfloat16(), reason="this CPU cannot run bfloat16 convolutions")
+def test_a_bf16_run_starts_at_the_fp32_loss_lowers_it_and_keeps_fp32_weights(data, tmp_path):
+    train(tmp_path / "fp32", config(data, steps=1, batch=4), progress=False)
+    train(tmp_path / "bf16", config(data, steps=30, batch=4, lr=3e-3, precision="bf16"), progress=False)
+    first = float((tmp_path / "fp32" / "log.csv").read_text().splitlines()[1].split(",")[1])
+    losses = [float(line.split(",")[1]) for line in (tmp_path / "bf16" / "log.csv").read_text().splitlines()[1:]]
+    assert losses[0] != first  # the forward pass did run in bfloat16
+    assert losses[0] == pytest.approx(first, rel=0.02)  # bfloat16 keeps 8 bits of mantissa: about 0.4 % a value
+    assert sum(losses[-5:]) / 5 < 0.8 * sum(losses[:5]) / 5
+    stored = weights(tmp_path / "bf16" / CHECKPOINT)
+    assert all(v.dtype == torch.float32 for v in stored.values() if v.is_floating_point())
+
+
 def test_resumed_run_equals_uninterrupted_run(data, tmp_path):
     train(tmp_path / "whole", config(data, steps=4), progress=False)
     train(tmp_path / "parts", config(data, steps=2), progress=False)
@@ -69,7 +83,7 @@ def test_two_process_ddp_matches_one_process_with_the_same_total_batch(data, tmp
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT))
     command = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2",
                "-m", "app.cli", "train", "--data", str(data), "--out", str(tmp_path / "ddp"), "--steps", "3",
-               "--batch", "4", "--threads", "1", "--perceptual-crop", "0",
+               "--batch", "4", "--threads", "1", "--perceptual-crop", "0", "--precision", "fp32",
                "--set", "grid_size=16", "--set", "output_size=32"]
     result = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr[-2000:]
@@ -230,6 +244,8 @@ def test_training_option_refusals_name_the_option_and_its_limits():
         TrainConfig(data=("d",), lr=float("inf"))
     with pytest.raises(InputError, match=r"--threads must be from 0 .* to 1024, got -1"):
         TrainConfig(data=("d",), threads=-1)
+    with pytest.raises(InputError, match=r"--precision must be fp32 or bf16, got 'fp16'"):
+        TrainConfig(data=("d",), precision="fp16")
 
 
 # --- refusals before anything is written, and a kill during a checkpoint write ----------------------------

@@ -58,6 +58,7 @@ class TrainConfig:
     lr_final_fraction: float = 0.1
     seed: int = 0
     device: str = "cpu"
+    precision: str = "fp32"  # the forward pass and loss: fp32, or bf16 autocast (weights, gradients and Adam stay fp32)
     threads: int = 0  # 0: torch's default
     loader_workers: int = 0  # processes preparing the next batches while a step runs (0: prepared between steps)
     checkpoint_minutes: float = 5.0
@@ -91,6 +92,7 @@ class TrainConfig:
         need(whole(self.seed, 0, 2**32 - 1), f"--seed must be a whole number from 0 to 2^32 - 1, got {self.seed!r}")
         need(isinstance(self.device, str) and re.fullmatch(r"cpu|cuda(:\d+)?", self.device) is not None,
              f"--device must be cpu, cuda or cuda:N, got {self.device!r}")
+        need(self.precision in ("fp32", "bf16"), f"--precision must be fp32 or bf16, got {self.precision!r}")
         need(whole(self.threads, 0, MAX_THREADS), f"--threads must be from 0 (torch's default) to {MAX_THREADS}, got {self.threads!r}")
         need(whole(self.loader_workers, 0, MAX_LOADER_WORKERS),
              f"--loader-workers must be from 0 to {MAX_LOADER_WORKERS}, got {self.loader_workers!r}")
@@ -298,6 +300,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     writer = csv.writer(log_file) if log_file else None
     if writer and new_log:
         writer.writerow(["step", "loss", "l1", "perceptual", "seconds"])
+    half = torch.autocast(device.type, dtype=torch.bfloat16, enabled=config.precision == "bf16")
     bar = tqdm(total=config.steps, initial=start_step, disable=not (progress and dist_info.is_main), unit="step")
     started = last_save = time.monotonic()
     model.train()
@@ -305,8 +308,9 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     for step in range(start_step, config.steps):
         batch = {key: value.to(device) for key, value in next(batches).items()}
         splat = batch["splat"] if config.architecture == "nvr_plus" else None
-        prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"), batch.get("shading"))
-        loss, parts = loss_fn(prediction, batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
+        with half:
+            prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"), batch.get("shading"))
+            loss, parts = loss_fn(prediction.float(), batch["target"], crop=crop_box(config, step, prediction.shape[-1]))
         optimizer.zero_grad(set_to_none=True)
         loss.backward()
         for group in optimizer.param_groups:
