@@ -289,7 +289,8 @@ def cmd_train(args: argparse.Namespace) -> None:
         steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
         lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, precision=precision,
         threads=args.threads, loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes,
-        perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop, config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
+        perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop,
+        config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
     print(f"wrote {train(args.out, config, resume=args.resume)}")
 
