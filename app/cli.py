@@ -402,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
     p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
     p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
-                   help="the object's box in photo pixels: outside it is background (helps on cluttered photos)")
+                   help="the object's box in photo pixels: outside it is background (needed on cluttered photos)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
     p.add_argument("--res", type=int, default=100, help="object voxels per side (default 100)")
     p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")

@@ -10,8 +10,9 @@ furniture (a cup with a handle, a four-legged animal). Kinds of photo:
     real     the object cut out along its silhouette over a real photograph (scikit-image's samples),
              blurred, noisy, JPEG; every third one taken with a 60 mm lens instead of the scene's 40 mm
              (a centre crop of a wider render) and captured with the focal length free (--free-focal).
-             Each is captured without hints and with a box as a user would drag it (the object's
-             bounds grown by 2-8 % of the photo's side on each edge, at random)
+             Each is captured without hints (where the capture should refuse the cluttered photo and
+             ask for a box) and with a box as a user would drag it (the object's bounds grown by 2-8 %
+             of the photo's side on each edge, at random)
     studio   no floor, plain ambient backdrop, no alpha (a quarter as many)
     cutout   the floor scene with an alpha channel along the object's true silhouette (a quarter as many)
 The pose search starts from no pose and from the true pose perturbed by up to 30 degrees in
@@ -29,9 +30,11 @@ Run from the repository root (the `real` kind needs scikit-image: pip install -e
 from __future__ import annotations
 
 import argparse
+import collections
 import datetime
 import itertools
 import json
+import re
 import statistics
 import time
 from dataclasses import dataclass, replace
@@ -45,6 +48,7 @@ from renderer.camera import Camera
 from renderer.capture.align import rotation_error_deg, silhouette_iou
 from renderer.capture.capture import capture_appearance
 from renderer.capture.pose import PhotoPose
+from renderer.capture.segment import MAX_BUSY_SHARE
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.io import atomic_path
@@ -298,7 +302,9 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         "- `real`: the object cut out along its silhouette over a crop of one of scikit-image's sample photographs "
         "(astronaut, coffee, cat, rocket), blurred by 0.6 px, noise of 0.015, JPEG quality 75, no alpha; a third "
         f"taken with a {LONG_LENS_MM:.0f} mm lens instead of the scene's 40 mm and captured with the focal length "
-        "free. `real + box`: the same photos with a box as a user drags it in the Photo tab or gives with "
+        "free. Without a box the capture refuses a photo whose border is cluttered and asks for a box (edges on "
+        f"more than {100 * MAX_BUSY_SHARE:.0f} % of a band along the border; a floor under a sky has few). "
+        "`real + box`: the same photos with a box as a user drags it in the Photo tab or gives with "
         "`nvr capture --box` (the object's bounds grown by 2-8 % of the side on each edge); with a box each "
         "search on the mask is followed by a refinement on the colors the silhouette separates around the box, and a "
         "search on those colors alone, placed by the box, replaces the pose where it separates them better; last, elevation, "
@@ -324,8 +330,11 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
             s = summary(rows, "none", kind, group)
             if s["photos"]:
                 lines.append(_table_row(f"{kind}: {name}", s))
-    refusals = sorted({r["failed"].split(": ", 1)[-1] for r in rows if "failed" in r})
-    lines += ["", "Refusals said: " + ("; ".join(f'"{text}"' for text in refusals) if refusals else "none") + ".",
+    # A refusal's reason without its percentage (the share of the border on an edge), counted by kind of photo.
+    reasons = collections.Counter((re.sub(r" \([^)]*\d %[^)]*\)", "", r["failed"].split(": ", 1)[-1]), r["style"])
+                                  for r in rows if "failed" in r)
+    said = "; ".join(f'"{text}" ({count} {kind})' for (text, kind), count in sorted(reasons.items()))
+    lines += ["", "Refusals said: " + (said or "none") + ".",
               "", "Goals (issue 17): median rotation error at most 3 degrees from no pose and 1 from a perturbed "
               "start; elevation error at most 2; silhouette and segmentation IoU at least 0.9; no refusal when the "
               "object covers at least 3 % of the photo; color RMSE within 10 % of the true pose's.", ""]

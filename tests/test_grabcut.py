@@ -7,7 +7,7 @@ from scipy import ndimage
 
 from renderer.capture.align import silhouette_iou
 from renderer.capture.grabcut import Hints, grabcut_mask, shadow_pixels
-from renderer.capture.segment import object_mask
+from renderer.capture.segment import MAX_BUSY_SHARE, busy_border_share, object_mask
 from renderer.errors import InputError
 
 H, W = 120, 160
@@ -144,3 +144,35 @@ def test_a_dark_object_before_a_plain_sky_is_not_all_taken_for_shadow():
     photo[truth] *= 0.45
     photo = np.clip(photo + rng.normal(0.0, 0.005, photo.shape), 0.0, 1.0)
     assert silhouette_iou(grabcut_mask(photo, Hints(box=(44, 34, 116, 86))), truth) > 0.9
+
+
+def test_a_cluttered_photo_without_hints_asks_for_a_box_and_is_cut_with_one():
+    """A wall of tiles behind the object: GrabCut from the frame's middle would cut out tiles, so without a box or
+    strokes the photo is refused with a request for a box, naming the file; with a box it is segmented."""
+    rng = np.random.default_rng(4)
+    tiles = rng.uniform([0.5, 0.3, 0.1], [0.95, 0.8, 0.4], (H // 8, W // 8, 3))  # warm tiles, 8 pixels each
+    photo = np.kron(tiles, np.ones((8, 8, 1)))
+    truth = np.zeros((H, W), dtype=bool)
+    truth[40:90, 60:110] = True
+    photo[truth] = [0.2, 0.3, 0.8]
+    photo = np.clip(photo + rng.normal(0.0, 0.01, photo.shape), 0.0, 1.0)
+    assert busy_border_share(photo) > 0.5
+    with pytest.raises(InputError, match=r"cluttered .* draw a box around the object first") as refused:
+        object_mask(photo, path="room.jpg")
+    assert str(refused.value).startswith("room.jpg: ")
+    assert silhouette_iou(object_mask(photo, hints=Hints(box=(54, 34, 116, 96))), truth) > 0.9
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.05])
+def test_a_floor_under_a_sky_is_not_clutter_even_with_strong_camera_noise(noise):
+    photo, _ = floor_and_sky(noise=noise)
+    assert busy_border_share(photo) < MAX_BUSY_SHARE / 2
+
+
+def test_one_straight_edge_across_the_border_is_a_few_percent_of_it():
+    """Two plain halves: the edge between them crosses the top and bottom bands only. Blurred by 1.5 pixels, a
+    step of 1 stays above the edge threshold within about 3.4 pixels of it, so 7 columns of 2 x 18 rows of the
+    8,784 pixels of the band: about 3 %."""
+    photo = np.zeros((H, W, 3))
+    photo[:, W // 2:] = [1.0, 0.0, 0.0]
+    assert 0.02 < busy_border_share(photo) < 0.04

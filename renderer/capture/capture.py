@@ -71,8 +71,9 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     than 50 degrees off; the window on a 10-degree grid left their median rotation error at 1.15 degrees, 5 gives 0.97).
     Last, elevation, position and scale are refined on the colors and the last mask together, the rotation kept.
     Without a box the mask alone decides: on 30 floor photos the colors changed little (median 0.86 -> 0.62 degrees,
-    one more photo off by over 10), and a photo's floor and sky are what GrabCut separates well. The result's mask is
-    the last segmentation, at the photo's size.
+    one more photo off by over 10), and a photo's floor and sky are what GrabCut separates well; a cluttered photo
+    without a box or strokes is refused before the search (segment.object_mask: GrabCut from the frame's middle cuts
+    out whatever stands there). The result's mask is the last segmentation, at the photo's size.
     """
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)

@@ -5,8 +5,10 @@ color field (a quadratic in the pixel coordinates, per channel) fitted to a band
 refitted without the pixels it explains badly, so an object touching the border or a soft vignette
 does not spoil it; pixels far from that field are probably the object. GrabCut
 (renderer/capture/grabcut.py) then separates object and background from that guess, or, when the
-border is not plain (a floor and a sky, a room), from the frame's middle, the user's box and strokes
-or the object's silhouette at a pose already found.
+border is not plain (a floor and a sky), from the frame's middle, the user's box and strokes or the
+object's silhouette at a pose already found. A cluttered photo (a room, a street: edges all along its
+border) without any of those is refused with a request for a box: GrabCut from the frame's middle
+cuts out whatever stands there, and the pose fitted to that is wrong.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy import ndimage
 
 from renderer.capture.grabcut import Hints, grabcut_mask, shadow_pixels, without_specks
 from renderer.errors import InputError
@@ -29,6 +32,13 @@ MAX_OBJECT_FRACTION = 0.9
 SPECK_FRACTION = 0.0005  # components smaller than this share of the image are noise
 OPAQUE = 0.5  # alpha at or above this is object
 SHADOW_SHARE = 0.05  # of the pixels that differ from a plain backdrop: more shadow-like ones than this mean a lit floor
+BUSY_BAND_FRACTION = 0.15  # clutter is measured in a band this share of the shorter side wide along the border
+BUSY_EDGE = 0.02  # sRGB change per pixel (after a BUSY_BLUR-pixel blur, which takes out sensor noise) that is an edge
+BUSY_BLUR = 1.5
+BUSY_MASK_MARGIN = 0.01  # the object's cut, grown by this share of the shorter side, is left out of the band
+MAX_BUSY_SHARE = 0.15  # a band with edges on more of it than this is clutter. Measured (the capture bench's photos at
+# 256^2, the test and novel data sets' 290 path-traced images): floor-and-sky photos 0-0.075, data-set images 0-0.134,
+# photographs behind the object (scikit-image's samples, blurred, noisy, JPEG) 0.164-0.61
 PLAIN_SIGMA = 0.01  # a border whose smooth color field leaves more residual than this (robust sRGB std) is not plain:
 # a studio backdrop leaves about 0.0013, a floor under a sky 0.017-0.1 (the horizon, the light's spot)
 
@@ -52,7 +62,7 @@ def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Pa
     try:
         rough = _differs_from_background(rgb, path)
     except InputError:
-        rough = None  # a floor under a sky, a room: GrabCut starts from the frame's middle (or the hints)
+        rough = None  # a floor under a sky: GrabCut starts from the frame's middle (or the hints)
     if rough is not None and not told:
         if rough.mean() < MIN_OBJECT_FRACTION:
             raise InputError("found no object: the photo looks like plain background", path)
@@ -61,9 +71,31 @@ def object_mask(rgb: np.ndarray, alpha: np.ndarray | None = None, path: str | Pa
         if not _has_shadow_side(rgb, rough):
             return rough  # a plain backdrop: what differs from it is the object, to the pixel
     mask = grabcut_mask(rgb, replace(hints, rough=None if told else rough), path)
+    if rough is None and not told:
+        busy = busy_border_share(rgb, mask)
+        if busy > MAX_BUSY_SHARE:
+            raise InputError(f"the photo's background is cluttered (edges on {100 * busy:.0f} % of its border): draw a "
+                             "box around the object first (Photo tab; nvr capture --box)", path)
     if mask.mean() > MAX_OBJECT_FRACTION:
         raise InputError("the object fills the photo; draw a box around it or give it an alpha channel", path)
     return mask
+
+
+def busy_border_share(rgb: np.ndarray, cut: np.ndarray | None = None) -> float:
+    """Share of a band along the photo's border (BUSY_BAND_FRACTION of its shorter side) on an edge, outside the
+    object's `cut` (grown by BUSY_MASK_MARGIN): a floor under a sky has the horizon there and little else, a room or a
+    street has edges everywhere. A simple measure (no learned clutter classifier ships in the registries'
+    packages); leaving the cut out keeps a textured object that touches the border from counting as clutter."""
+    h, w = rgb.shape[:2]
+    blurred = ndimage.gaussian_filter(np.asarray(rgb, dtype=np.float64), sigma=(BUSY_BLUR, BUSY_BLUR, 0.0))
+    gy, gx = np.gradient(blurred, axis=(0, 1))
+    edge = np.sqrt((gx**2 + gy**2).sum(axis=2)) > BUSY_EDGE
+    band = max(1, round(BUSY_BAND_FRACTION * min(h, w)))
+    border = np.zeros((h, w), dtype=bool)
+    border[:band], border[-band:], border[:, :band], border[:, -band:] = True, True, True, True
+    if cut is not None:
+        border &= ~ndimage.binary_dilation(cut, iterations=max(1, round(BUSY_MASK_MARGIN * min(h, w))))
+    return float(edge[border].mean()) if border.any() else 0.0
 
 
 def _has_shadow_side(rgb: np.ndarray, rough: np.ndarray) -> bool:
