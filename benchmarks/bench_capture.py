@@ -275,10 +275,14 @@ def summary(rows: list[dict], start: str, style: str | None = None, group=None) 
 
 
 def _table_row(label: str, s: dict) -> str:
+    def cell(value: float, form: str, unit: str = "") -> str:
+        return "-" if not np.isfinite(value) else format(value, form) + unit  # "-": every photo of the row refused
+
     return (f"| {label} | {s['photos']} | {s['failed']} ({s['failed_covering_3_percent']}) | "
-            f"{s['median_rotation_error_deg']:.2f} | {100 * s['share_rotation_within_10_deg']:.0f} % | "
-            f"{s['median_elevation_error_deg']:.2f} | {s['median_iou']:.3f} | {s['median_segmentation_iou']:.3f} | "
-            f"{s['median_color_rmse']:.1f} | {s['median_color_rmse_true_pose']:.1f} | {s['median_seconds']:.1f} |")
+            f"{cell(s['median_rotation_error_deg'], '.2f')} | {cell(100 * s['share_rotation_within_10_deg'], '.0f', ' %')} | "
+            f"{cell(s['median_elevation_error_deg'], '.2f')} | {cell(s['median_iou'], '.3f')} | "
+            f"{cell(s['median_segmentation_iou'], '.3f')} | {cell(s['median_color_rmse'], '.1f')} | "
+            f"{cell(s['median_color_rmse_true_pose'], '.1f')} | {cell(s['median_seconds'], '.1f')} |")
 
 
 def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
@@ -331,7 +335,7 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
             if s["photos"]:
                 lines.append(_table_row(f"{kind}: {name}", s))
     # A refusal's reason without its percentage (the share of the border on an edge), counted by kind of photo.
-    reasons = collections.Counter((re.sub(r" \([^)]*\d %[^)]*\)", "", r["failed"].split(": ", 1)[-1]), r["style"])
+    reasons = collections.Counter((re.sub(r" \([^)]*\d %[^)]*\)", "", r["failed"]), r["style"])
                                   for r in rows if "failed" in r)
     said = "; ".join(f'"{text}" ({count} {kind})' for (text, kind), count in sorted(reasons.items()))
     lines += ["", "Refusals said: " + (said or "none") + ".",
@@ -354,8 +358,14 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--resolution", type=int, default=100, help="object voxels per side")
     parser.add_argument("--note", default="idle machine", help="what else ran on the machine")
+    parser.add_argument("--rewrite-report", action="store_true",
+                        help="write the report again from the rows of the last run (docs/capture_accuracy.json), "
+                             "after a change to the report's layout; give that run's --photos, --size, --spp, --note")
     args = parser.parse_args()
-    rows = run(args.photos, args.size, args.spp, args.resolution)
+    if args.rewrite_report:
+        rows = json.loads(DOC.with_suffix(".json").read_text())["rows"]
+    else:
+        rows = run(args.photos, args.size, args.spp, args.resolution)
     write_report(rows, args, args.note)
 
 
