@@ -278,9 +278,11 @@ def cmd_data_merge(args: argparse.Namespace) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> None:
+    from models.engine import resolve_precision  # before torch, so OMP_WAIT_POLICY is set when torch loads OpenMP
+
+    # isort: split
     import torch
 
-    from models.engine import resolve_precision
     from models.training.train import TrainConfig, train
 
     precision = resolve_precision(args.precision, torch.device("cuda" if args.device.startswith("cuda") else "cpu"))

@@ -91,3 +91,18 @@ def test_capture_bench_boxes_hold_the_object_within_the_stated_margin_and_every_
     assert [style for style, _ in order].count("floor") == 8 and [s for s, _ in order].count("real") == 8
     assert [s for s, _ in order].count("studio") == 2 and len(set(order)) == len(order)
     assert user_box(np.zeros((10, 10), dtype=bool), rng) is None
+
+
+def test_the_device_bench_compares_images_on_the_0_255_scale():
+    """bench_device's image check: a uniform offset of 2/255 on a quarter of the pixels is a largest difference
+    of 2 and an MSE of 4 / 4 = 1; a NaN pixel is reported as not finite."""
+    from benchmarks.bench_device import compare
+
+    reference = np.full((8, 8, 3), 0.5, dtype=np.float32)
+    image = reference.copy()
+    image[:4, :4] += 2.0 / 255.0
+    result = compare(image, reference)
+    assert math.isclose(result["max_diff"], 2.0, rel_tol=1e-5) and math.isclose(result["mse"], 1.0, rel_tol=1e-4)
+    assert result["finite"]
+    image[0, 0, 0] = np.nan
+    assert not compare(image, reference)["finite"]
