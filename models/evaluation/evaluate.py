@@ -3,7 +3,8 @@
 The renderer is a trained NVR or NVR+ (weights file) or the splat baseline (the splatted image S
 itself). Writes a Markdown report and, beside it, a figure of input (splat), prediction and
 target for a few samples. The report also says how much of the squared error lies off the object
-(pixels where the splat shows only floor or sky): where a model still has most to learn.
+(pixels where the splat shows only floor or sky), and lists each object's mean error over its views,
+worst first: a test split of a few objects per setting can be dominated by one of them.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 # NVR+ is the network that refines the voxel shader; nvrplus_compact.safetensors, the NVR+ before it, stays for comparison.
 SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_shader_refiner.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
 FIGURE_SAMPLES = 6
+METRICS = ("mse", "dssim", "perceptual")
 
 
 def shipped_model(renderer: str) -> Path:
@@ -88,7 +90,7 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
     for resolution in resolutions:
         scores, _, count = _score(data, model, config, renderer, metrics, limit, object_resolution=resolution)
         values = [v for per_setting in scores.values() for v in per_setting]
-        mean = {k: float(np.mean([v[k] for v in values])) for k in values[0]}
+        mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
         lines.append(f"| {resolution}^3 | {count} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} |")
     with atomic_path(report) as tmp:
         tmp.write_text("\n".join(lines) + "\n")
@@ -122,7 +124,9 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                 floor_light = sample["floor_light"][None] if with_floor_light else None
                 shading = sample["shading"][None] if with_shading else None
                 prediction = model(sample["voxels"][None], sample["light"][None], splat, floor_light, shading).clamp(0.0, 1.0)
-            values = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
+            values: dict = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
+            folder, item = dataset.items[index]
+            values["object"] = f"{folder.name}/{item.get('object', '?')}"
             values["ground_share"] = _ground_share(prediction[0], target[0], sample["splat"], dataset.scene(index))
             scores[dataset.settings[index]].append(values)
             if len(rows) < FIGURE_SAMPLES:
@@ -169,10 +173,24 @@ def _write_report(report: Path, figure: Path, columns: str, renderer: str, model
     ]
     for setting in sorted(scores):
         values = scores[setting]
-        mean = {k: float(np.mean([v[k] for v in values])) for k in values[0]}
+        mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
         ground = sum(v["ground_share"] * v["mse"] for v in values) / max(sum(v["mse"] for v in values), 1e-12)
         lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} "
                      f"| {100 * ground:.0f} % |")
-    lines += ["", f"![{columns}]({figure.name})", ""]
+    lines += ["", f"![{columns}]({figure.name})", ""] + _object_table(scores)
     with atomic_path(report) as tmp:
         tmp.write_text("\n".join(lines))
+
+
+def _object_table(scores: dict) -> list[str]:
+    """Lines of a table of each object's mean MSE and DSSIM over its views, worst MSE first."""
+    views: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    for setting, values in scores.items():
+        for v in values:
+            views[(setting, v["object"])].append(v)
+    means = {key: {k: float(np.mean([v[k] for v in vs])) for k in ("mse", "dssim")} for key, vs in views.items()}
+    lines = ["## Per object (mean over its views, worst first)", "",
+             "| object | setting | views | MSE (0-255) | DSSIM |", "|---|---|---:|---:|---:|"]
+    for (setting, name), mean in sorted(means.items(), key=lambda item: -item[1]["mse"]):
+        lines.append(f"| {name} | {setting} | {len(views[(setting, name)])} | {mean['mse']:.2f} | {mean['dssim']:.4f} |")
+    return lines + [""]
