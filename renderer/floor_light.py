@@ -29,7 +29,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_IOR, FLOOR_ROUGHNESS, LIGHT_RADIANCE, LIGHT_SIZE
-from renderer.splat import floor_mask
+from renderer.splat import cached_floor_mask
 
 LIGHT_SAMPLES = 8  # points per side of the light square (the coat's highlight is ~0.2 rad wide)
 COARSE_STEP = 8  # pixels between shading samples
@@ -91,7 +91,7 @@ class _Geometry:
     """Floor points of the coarse pixel grid, their view terms, and the full-size interpolation."""
 
     def __init__(self, camera: Camera):
-        self.floor = floor_mask(camera)
+        self.floor = cached_floor_mask(camera)
         rows = np.arange(0.5, camera.height, COARSE_STEP)
         cols = np.arange(0.5, camera.width, COARSE_STEP)
         # Coarse samples cover the image's corners so interpolation never extrapolates.

@@ -68,7 +68,7 @@ def splat_layout(shell: Shell, object_to_world_matrix: np.ndarray, camera: Camer
         nearest = nearest_point_per_pixel(centres, edges, camera)
         covered = nearest >= 0
         voxel[covered] = flat[nearest[covered]]
-    return SplatLayout(voxel, _floor_mask(camera))
+    return SplatLayout(voxel, cached_floor_mask(camera))
 
 
 def color_splat(layout: SplatLayout, object_rgba: np.ndarray, floor_color) -> np.ndarray:
@@ -89,8 +89,9 @@ def ground_and_background(floor: np.ndarray, floor_color) -> np.ndarray:
 
 
 @lru_cache(maxsize=8)
-def _floor_mask(camera: Camera) -> np.ndarray:
-    """Cached, read-only `floor_mask`: the editor splats many frames with the same camera."""
+def cached_floor_mask(camera: Camera) -> np.ndarray:
+    """Cached, read-only `floor_mask`: the editor renders many frames with one camera, and the splat, the shader
+    and the lit floor each need it."""
     mask = floor_mask(camera)
     mask.flags.writeable = False
     return mask

@@ -43,7 +43,7 @@ from renderer.floor_light import lit_floor_terms
 from renderer.grid import grid_index_to_world, ground_mask, occupied_spans, scene_grid
 from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import kernels
-from renderer.splat import floor_mask
+from renderer.splat import cached_floor_mask
 
 THIN_LEVEL = 0.35  # voxels above a thin part's core where its surface is drawn (if more than SURFACE_LEVEL)
 SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
@@ -429,7 +429,7 @@ def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
 def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """The floor mask and the world points (F, 3) where the floor pixels' centre rays meet y = 0 (cached,
     read-only: an object move keeps the camera)."""
-    floor = floor_mask(camera)
+    floor = cached_floor_mask(camera)
     rows, cols = np.nonzero(floor)
     origin, dirs = camera.pixel_rays(cols + 0.5, rows + 0.5)
     t = -origin[1] / dirs[:, 1]
