@@ -61,6 +61,17 @@ def test_model_and_splat_reports(setup, tmp_path):
     assert objects[0][3:5] == setting[2:4]
 
 
+def test_an_nvr_model_is_evaluated(setup, tmp_path):
+    data, _ = setup
+    config = CompactConfig(grid_size=16, output_size=32)
+    weights = tmp_path / "nvr.safetensors"
+    save_model(weights, build_model("nvr", config), config)
+    result = nvr("eval", "--data", str(data), "--model", str(weights), "--renderer", "nvr", "--report", str(tmp_path / "n.md"))
+    assert result.returncode == 0, result.stderr
+    rows = table_rows(tmp_path / "n.md")
+    assert [r[:2] for r in rows] == [["single", "3"]] and float(rows[0][2]) > 0
+
+
 def test_resolution_study_has_one_row_per_resolution(setup, tmp_path):
     data, weights = setup
     result = nvr("eval", "--data", str(data), "--model", str(weights), "--report", str(tmp_path / "r.md"),

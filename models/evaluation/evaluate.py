@@ -120,10 +120,11 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
             else:
                 if target.shape[-1] != config.output_size:
                     raise InputError(f"test images are {target.shape[-1]}^2 but the model renders {config.output_size}^2")
-                splat = sample["splat"][None] if renderer == "nvr+" else None
-                floor_light = sample["floor_light"][None] if with_floor_light else None
-                shading = sample["shading"][None] if with_shading else None
-                prediction = model(sample["voxels"][None], sample["light"][None], splat, floor_light, shading).clamp(0.0, 1.0)
+                # Only the inputs this network reads: NVR takes neither a splat nor the shader's buffers.
+                inputs = {name: sample[name][None] for name, wanted in
+                          (("splat", renderer == "nvr+"), ("floor_light", with_floor_light), ("shading", with_shading))
+                          if wanted}
+                prediction = model(sample["voxels"][None], sample["light"][None], **inputs).clamp(0.0, 1.0)
             values: dict = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
             folder, item = dataset.items[index]
             values["object"] = f"{folder.name}/{item.get('object', '?')}"
