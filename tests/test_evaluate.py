@@ -4,6 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 
@@ -59,6 +60,28 @@ def test_model_and_splat_reports(setup, tmp_path):
     assert [row[:3] for row in objects] == [["set/o00000", "single", "3"]]
     setting = table_rows(tmp_path / "m.md")[0]
     assert objects[0][3:5] == setting[2:4]
+
+
+def test_the_figure_shows_each_settings_typical_and_worst_view(setup, tmp_path):
+    data, weights = setup
+    assert nvr("eval", "--data", str(data), "--model", str(weights), "--report", str(tmp_path / "f.md")).returncode == 0
+    from PIL import Image
+
+    with Image.open(tmp_path / "f.png") as image:
+        figure = np.asarray(image.convert("RGB"), dtype=np.float64)
+    # One setting: two rows of 32 pixels; columns splat, lit floor, prediction, target.
+    assert figure.shape == (2 * 32, 4 * 32, 3)
+    import re
+
+    captions = re.findall(r"^(\d)\. single, (typical|worst) view.*: set/(s\d) \(MSE ([\d.]+)\)$",
+                          (tmp_path / "f.md").read_text(), flags=re.MULTILINE)
+    assert [c[:2] for c in captions] == [("1", "typical"), ("2", "worst")]
+    typical, worst = float(captions[0][3]), float(captions[1][3])
+    mean = float(table_rows(tmp_path / "f.md")[0][2])
+    assert typical <= worst and worst >= mean  # the worst of three views is at least their mean
+    for row, caption in enumerate(captions):  # each row's picture has the error its caption gives (8-bit rounding)
+        prediction, target = (figure[32 * row:32 * (row + 1), 32 * col:32 * (col + 1)] for col in (2, 3))
+        assert np.mean((prediction - target) ** 2) == pytest.approx(float(caption[3]), rel=0.02)
 
 
 def test_an_nvr_model_is_evaluated(setup, tmp_path):

@@ -1,8 +1,8 @@
 """`nvr eval`: the paper's table 1 metrics of a renderer over test folders, per appearance setting.
 
 The renderer is a trained NVR or NVR+ (weights file) or the splat baseline (the splatted image S
-itself). Writes a Markdown report and, beside it, a figure of input (splat), prediction and
-target for a few samples. The report also says how much of the squared error lies off the object
+itself). Writes a Markdown report and, beside it, a figure of the inputs (splat), prediction and
+target for each setting's typical (median error) and worst view. The report also says how much of the squared error lies off the object
 (pixels where the splat shows only floor or sky), and lists each object's mean error over its views,
 worst first: a test split of a few objects per setting can be dominated by one of them.
 """
@@ -27,7 +27,6 @@ from renderer.scene import GRID_SIZE
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 # NVR+ is the network that refines the voxel shader; nvrplus_compact.safetensors, the NVR+ before it, stays for comparison.
 SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_shader_refiner.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
-FIGURE_SAMPLES = 6
 METRICS = ("mse", "dssim", "perceptual")
 
 
@@ -59,7 +58,7 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     model, config, extra = _load_renderer(model_path, renderer)
     metrics = ImageMetrics()
     started = time.perf_counter()
-    scores, rows, count = _score(data, model, config, renderer, metrics, limit)
+    scores, (rows, captions), count = _score(data, model, config, renderer, metrics, limit)
     seconds = time.perf_counter() - started
     figure = report.with_suffix(".png")
     if rows:
@@ -67,8 +66,8 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
     with_shading = model is not None and reads_shading(model.architecture, config)
     columns = ", ".join(["splat"] + ["lit floor"] * with_floor_light + ["shaded"] * with_shading + ["prediction", "target"])
-    _write_report(report, figure, columns, renderer, model_path, extra, scores, metrics.perceptual.weights_name,
-                  count, seconds, data)
+    _write_report(report, figure, columns, captions, renderer, model_path, extra, scores,
+                  metrics.perceptual.weights_name, count, seconds, data)
     return report
 
 
@@ -88,7 +87,8 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
              "", "| object voxels | samples | MSE (0-255) | DSSIM | perceptual |", "|---:|---:|---:|---:|---:|"]
     metrics = ImageMetrics()
     for resolution in resolutions:
-        scores, _, count = _score(data, model, config, renderer, metrics, limit, object_resolution=resolution)
+        scores, _, count = _score(data, model, config, renderer, metrics, limit, object_resolution=resolution,
+                                  figure=False)
         values = [v for per_setting in scores.values() for v in per_setting]
         mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
         lines.append(f"| {resolution}^3 | {count} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} |")
@@ -98,8 +98,8 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
 
 
 def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics, limit: int,
-           object_resolution: int | None = None):
-    """Per-setting metric lists, the first figure rows, and the sample count."""
+           object_resolution: int | None = None, figure: bool = True):
+    """Per-setting metric lists, the figure's rows with their captions (none without `figure`), and the sample count."""
     # The splat baseline reads no voxels; the shader reads the scene grid.
     grid_size = GRID_SIZE if renderer == "shaded" else 8 if config is None else config.grid_size
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
@@ -108,33 +108,47 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                              shading=with_shading)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
-    rows = []
+
+    def predict(sample: dict, index: int) -> torch.Tensor:
+        if renderer == "shaded":
+            return _shaded(sample["voxels"], dataset.scene(index), sample["target"].shape[-1])
+        if model is None:
+            return sample["splat"][None]
+        if sample["target"].shape[-1] != config.output_size:
+            raise InputError(f"test images are {sample['target'].shape[-1]}^2 but the model renders {config.output_size}^2")
+        # Only the inputs this network reads: NVR takes neither a splat nor the shader's buffers.
+        inputs = {name: sample[name][None] for name, wanted in
+                  (("splat", renderer == "nvr+"), ("floor_light", with_floor_light), ("shading", with_shading)) if wanted}
+        return model(sample["voxels"][None], sample["light"][None], **inputs).clamp(0.0, 1.0)
+
     with torch.no_grad():
         for index in range(count):
             sample = dataset[index]
-            target = sample["target"][None]
-            if renderer == "shaded":
-                prediction = _shaded(sample["voxels"], dataset.scene(index), target.shape[-1])
-            elif model is None:
-                prediction = sample["splat"][None]
-            else:
-                if target.shape[-1] != config.output_size:
-                    raise InputError(f"test images are {target.shape[-1]}^2 but the model renders {config.output_size}^2")
-                # Only the inputs this network reads: NVR takes neither a splat nor the shader's buffers.
-                inputs = {name: sample[name][None] for name, wanted in
-                          (("splat", renderer == "nvr+"), ("floor_light", with_floor_light), ("shading", with_shading))
-                          if wanted}
-                prediction = model(sample["voxels"][None], sample["light"][None], **inputs).clamp(0.0, 1.0)
-            values: dict = {k: float(v[0]) for k, v in metrics(prediction, target).items()}
+            prediction = predict(sample, index)
+            values: dict = {k: float(v[0]) for k, v in metrics(prediction, sample["target"][None]).items()}
             folder, item = dataset.items[index]
             values["object"] = f"{folder.name}/{item.get('object', '?')}"
-            values["ground_share"] = _ground_share(prediction[0], target[0], sample["splat"], dataset.scene(index))
+            values["sample"] = f"{folder.name}/{item.get('id', index)}"
+            values["index"] = index
+            values["ground_share"] = _ground_share(prediction[0], sample["target"], sample["splat"], dataset.scene(index))
             scores[dataset.settings[index]].append(values)
-            if len(rows) < FIGURE_SAMPLES:
+        # The figure: each setting's typical view (median MSE) and its worst, drawn again (a few samples, not all kept).
+        rows, captions = [], []
+        for setting in sorted(scores) if figure else ():
+            for label, chosen in _figure_samples(scores[setting]):
+                index = chosen["index"]
+                sample = dataset[index]
                 inputs = ([sample["splat"]] + ([sample["floor_light"]] if with_floor_light else [])
                           + ([sample["shading"][:3]] if with_shading else []))
-                rows.append(torch.cat([*inputs, prediction[0], target[0]], dim=2))
-    return scores, rows, count
+                rows.append(torch.cat([*inputs, predict(sample, index)[0], sample["target"]], dim=2))
+                captions.append(f"{setting}, {label}: {chosen['sample']} (MSE {chosen['mse']:.1f})")
+    return scores, (rows, captions), count
+
+
+def _figure_samples(values: list[dict]) -> list[tuple[str, dict]]:
+    """A setting's sample of median MSE and its sample of highest MSE, labelled."""
+    by_error = sorted(values, key=lambda v: v["mse"])
+    return [("typical view (median MSE)", by_error[(len(by_error) - 1) // 2]), ("worst view", by_error[-1])]
 
 
 def _shaded(voxels: torch.Tensor, scene, size: int) -> torch.Tensor:
@@ -158,8 +172,8 @@ def _ground_share(prediction: torch.Tensor, target: torch.Tensor, splat: torch.T
     return float(error[ground].sum()) / total if total > 0.0 else 0.0
 
 
-def _write_report(report: Path, figure: Path, columns: str, renderer: str, model_path, extra: dict, scores: dict,
-                  weights_name: str, count: int, seconds: float, data: list[str]) -> None:
+def _write_report(report: Path, figure: Path, columns: str, captions: list[str], renderer: str, model_path, extra: dict,
+                  scores: dict, weights_name: str, count: int, seconds: float, data: list[str]) -> None:
     lines = [
         f"# Evaluation: {renderer}",
         "",
@@ -178,7 +192,9 @@ def _write_report(report: Path, figure: Path, columns: str, renderer: str, model
         ground = sum(v["ground_share"] * v["mse"] for v in values) / max(sum(v["mse"] for v in values), 1e-12)
         lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} "
                      f"| {100 * ground:.0f} % |")
-    lines += ["", f"![{columns}]({figure.name})", ""] + _object_table(scores)
+    lines += ["", f"![{columns}]({figure.name})", "", f"Figure rows ({columns}), top to bottom:", ""]
+    lines += [f"{number}. {caption}" for number, caption in enumerate(captions, 1)]
+    lines += [""] + _object_table(scores)
     with atomic_path(report) as tmp:
         tmp.write_text("\n".join(lines))
 
