@@ -1,5 +1,6 @@
 """`nvr eval`: reports per setting, the splat baseline, and the resolution study, on a tiny set."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -7,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from PIL import Image
 
 from models.networks.checkpoint import save_model
 from models.networks.config import CompactConfig
@@ -65,14 +67,10 @@ def test_model_and_splat_reports(setup, tmp_path):
 def test_the_figure_shows_each_settings_typical_and_worst_view(setup, tmp_path):
     data, weights = setup
     assert nvr("eval", "--data", str(data), "--model", str(weights), "--report", str(tmp_path / "f.md")).returncode == 0
-    from PIL import Image
-
     with Image.open(tmp_path / "f.png") as image:
         figure = np.asarray(image.convert("RGB"), dtype=np.float64)
     # One setting: two rows of 32 pixels; columns splat, lit floor, prediction, target.
     assert figure.shape == (2 * 32, 4 * 32, 3)
-    import re
-
     captions = re.findall(r"^(\d)\. single, (typical|worst) view.*: set/(s\d) \(MSE ([\d.]+)\)$",
                           (tmp_path / "f.md").read_text(), flags=re.MULTILINE)
     assert [c[:2] for c in captions] == [("1", "typical"), ("2", "worst")]
