@@ -2,9 +2,9 @@
 
 The renderer is a trained NVR or NVR+ (weights file) or the splat baseline (the splatted image S
 itself). Writes a Markdown report and, beside it, a figure of the inputs (splat), prediction and
-target for each setting's typical (median error) and worst view. The report also says how much of the squared error lies off the object
-(pixels where the splat shows only floor or sky), and lists each object's mean error over its views,
-worst first: a test split of a few objects per setting can be dominated by one of them.
+target for each setting's typical (median error) and worst view. The report also says how much of
+the squared error lies off the object (pixels where the splat shows only floor or sky), and lists
+each object's mean error over its views, worst first: one object can dominate a setting.
 """
 
 from __future__ import annotations
