@@ -62,7 +62,8 @@ def main() -> None:
     model, config, _ = load_model(args.model)
     if not reads_shading(model.architecture, config):
         raise SystemExit(f"{args.model}: not a shader refiner (its config reads no shader buffers)")
-    dataset = VoxelRenderSet(args.data, grid_size=config.grid_size, shading=True)
+    dataset = VoxelRenderSet(args.data, grid_size=config.grid_size, shading=True,
+                             shading_grid_factor=config.shading_grid_factor)
     indices = range(0, len(dataset), args.every)
     samples = [dataset[i] for i in indices]
     settings = [dataset.settings[i] for i in indices]

@@ -10,7 +10,7 @@ from safetensors import safe_open
 from safetensors.torch import load_file, save_file
 
 from models.networks.checkpoint import FORMAT_VERSION, load_model, save_model
-from models.networks.config import CompactConfig, PaperConfig
+from models.networks.config import CompactConfig, PaperConfig, ShaderRefinerConfig
 from models.networks.nvr import NVR, NVRPlus, build_model
 from renderer.errors import InputError
 
@@ -74,6 +74,19 @@ def test_a_file_written_before_the_lit_floor_input_loads_as_a_network_without_it
     loaded, loaded_config, _ = load_model(path)
     assert loaded_config == config and not loaded_config.floor_light_input
     assert torch.equal(outputs(loaded), outputs(trained_looking("nvr_plus", config)))
+
+
+def test_a_refiner_written_before_the_finer_shading_grid_loads_shading_the_networks_own_grid(tmp_path) -> None:
+    config = ShaderRefinerConfig(grid_size=16, output_size=32)
+    assert config.shading_grid_factor == 2 and config.shading_grid_size == 32  # new refiners shade a finer grid
+    path = tmp_path / "old.safetensors"
+    save_model(path, trained_looking("nvr_plus", config), config)
+    with safe_open(str(path), framework="pt") as f:
+        metadata = f.metadata()
+    old_config = {k: v for k, v in json.loads(metadata["config"]).items() if k != "shading_grid_factor"}
+    save_file(load_file(str(path)), str(path), metadata={**metadata, "config": json.dumps(old_config)})
+    _, loaded_config, _ = load_model(path)
+    assert loaded_config.shading_grid_factor == 1 and loaded_config.shading_grid_size == 16
 
 
 def test_save_refuses_a_config_that_is_not_the_models(tmp_path) -> None:

@@ -446,11 +446,32 @@ def refiner(seed: int = 0, trained: bool = True):
     return model
 
 
-def test_an_untrained_refiner_renders_the_shaded_image(scene):
+def _shaded_image(scene, grid_size: int) -> np.ndarray:
+    """The voxel shader's image of `scene` from its grid of `grid_size`^3, computed without the engine."""
     rgba = load_voxels(scene.voxels_path())
-    grid = scene_grid(rgba, scene.object, scene.floor.color, scene.camera.elevation_deg, grid_size=64)
-    shaded = shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, 64).image
-    np.testing.assert_allclose(engine(refiner(trained=False)).render(scene), shaded, rtol=0, atol=1e-6)
+    grid = scene_grid(rgba, scene.object, scene.floor.color, scene.camera.elevation_deg, grid_size=grid_size)
+    return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, 64).image
+
+
+@pytest.mark.parametrize("factor", [1, 2])
+def test_an_untrained_refiner_renders_the_shaded_image(scene, factor):
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", replace(TINY_REFINER, shading_grid_factor=factor)).eval()
+    expected = _shaded_image(scene, 64 * factor)  # the network's grid is 64^3; the shader's `factor` times finer
+    np.testing.assert_allclose(engine(model).render(scene), expected, rtol=0, atol=1e-6)
+
+
+def test_refiner_drag_preview_shades_the_network_grid(scene):
+    """While the object moves, the preview is the shader's image of the network's own (coarser, faster) grid; the
+    settled render then shades the finer grid, and a second preview of the same scene reuses its stages."""
+    live = engine(refiner(trained=False))
+    live.render(scene)
+    moved = replace(scene, object=replace(scene.object, translation=(0.1, -0.05)))
+    np.testing.assert_allclose(live.preview(moved), _shaded_image(moved, 64), rtol=0, atol=1e-6)
+    assert "shade_geometry" not in live.last_report.stages_run
+    np.testing.assert_allclose(live.render(moved), _shaded_image(moved, 128), rtol=0, atol=1e-6)
+    live.preview(moved)
+    assert live.last_report.stages_run == ()
 
 
 @pytest.mark.parametrize("edit", EDITS)

@@ -12,6 +12,7 @@ from safetensors.torch import load_file
 
 from models.engine.onednn import cpu_can_run_bfloat16
 from models.networks.checkpoint import load_model
+from models.training.data import VoxelRenderSet
 from models.training.train import CHECKPOINT, TrainConfig, batch_indices, train
 from renderer.errors import InputError
 from tests.fake_data import make_fake_dataset
@@ -202,6 +203,21 @@ def test_a_shader_refiner_trains_from_the_shaded_image(data, tmp_path):
     assert sum(losses[-5:]) / 5 < 0.9 * sum(losses[:5]) / 5
     model, net_config, _ = load_model(tmp_path / "run" / "model.safetensors")
     assert net_config.shading_input and net_config.name == "shader_refiner"
+
+
+@pytest.mark.parametrize("factor", [1, 2])
+def test_a_samples_shader_buffers_come_from_the_grid_the_config_names(data, factor):
+    from renderer.grid import scene_grid
+    from renderer.shading import network_buffers, shade_grid
+    from renderer.voxels import load_voxels
+
+    dataset = VoxelRenderSet([data], grid_size=16, shading=True, shading_grid_factor=factor)
+    scene = dataset.scene(1)
+    grid = scene_grid(load_voxels(scene.voxels_path()), scene.object, scene.floor.color, scene.camera.elevation_deg,
+                      grid_size=16 * factor)
+    expected = network_buffers(shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, 32))
+    np.testing.assert_allclose(dataset[1]["shading"].numpy().transpose(1, 2, 0), expected, rtol=0, atol=1e-6)
+    assert dataset[1]["voxels"].shape[-1] == 16  # the network's own grid is unchanged
 
 
 def test_a_shader_refiner_started_from_a_compact_nvr_plus_still_renders_the_shaded_image(tmp_path):

@@ -89,6 +89,7 @@ from renderer.grid import (
     ground_mask,
     non_empty_voxels,
     object_window,
+    object_window_indices,
     occupied_spans,
     pool_factors,
     pool_voxels,
@@ -221,7 +222,7 @@ class RenderEngine:
             if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             elif self._reads_shading:  # the shaded image, which the full render then corrects
-                image = np.clip(self._shaded(scene, painted, floor, keys).image, 0.0, 1.0)
+                image = np.clip(self._shaded(scene, painted, floor, keys, fine=False).image, 0.0, 1.0)
             else:
                 splat = self._splat(scene, painted, floor, keys)
                 on_object = self._splat_layout(scene, painted, keys).voxel >= 0
@@ -332,22 +333,30 @@ class RenderEngine:
         layout = self._splat_layout(scene, painted, keys)
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
 
-    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> ShadedImage:
-        """The voxel shader's image of the scene, from its cached stages (renderer/shading/)."""
-        elevation = scene.camera.elevation_deg
+    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys, fine: bool = True) -> ShadedImage:
+        """The voxel shader's image of the scene, from its cached stages (renderer/shading/). `fine`: from the grid the
+        network's shader input is drawn from (config.shading_grid_size); else from the network's own grid, the fast
+        drag preview. The two are one set of stages when the grids are the same."""
+        elevation, g = scene.camera.elevation_deg, self.config.grid_size
+        fine = fine and self.config.shading_grid_factor > 1
+        prefix = "shade" if fine or self.config.shading_grid_factor == 1 else "preview"
 
         def geometry_of_window() -> ObjectGeometry:  # the shader reads only the grid's window that holds the object
+            if fine:
+                size = self.config.shading_grid_size
+                start, window = self._stage("shade_window", keys.grid, lambda: _fine_window(painted, floor, scene, size))
+                return object_geometry(window, elevation, start, size)
             pooled, placement = self._placed(scene, painted, keys)
             box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
             window = gather(voxel_table(pooled, floor), placement.indices[box])
-            return object_geometry(window, elevation, tuple(s.start for s in box), self.config.grid_size)
+            return object_geometry(window, elevation, tuple(s.start for s in box), g)
 
-        geometry = self._stage("shade_geometry", keys.grid, geometry_of_window)
-        surface = self._stage("shade_surface", keys.grid, lambda: visible_surface(geometry, self.output_size))
+        geometry = self._stage(f"{prefix}_geometry", keys.grid, geometry_of_window)
+        surface = self._stage(f"{prefix}_surface", keys.grid, lambda: visible_surface(geometry, self.output_size))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
-        return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
-                                                              floor_terms))
+        return self._stage("shade" if prefix == "shade" else "preview_shade", keys.shade, lambda: shade(
+            geometry, surface, scene.light.position, floor, floor_terms))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
@@ -420,6 +429,17 @@ def resolve_precision(precision: str, device: torch.device | None = None) -> str
 def default_threads() -> int:
     """Torch threads for rendering: every core this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def _fine_window(painted: np.ndarray, floor: tuple, scene: Scene, grid_size: int) -> tuple[tuple[int, int, int], np.ndarray]:
+    """The first grid index and the voxels (d, h, w, 4) of a `grid_size`^3 scene grid's window that holds the object
+    (the shader's finer grid; its merged voxels are not kept: a paint edit merges them again)."""
+    o, n = scene.object, painted.shape[0]
+    factors = pool_factors(n, o.scale, grid_size)
+    pooled = pool_voxels(painted, factors)
+    start, rows = object_window_indices(n, factors, o, scene.camera.elevation_deg, grid_size,
+                                        within=occupied_spans(non_empty_voxels(pooled)))
+    return start, gather(voxel_table(pooled, floor), rows)
 
 
 def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int,

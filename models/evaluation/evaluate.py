@@ -105,7 +105,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
     with_shading = model is not None and reads_shading(model.architecture, config)
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light,
-                             shading=with_shading)
+                             shading=with_shading, shading_grid_factor=config.shading_grid_factor if with_shading else 1)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
@@ -155,7 +155,7 @@ def _shaded(voxels: torch.Tensor, scene, size: int) -> torch.Tensor:
     """The voxel shader's image (1, 3, S, S) of a sample's grid (4, D, H, W)."""
     from models.training.data import shaded_sample
 
-    image = shaded_sample(voxels, scene, size).image
+    image = shaded_sample(voxels.numpy().transpose(1, 2, 3, 0), scene, size).image
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
 
 

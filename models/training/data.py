@@ -56,7 +56,8 @@ class VoxelRenderSet(Dataset):
     """Samples of one or several data folders, as network-ready tensors."""
 
     def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128, voxel_cache: int = 256,
-                 object_resolution: int | None = None, floor_light: bool = False, shading: bool = False):
+                 object_resolution: int | None = None, floor_light: bool = False, shading: bool = False,
+                 shading_grid_factor: int = 1):
         folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
         self.items: list[tuple[Path, dict]] = []
         self.settings: list[str] = []
@@ -78,6 +79,7 @@ class VoxelRenderSet(Dataset):
         self.object_resolution = object_resolution  # coarser object voxels, for the resolution study
         self.floor_light = floor_light  # add the lit empty floor (NVR+ with config.floor_light_input)
         self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
+        self.shading_grid_size = grid_size * shading_grid_factor  # the grid the shader draws from
         self._voxel_cache = voxel_cache
         self._voxels = lru_cache(maxsize=voxel_cache)(self._load_voxels)
 
@@ -150,8 +152,17 @@ class VoxelRenderSet(Dataset):
         if self.floor_light:
             item["floor_light"] = floor_light_tensor(scene, scene.floor.color, splat.shape[-1])
         if self.shading:
-            item["shading"] = shading_tensor(voxels, scene, splat.shape[-1])
+            item["shading"] = shading_tensor(self.shading_grid(voxels, scene, rgba), scene, splat.shape[-1])
         return item
+
+    def shading_grid(self, voxels: torch.Tensor, scene: Scene, object_rgba: np.ndarray) -> np.ndarray:
+        """The grid (D, H, W, 4) the shader draws from: the network's own (a view of `voxels`), or a finer one."""
+        if self.shading_grid_size == self.grid_size:
+            return voxels.numpy().transpose(1, 2, 3, 0)
+        from renderer.grid import scene_grid
+
+        return scene_grid(object_rgba, scene.object, scene.floor.color, scene.camera.elevation_deg,
+                          grid_size=self.shading_grid_size)
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
@@ -163,18 +174,17 @@ def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
 
 
-def shaded_sample(voxels: torch.Tensor, scene: Scene, size: int):
-    """The voxel shader's ShadedImage (renderer/shading/) of a sample's grid (4, D, H, W)."""
+def shaded_sample(grid: np.ndarray, scene: Scene, size: int):
+    """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene grid (D, H, W, 4)."""
     from renderer.shading import shade_grid
 
-    return shade_grid(voxels.numpy().transpose(1, 2, 3, 0), scene.light.position, scene.camera.elevation_deg,
-                      scene.floor.color, size)
+    return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, size)
 
 
-def shading_tensor(voxels: torch.Tensor, scene: Scene, size: int) -> torch.Tensor:
-    """The voxel shader's image and buffers of a sample's grid (4, D, H, W), as the network's
+def shading_tensor(grid: np.ndarray, scene: Scene, size: int) -> torch.Tensor:
+    """The voxel shader's image and buffers of a sample's scene grid (D, H, W, 4), as the network's
     (SHADING_CHANNELS, size, size) input."""
     from renderer.shading import network_buffers
 
-    buffers = network_buffers(shaded_sample(voxels, scene, size))
+    buffers = network_buffers(shaded_sample(grid, scene, size))
     return torch.from_numpy(np.ascontiguousarray(buffers.transpose(2, 0, 1)))

@@ -270,7 +270,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     net_config = network_config(config)
     dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size,
                              floor_light=reads_floor_light(config.architecture, net_config),
-                             shading=reads_shading(config.architecture, net_config))
+                             shading=reads_shading(config.architecture, net_config),
+                             shading_grid_factor=net_config.shading_grid_factor)
     dataset.check_samples(net_config.output_size)  # a broken or mis-sized sample is refused before step 0
     started_from: dict[str, str] = {}
     if dist_info.is_main:
