@@ -176,6 +176,18 @@ def object_window_indices(resolution: int, factors: tuple[int, int, int], object
     return start, np.where(inside, rows, np.int32(n_rows))
 
 
+def object_window_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, floor_color: tuple[float, float, float],
+                       elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
+    """The first grid index and the voxels (d, h, w, 4) of the scene grid's window that holds the object, without
+    the ground: what scene_grid gives there for the object, at a cost in proportion to the object's box."""
+    resolution = object_rgba.shape[0]
+    factors = pool_factors(resolution, object_spec.scale, grid_size)
+    pooled = pool_voxels(object_rgba, factors)
+    start, rows = object_window_indices(resolution, factors, object_spec, elevation_deg, grid_size,
+                                        within=occupied_spans(non_empty_voxels(pooled)))
+    return start, gather(voxel_table(pooled, floor_color), rows)
+
+
 def _sample_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
                    grid_size: int, within: tuple[tuple[int, int], ...] | None):
     """The object_window ranges, and over them the merged voxel each grid voxel centre falls in (flat row index)

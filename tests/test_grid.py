@@ -13,6 +13,7 @@ from renderer.grid import (
     grid_index_to_world,
     ground_mask,
     object_window,
+    object_window_grid,
     object_window_indices,
     occupied_spans,
     pool_factors,
@@ -218,6 +219,20 @@ def test_the_object_window_alone_samples_what_the_whole_grid_does(elevation, rot
     outside = full.copy()
     outside[box] = empty_row
     assert np.all(outside >= empty_row)  # every object row of the full grid is inside the window
+
+
+@pytest.mark.parametrize("grid_size", [64, 128])
+def test_object_window_grid_is_the_scene_grids_object_there(grid_size):
+    """At any grid size: the window's voxels are the whole scene grid's with the ground left out, and every object
+    voxel of the whole grid lies inside the window."""
+    rgba = sphere_voxels()
+    spec = ObjectSpec(translation=(0.2, -0.1), rotation_deg=35.0, scale=(1.0, 1.3, 0.8))
+    start, window = object_window_grid(rgba, spec, FLOOR, 20.0, grid_size)
+    whole = scene_grid(rgba, spec, FLOOR, 20.0, grid_size=grid_size)
+    whole[ground_mask(20.0, grid_size)] = 0.0
+    box = tuple(slice(a, a + n) for a, n in zip(start, window.shape[:3]))
+    np.testing.assert_array_equal(window, whole[box])
+    assert whole[..., 3].sum() == window[..., 3].sum() > 0
 
 
 def test_occupied_spans_bound_the_true_entries():

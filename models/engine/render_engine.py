@@ -89,7 +89,7 @@ from renderer.grid import (
     ground_mask,
     non_empty_voxels,
     object_window,
-    object_window_indices,
+    object_window_grid,
     occupied_spans,
     pool_factors,
     pool_voxels,
@@ -344,7 +344,8 @@ class RenderEngine:
         def geometry_of_window() -> ObjectGeometry:  # the shader reads only the grid's window that holds the object
             if fine:
                 size = self.config.shading_grid_size
-                start, window = self._stage("shade_window", keys.grid, lambda: _fine_window(painted, floor, scene, size))
+                start, window = self._stage("shade_window", keys.grid, lambda: object_window_grid(
+                    painted, scene.object, floor, elevation, size))
                 return object_geometry(window, elevation, start, size)
             pooled, placement = self._placed(scene, painted, keys)
             box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
@@ -429,17 +430,6 @@ def resolve_precision(precision: str, device: torch.device | None = None) -> str
 def default_threads() -> int:
     """Torch threads for rendering: every core this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-
-
-def _fine_window(painted: np.ndarray, floor: tuple, scene: Scene, grid_size: int) -> tuple[tuple[int, int, int], np.ndarray]:
-    """The first grid index and the voxels (d, h, w, 4) of a `grid_size`^3 scene grid's window that holds the object
-    (the shader's finer grid; its merged voxels are not kept: a paint edit merges them again)."""
-    o, n = scene.object, painted.shape[0]
-    factors = pool_factors(n, o.scale, grid_size)
-    pooled = pool_voxels(painted, factors)
-    start, rows = object_window_indices(n, factors, o, scene.camera.elevation_deg, grid_size,
-                                        within=occupied_spans(non_empty_voxels(pooled)))
-    return start, gather(voxel_table(pooled, floor), rows)
 
 
 def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int,

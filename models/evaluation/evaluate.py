@@ -153,9 +153,9 @@ def _figure_samples(values: list[dict]) -> list[tuple[str, dict]]:
 
 def _shaded(voxels: torch.Tensor, scene, size: int) -> torch.Tensor:
     """The voxel shader's image (1, 3, S, S) of a sample's grid (4, D, H, W)."""
-    from models.training.data import shaded_sample
+    from models.training.data import ShadingGrid, shaded_sample
 
-    image = shaded_sample(voxels.numpy().transpose(1, 2, 3, 0), scene, size).image
+    image = shaded_sample(ShadingGrid(voxels.numpy().transpose(1, 2, 3, 0)), scene, size).image
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -155,14 +156,24 @@ class VoxelRenderSet(Dataset):
             item["shading"] = shading_tensor(self.shading_grid(voxels, scene, rgba), scene, splat.shape[-1])
         return item
 
-    def shading_grid(self, voxels: torch.Tensor, scene: Scene, object_rgba: np.ndarray) -> np.ndarray:
-        """The grid (D, H, W, 4) the shader draws from: the network's own (a view of `voxels`), or a finer one."""
+    def shading_grid(self, voxels: torch.Tensor, scene: Scene, object_rgba: np.ndarray) -> ShadingGrid:
+        """The grid the shader draws from: the network's own (a view of `voxels`), or the window of a finer one
+        that holds the object (all the shader reads of it)."""
         if self.shading_grid_size == self.grid_size:
-            return voxels.numpy().transpose(1, 2, 3, 0)
-        from renderer.grid import scene_grid
+            return ShadingGrid(voxels.numpy().transpose(1, 2, 3, 0))
+        from renderer.grid import object_window_grid
 
-        return scene_grid(object_rgba, scene.object, scene.floor.color, scene.camera.elevation_deg,
-                          grid_size=self.shading_grid_size)
+        start, window = object_window_grid(object_rgba, scene.object, scene.floor.color, scene.camera.elevation_deg,
+                                           self.shading_grid_size)
+        return ShadingGrid(window, start, self.shading_grid_size)
+
+
+class ShadingGrid(NamedTuple):
+    """A scene grid (D, H, W, 4), or the window of a `size`^3 one from grid index `start`, for the voxel shader."""
+
+    voxels: np.ndarray
+    start: tuple[int, int, int] = (0, 0, 0)
+    size: int | None = None
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
@@ -174,16 +185,17 @@ def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
 
 
-def shaded_sample(grid: np.ndarray, scene: Scene, size: int):
-    """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene grid (D, H, W, 4)."""
+def shaded_sample(grid: ShadingGrid, scene: Scene, size: int):
+    """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene grid."""
     from renderer.shading import shade_grid
 
-    return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, size)
+    return shade_grid(grid.voxels, scene.light.position, scene.camera.elevation_deg, scene.floor.color, size,
+                      grid.start, grid.size)
 
 
-def shading_tensor(grid: np.ndarray, scene: Scene, size: int) -> torch.Tensor:
-    """The voxel shader's image and buffers of a sample's scene grid (D, H, W, 4), as the network's
-    (SHADING_CHANNELS, size, size) input."""
+def shading_tensor(grid: ShadingGrid, scene: Scene, size: int) -> torch.Tensor:
+    """The voxel shader's image and buffers of a sample's scene grid, as the network's (SHADING_CHANNELS, size, size)
+    input."""
     from renderer.shading import network_buffers
 
     buffers = network_buffers(shaded_sample(grid, scene, size))

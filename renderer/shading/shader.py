@@ -592,9 +592,11 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
 # --- all stages -------------------------------------------------------------------------------
 
 
-def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_color, size: int = 256) -> ShadedImage:
-    """All three stages at once: the shaded image of a camera-aligned grid."""
-    geometry = object_geometry(grid, elevation_deg)
+def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_color, size: int = 256,
+               start: tuple[int, int, int] = (0, 0, 0), grid_size: int | None = None) -> ShadedImage:
+    """All three stages at once: the shaded image of a camera-aligned grid (or of the window of a `grid_size`^3
+    grid from `start` that holds the object, as object_geometry takes it)."""
+    geometry = object_geometry(grid, elevation_deg, start, grid_size)
     return shade(geometry, visible_surface(geometry, size), light_position, floor_color)
 
 
