@@ -11,7 +11,7 @@ from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
-from renderer.scene import LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
+from renderer.scene import GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
 from renderer.shading import kernels, shade_grid, shade_scene
 from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates, object_geometry
 from renderer.shading.staged import StagedShader
@@ -208,9 +208,11 @@ def test_specks_inside_a_covered_part_close_and_openings_stay():
     assert np.array_equal(_close_specks(np.zeros((4, 4), np.float32), 256), np.zeros((4, 4)))
 
 
-def test_the_staged_shader_equals_shading_from_scratch_after_every_edit():
+@pytest.mark.parametrize("grid_size", [GRID_SIZE, 2 * GRID_SIZE])
+def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_size):
     """Cached stages (and the object's window of the grid instead of the whole grid) give the very image the
-    uncached shader gives the whole grid, after a move, a light move, a camera tilt, a floor color and a paint."""
+    uncached shader gives the whole grid, after a move, a light move, a camera tilt, a floor color and a paint;
+    for the network's grid and for the finer one a shader refiner reads."""
     rgba = ball(24, color=(0.7, 0.3, 0.2))
     painted = rgba.copy()
     painted[:12, ..., :3] = (0.1, 0.5, 0.9)
@@ -230,11 +232,11 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit():
         ("paint", tilted, painted, green),
         ("outside the grid", tilted.with_changes(object=ObjectSpec(voxels="v.npz", translation=(3.0, 0.0))), painted, green),
     ]
-    staged, reran = StagedShader(), {}
+    staged, reran = StagedShader(grid_size), {}
     for name, edited, voxels, floor in edits:
         cached = staged.render(edited, id(voxels), voxels, floor, SIZE)
         reran[name] = set(staged.stage_ms)
-        fresh = shade_scene(edited, voxels, floor, SIZE)
+        fresh = shade_scene(edited, voxels, floor, SIZE, grid_size)
         for part in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone

@@ -44,14 +44,14 @@ from models.engine.render_engine import RenderEngine, resolve_precision
 from models.evaluation.evaluate import ASSET_MODELS, SHIPPED_MODELS
 from models.evaluation.metrics import ImageMetrics
 from models.networks.checkpoint import load_model
-from models.networks.config import CompactConfig, NVRConfig, PaperConfig
+from models.networks.config import CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import build_model, reads_floor_light
 from renderer.errors import InputError
 from renderer.io import save_json
 from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.scene import GRID_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
@@ -118,6 +118,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         rows.append(bench_splatting(scenes, settings, memory, score))
         shader_row, shader_light_ms = bench_shading(scenes, settings, memory, score)
         rows.append(shader_row)
+        # The shader of the grid a shader refiner reads (finer than the network's): slower, closer to the path tracer.
+        rows.append(bench_shading(scenes, settings, memory, score, ShaderRefinerConfig().shading_grid_size)[0])
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         for engine in trained:
             rows.append(bench_network(engine, scenes, settings, memory, score))
@@ -198,28 +200,28 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
 
 
 def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
-                  score: Callable[[list[np.ndarray]], dict]) -> tuple[Row, list[float]]:
-    """The voxel shader with its stages cached as in the editor: a frame after an object transform and,
-    separately, a light edit (the light stage alone); the voxels are painted once per scene."""
+                  score: Callable[[list[np.ndarray]], dict], grid_size: int = GRID_SIZE) -> tuple[Row, list[float]]:
+    """The voxel shader of a `grid_size`^3 grid with its stages cached as in the editor: a frame after an object
+    transform and, separately, a light edit (the light stage alone); the voxels are painted once per scene."""
     memory.start()
     times, light_times, images = [], [], []
     for bench in scenes:
-        shader = _PaintedShader(bench)
+        shader = _PaintedShader(bench, grid_size)
         images.append(shader.render(bench.scene))
         times += alternating_ms(shader, transform_pair(bench.scene), settings.repeats)
         light = bench.scene.light.position
         moved = bench.scene.with_changes(light=LightSpec((light[0] + 0.1, light[1], light[2] + 0.05)))
         light_times += alternating_ms(shader, (bench.scene, moved), settings.repeats)
-    return Row("voxel shader", "", *_spread(times), memory.peak_mb(), **score(images)), light_times
+    return Row("voxel shader", f"{grid_size}^3 grid", *_spread(times), memory.peak_mb(), **score(images)), light_times
 
 
 class _PaintedShader:
     """The staged voxel shader of one bench scene's painted voxels, rendering like an engine."""
 
-    def __init__(self, bench: BenchScene):
+    def __init__(self, bench: BenchScene, grid_size: int = GRID_SIZE):
         self._rgba, self._floor = painted_voxels(bench.scene, object_voxels(bench.scene))
         self._key = bench.name
-        self._shader = StagedShader()
+        self._shader = StagedShader(grid_size)
 
     def render(self, scene: Scene) -> np.ndarray:
         return self._shader.render(scene, self._key, self._rgba, self._floor, SIZE).image

@@ -41,7 +41,7 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import grid_index_to_world, ground_mask, occupied_spans, scene_grid
-from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, LIGHT_RADIANCE, LIGHT_SIZE, Scene
+from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import kernels
 from renderer.splat import cached_floor_mask
 
@@ -600,8 +600,10 @@ def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_col
     return shade(geometry, visible_surface(geometry, size), light_position, floor_color)
 
 
-def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None) -> ShadedImage:
-    """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's)."""
-    grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg)
+def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
+                grid_size: int = GRID_SIZE) -> ShadedImage:
+    """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's),
+    from its `grid_size`^3 scene grid."""
+    grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size)
     return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, floor_color,
                       scene.image_size if size is None else size)

@@ -39,7 +39,8 @@ from renderer.shading.shader import ShadedImage, object_geometry, shade, visible
 class StagedShader:
     """Shades scenes one after another, rerunning only the stages an edit changed."""
 
-    def __init__(self) -> None:
+    def __init__(self, grid_size: int = GRID_SIZE) -> None:
+        self.grid_size = grid_size  # the grid the shader draws from (finer: slower, more of the object voxels' detail)
         self._memo: dict[str, tuple[Hashable, Any]] = {}
         self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
 
@@ -48,13 +49,13 @@ class StagedShader:
         self.stage_ms = {}
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
-        factors = pool_factors(n, o.scale)
+        factors = pool_factors(n, o.scale, self.grid_size)
         pooled, within = self._stage("pool", (voxels_key, factors), lambda: _pooled(object_rgba, factors))
         grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
         start, window = self._stage("window", grid_key, lambda: _object_window(pooled, within, n, factors, o, elevation,
-                                                                                   floor))
-        geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, GRID_SIZE))
+                                                                                   floor, self.grid_size))
+        geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
@@ -79,7 +80,7 @@ def _pooled(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.
 
 
 def _object_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
-                   placement: ObjectSpec, elevation: float, floor: tuple) -> tuple[tuple[int, int, int], np.ndarray]:
+                   placement: ObjectSpec, elevation: float, floor: tuple, grid_size: int) -> tuple[tuple[int, int, int], np.ndarray]:
     """The first grid index and the voxels (d, h, w, 4) of the grid's window that can hold the object."""
-    start, rows = object_window_indices(resolution, factors, placement, elevation, within=within)
+    start, rows = object_window_indices(resolution, factors, placement, elevation, grid_size, within=within)
     return start, gather(voxel_table(pooled, floor), rows)
