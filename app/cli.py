@@ -326,7 +326,7 @@ def cmd_eval(args: argparse.Namespace) -> None:
 
         print(f"wrote {resolution_study(args.data, args.model, args.renderer, resolutions, out, limit=args.limit)}")
         return
-    print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit)}")
+    print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit, shading_grid=args.shading_grid)}")
 
 
 def _parse_resolutions(text: str) -> list[int]:
@@ -495,6 +495,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--renderer", choices=["nvr+", "nvr", "shaded", "splat"], default="nvr+")
     p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
     p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
+    p.add_argument("--shading-grid", type=int, default=128, metavar="N",
+                   help="the grid the shaded renderer draws from: 128 (the network's, the editor's) or 256 (finer)")
     p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
                    help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")

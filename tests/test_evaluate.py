@@ -107,6 +107,32 @@ def test_a_renderer_that_does_not_match_the_weights_is_refused(setup, tmp_path):
     assert result.returncode == 2 and "not nvr" in result.stderr and "Traceback" not in result.stderr
 
 
+@pytest.mark.parametrize("grid", [128, 256])
+def test_the_shader_is_evaluated_on_the_grid_asked_for(setup, tmp_path, grid):
+    from models.training.data import VoxelRenderSet
+    from renderer.shading import shade_scene
+
+    data, _ = setup
+    result = nvr("eval", "--data", str(data), "--renderer", "shaded", "--shading-grid", str(grid),
+                 "--report", str(tmp_path / "g.md"))
+    assert result.returncode == 0, result.stderr
+    dataset = VoxelRenderSet([data])
+    errors = []
+    for index in range(len(dataset)):  # the shader of the whole scene grid, against the stored target
+        scene = dataset.scene(index)
+        image = shade_scene(scene, dataset.object_voxels(index), scene.floor.color, 32, grid).image
+        errors.append(np.mean((np.clip(image, 0, 1) - dataset[index]["target"].numpy().transpose(1, 2, 0)) ** 2))
+    assert float(table_rows(tmp_path / "g.md")[0][2]) == pytest.approx(255**2 * np.mean(errors), abs=0.01)
+    assert f"shading the {grid}^3 grid" in (tmp_path / "g.md").read_text()
+
+
+def test_a_shading_grid_that_is_not_a_multiple_of_the_network_grid_is_refused(setup, tmp_path):
+    data, _ = setup
+    result = nvr("eval", "--data", str(data), "--renderer", "shaded", "--shading-grid", "200", "--report",
+                 str(tmp_path / "x.md"))
+    assert result.returncode == 2 and "--shading-grid" in result.stderr and "Traceback" not in result.stderr
+
+
 def test_ground_share_splits_the_error_at_the_object_outline():
     from models.evaluation.evaluate import _ground_share
     from renderer.camera import Camera

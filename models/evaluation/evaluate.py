@@ -52,13 +52,22 @@ def _load_renderer(model_path: str | None, renderer: str):
     return model, config, extra
 
 
-def evaluate(data: list[str], model_path: str | None, renderer: str, report: str | Path, limit: int = 0) -> Path:
-    """Compute MSE, DSSIM and perceptual per setting; write the report and figure; return the report path."""
+def evaluate(data: list[str], model_path: str | None, renderer: str, report: str | Path, limit: int = 0,
+             shading_grid: int = GRID_SIZE) -> Path:
+    """Compute MSE, DSSIM and perceptual per setting; write the report and figure; return the report path.
+    `shading_grid`: the side of the grid the 'shaded' renderer draws from (a multiple of the network grid's 128)."""
     report = Path(report)
+    if shading_grid < GRID_SIZE or shading_grid % GRID_SIZE:
+        raise InputError(f"--shading-grid must be a multiple of {GRID_SIZE}, got {shading_grid}")
     model, config, extra = _load_renderer(model_path, renderer)
+    if renderer == "shaded":
+        extra = {"shading_grid": f"{shading_grid}^3"}
+    elif model is not None and reads_shading(model.architecture, config):
+        extra = {**extra, "shading_grid": f"{config.shading_grid_size}^3"}
     metrics = ImageMetrics()
     started = time.perf_counter()
-    scores, (rows, captions), count = _score(data, model, config, renderer, metrics, limit)
+    scores, (rows, captions), count = _score(data, model, config, renderer, metrics, limit,
+                                             shading_grid_factor=shading_grid // GRID_SIZE)
     seconds = time.perf_counter() - started
     figure = report.with_suffix(".png")
     if rows:
@@ -98,20 +107,24 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
 
 
 def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics, limit: int,
-           object_resolution: int | None = None, figure: bool = True):
-    """Per-setting metric lists, the figure's rows with their captions (none without `figure`), and the sample count."""
+           object_resolution: int | None = None, figure: bool = True, shading_grid_factor: int = 1):
+    """Per-setting metric lists, the figure's rows with their captions (none without `figure`), and the sample count.
+    `shading_grid_factor`: how much finer than the network's grid the 'shaded' renderer's grid is."""
     # The splat baseline reads no voxels; the shader reads the scene grid.
     grid_size = GRID_SIZE if renderer == "shaded" else 8 if config is None else config.grid_size
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
     with_shading = model is not None and reads_shading(model.architecture, config)
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light,
-                             shading=with_shading, shading_grid_factor=config.shading_grid_factor if with_shading else 1)
+                             shading=with_shading,
+                             shading_grid_factor=config.shading_grid_factor if with_shading else shading_grid_factor)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
     def predict(sample: dict, index: int) -> torch.Tensor:
         if renderer == "shaded":
-            return _shaded(sample["voxels"], dataset.scene(index), sample["target"].shape[-1])
+            scene = dataset.scene(index)
+            grid = dataset.shading_grid(sample["voxels"], scene, dataset.object_voxels(index))
+            return _shaded(grid, scene, sample["target"].shape[-1])
         if model is None:
             return sample["splat"][None]
         if sample["target"].shape[-1] != config.output_size:
@@ -151,11 +164,11 @@ def _figure_samples(values: list[dict]) -> list[tuple[str, dict]]:
     return [("typical view (median MSE)", by_error[(len(by_error) - 1) // 2]), ("worst view", by_error[-1])]
 
 
-def _shaded(voxels: torch.Tensor, scene, size: int) -> torch.Tensor:
-    """The voxel shader's image (1, 3, S, S) of a sample's grid (4, D, H, W)."""
-    from models.training.data import ShadingGrid, shaded_sample
+def _shaded(grid, scene, size: int) -> torch.Tensor:
+    """The voxel shader's image (1, 3, S, S) of a sample's ShadingGrid (models/training/data.py)."""
+    from models.training.data import shaded_sample
 
-    image = shaded_sample(ShadingGrid(voxels.numpy().transpose(1, 2, 3, 0)), scene, size).image
+    image = shaded_sample(grid, scene, size).image
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
 
 
@@ -178,7 +191,8 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
         f"# Evaluation: {renderer}",
         "",
         f"- model: {model_path or ('shipped' if renderer not in ('splat', 'shaded') else 'none (' + renderer + ')')}"
-        + (f", trained {extra.get('steps', '?')} steps" if extra else "")
+        + (f", trained {extra.get('steps', '?')} steps" if extra.get("steps") else "")
+        + (f", shading the {extra['shading_grid']} grid" if extra.get("shading_grid") else "")
         + (f" starting from {extra['init']} (trained {extra.get('init_steps', '?')} steps)" if extra.get("init") else ""),
         f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",
         f"- perceptual metric: VGG16 conv1 + 0.1 conv2 with {weights_name}",

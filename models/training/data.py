@@ -125,6 +125,10 @@ class VoxelRenderSet(Dataset):
             rgba = downsample_voxels(rgba, self.object_resolution)
         return rgba
 
+    def object_voxels(self, index: int) -> np.ndarray:
+        """The object voxels (N, N, N, 4) of a sample (cached per object)."""
+        return self._voxels(str(self.scene(index).voxels_path()))
+
     def __len__(self) -> int:
         return len(self.items)
 
@@ -135,7 +139,7 @@ class VoxelRenderSet(Dataset):
     def __getitem__(self, index: int) -> dict[str, torch.Tensor]:
         folder, sample = self.items[index]
         scene = self.scene(index)
-        rgba = self._voxels(str(scene.voxels_path()))
+        rgba = self.object_voxels(index)
         voxels, light = network_inputs(scene, rgba, scene.floor.color, self.grid_size)
         if self.object_resolution is None:
             splat = image_tensor(folder / sample["splat"])
