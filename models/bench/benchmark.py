@@ -43,7 +43,7 @@ from models.bench.system import PeakMemory, cpu_snapshot, machine_description, o
 from models.engine.render_engine import RenderEngine, resolve_precision
 from models.evaluation.evaluate import ASSET_MODELS, SHIPPED_MODELS
 from models.evaluation.metrics import ImageMetrics
-from models.networks.checkpoint import load_model
+from models.networks.checkpoint import check_weights_file, load_model
 from models.networks.config import CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import build_model, reads_floor_light
@@ -121,6 +121,9 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         # The shader of the grid a shader refiner reads (finer than the network's): slower, closer to the path tracer.
         rows.append(bench_shading(scenes, settings, memory, score, ShaderRefinerConfig().shading_grid_size)[0])
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
+        # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.
+        trained += [_load_engine(path, _precisions()[0], shading_grid_factor=1) for path in _weights_files(model_paths)
+                    if _shades_a_finer_grid(path)]
         for engine in trained:
             rows.append(bench_network(engine, scenes, settings, memory, score))
         timing_only = _random_engines(settings, trained)
@@ -130,7 +133,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         # targets are for CPUs without bfloat16, and float32 is what they run.
         shipped = f"({SHIPPED_MODELS['nvr+'].name})"
         candidates = sorted(trained + timing_only, key=lambda e: e.precision != "fp32")
-        live = next((e for e in candidates if e.kind == "nvr+" and e.model_name.endswith(shipped)), None) or next(
+        live = next((e for e in candidates if e.kind == "nvr+" and e.model_name.endswith(shipped)
+                     and "shading the" not in e.model_name), None) or next(
             (e for e in candidates if e.kind == "nvr+" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         networks = bench_networks(settings)
@@ -374,11 +378,19 @@ def _precisions() -> list[str]:
     return [default] + (["fp32"] if default != "fp32" else [])
 
 
-def _load_engine(path: Path, precision: str) -> RenderEngine:
+def _shades_a_finer_grid(path: Path) -> bool:
+    """Whether the weights file holds a shader refiner that reads the shading of a grid finer than its own."""
+    _, config, _ = check_weights_file(path)
+    return config.shading_input and config.shading_grid_factor > 1
+
+
+def _load_engine(path: Path, precision: str, shading_grid_factor: int | None = None) -> RenderEngine:
     model, config, _ = load_model(path)
     if config.output_size != SIZE:
         raise InputError(f"renders {config.output_size}^2; the benchmark compares at {SIZE}^2", path)
-    return RenderEngine(model, model_name=f"{config.name} ({path.name})", precision=precision)
+    grid = "" if shading_grid_factor is None else f", shading the {config.grid_size * shading_grid_factor}^3 grid"
+    return RenderEngine(model, model_name=f"{config.name}{grid} ({path.name})", precision=precision,
+                        shading_grid_factor=shading_grid_factor)
 
 
 def _random_engines(settings: BenchSettings, trained: list[RenderEngine]) -> list[RenderEngine]:
