@@ -1,8 +1,10 @@
 """The voxel shader: a physically based image of the network's inputs, in three cacheable stages.
 
-From exactly what the network reads (the 128^3 camera-aligned RGBA grid, the light position, the
-camera elevation, the floor color) and the scene's fixed constants (renderer/scene.py), it draws
-what the path tracer would, approximately:
+From what the network reads (a camera-aligned RGBA scene grid, the light position, the camera
+elevation, the floor color) and the scene's fixed constants (renderer/scene.py), it draws what the
+path tracer would, approximately. The grid is the network's 128^3 one or a finer one sampled the same
+way (renderer.grid.scene_grid's grid_size: at 256^3 and scale 1 a grid voxel is an object voxel, which
+the 128^3 grid merges in pairs); lengths below in voxels are the grid's voxels.
 
 1. object_geometry (depends on the grid: the object, its placement, the camera): the object's
    voxels without the ground, cropped to their box (from the whole grid or from the window of it
