@@ -176,16 +176,29 @@ def object_window_indices(resolution: int, factors: tuple[int, int, int], object
     return start, np.where(inside, rows, np.int32(n_rows))
 
 
+def pool_object(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.ndarray, tuple | None]:
+    """The merged voxels, and the box of those that are not all zero (None if none is): only it need be sampled.
+    Depends on the voxels and the merge factors alone, so a caller keeps it while the object moves."""
+    pooled = pool_voxels(object_rgba, factors)
+    return pooled, occupied_spans(non_empty_voxels(pooled))
+
+
+def object_window_voxels(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
+                         object_spec: ObjectSpec, elevation_deg: float, floor_color: tuple[float, float, float],
+                         grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
+    """The first grid index and the voxels (d, h, w, 4) of the scene grid's window that holds the object, without
+    the ground, from pool_object's result: what scene_grid gives there, at a cost in proportion to the object's box."""
+    start, rows = object_window_indices(resolution, factors, object_spec, elevation_deg, grid_size, within=within)
+    return start, gather(voxel_table(pooled, floor_color), rows)
+
+
 def object_window_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, floor_color: tuple[float, float, float],
                        elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
-    """The first grid index and the voxels (d, h, w, 4) of the scene grid's window that holds the object, without
-    the ground: what scene_grid gives there for the object, at a cost in proportion to the object's box."""
+    """pool_object and object_window_voxels at once: the object's window of the `grid_size`^3 scene grid."""
     resolution = object_rgba.shape[0]
     factors = pool_factors(resolution, object_spec.scale, grid_size)
-    pooled = pool_voxels(object_rgba, factors)
-    start, rows = object_window_indices(resolution, factors, object_spec, elevation_deg, grid_size,
-                                        within=occupied_spans(non_empty_voxels(pooled)))
-    return start, gather(voxel_table(pooled, floor_color), rows)
+    pooled, within = pool_object(object_rgba, factors)
+    return object_window_voxels(pooled, within, resolution, factors, object_spec, elevation_deg, floor_color, grid_size)
 
 
 def _sample_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,

@@ -21,8 +21,8 @@ when those change:
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
                                                                           it, and previews)
-    shade_window    as gather                                             the object's window of the shader's finer grid
-                                                                          (config.shading_grid_factor > 1)
+    shade_pool      paint, merge factors of the finer grid                the shader's finer grid (config.shading_grid_factor
+    shade_window    as gather                                             > 1): its merged voxels, the object's window
     shade_geometry  as gather                                             the voxel shader's object geometry (networks
     shade_surface   as gather                                             that read the shader: renderer/shading/), the
     shade_floor     as floor_light                                        surface the camera sees, the empty floor's
@@ -93,9 +93,10 @@ from renderer.grid import (
     ground_mask,
     non_empty_voxels,
     object_window,
-    object_window_grid,
+    object_window_voxels,
     occupied_spans,
     pool_factors,
+    pool_object,
     pool_voxels,
     repool_voxels,
     sample_indices,
@@ -165,7 +166,8 @@ class RenderEngine:
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
                  precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None):
         """`shading_grid_factor`: shade a grid this many times finer than the network's instead of the one the model's
-        configuration names (1: the network's own grid, about 2x faster after an object move, less accurate)."""
+        configuration names (1: the network's own grid, about 2.5x faster after an object move in nvr bench, less
+        accurate)."""
         set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
@@ -345,27 +347,31 @@ class RenderEngine:
         """The voxel shader's image of the scene, from its cached stages (renderer/shading/). `fine`: from the grid the
         network's shader input is drawn from (config.shading_grid_size); else from the network's own grid, the fast
         drag preview. The two are one set of stages when the grids are the same."""
-        elevation, g = scene.camera.elevation_deg, self.config.grid_size
-        fine = fine and self.config.shading_grid_factor > 1
-        prefix = "shade" if fine or self.config.shading_grid_factor == 1 else "preview"
+        elevation, finer = scene.camera.elevation_deg, self.config.shading_grid_factor > 1
+        fine = fine and finer
+        geometry_stage, surface_stage, shade_stage = (("preview_geometry", "preview_surface", "preview_shade")
+                                                      if finer and not fine else
+                                                      ("shade_geometry", "shade_surface", "shade"))
 
         def geometry_of_window() -> ObjectGeometry:  # the shader reads only the grid's window that holds the object
-            if fine:
-                size = self.config.shading_grid_size
-                start, window = self._stage("shade_window", keys.grid, lambda: object_window_grid(
-                    painted, scene.object, floor, elevation, size))
+            if fine:  # the finer grid's own merged voxels (kept while the object moves) and window
+                n, size = painted.shape[0], self.config.shading_grid_size
+                factors = pool_factors(n, scene.object.scale, size)
+                pooled, within = self._stage("shade_pool", (keys.pool[0], factors), lambda: pool_object(painted, factors))
+                start, window = self._stage("shade_window", keys.grid, lambda: object_window_voxels(
+                    pooled, within, n, factors, scene.object, elevation, floor, size))
                 return object_geometry(window, elevation, start, size)
             pooled, placement = self._placed(scene, painted, keys)
             box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
             window = gather(voxel_table(pooled, floor), placement.indices[box])
-            return object_geometry(window, elevation, tuple(s.start for s in box), g)
+            return object_geometry(window, elevation, tuple(s.start for s in box), self.config.grid_size)
 
-        geometry = self._stage(f"{prefix}_geometry", keys.grid, geometry_of_window)
-        surface = self._stage(f"{prefix}_surface", keys.grid, lambda: visible_surface(geometry, self.output_size))
+        geometry = self._stage(geometry_stage, keys.grid, geometry_of_window)
+        surface = self._stage(surface_stage, keys.grid, lambda: visible_surface(geometry, self.output_size))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
-        return self._stage("shade" if prefix == "shade" else "preview_shade", keys.shade, lambda: shade(
-            geometry, surface, scene.light.position, floor, floor_terms))
+        return self._stage(shade_stage, keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
+                                                                  floor_terms))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""

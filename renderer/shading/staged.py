@@ -23,16 +23,8 @@ import numpy as np
 
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import (
-    gather,
-    non_empty_voxels,
-    object_window_indices,
-    occupied_spans,
-    pool_factors,
-    pool_voxels,
-    voxel_table,
-)
-from renderer.scene import GRID_SIZE, ObjectSpec, Scene
+from renderer.grid import object_window_voxels, pool_factors, pool_object
+from renderer.scene import GRID_SIZE, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
 
 
@@ -50,11 +42,11 @@ class StagedShader:
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
         factors = pool_factors(n, o.scale, self.grid_size)
-        pooled, within = self._stage("pool", (voxels_key, factors), lambda: _pooled(object_rgba, factors))
+        pooled, within = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
         grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
-        start, window = self._stage("window", grid_key, lambda: _object_window(pooled, within, n, factors, o, elevation,
-                                                                                   floor, self.grid_size))
+        start, window = self._stage("window", grid_key, lambda: object_window_voxels(
+            pooled, within, n, factors, o, elevation, floor, self.grid_size))
         geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position
@@ -71,16 +63,3 @@ class StagedShader:
         self.stage_ms[name] = (time.perf_counter() - start) * 1000.0
         self._memo[name] = (key, value)
         return value
-
-
-def _pooled(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.ndarray, tuple | None]:
-    """The merged voxels, and the box of those that are not all zero (None if none is): only it is sampled."""
-    pooled = pool_voxels(object_rgba, factors)
-    return pooled, occupied_spans(non_empty_voxels(pooled))
-
-
-def _object_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
-                   placement: ObjectSpec, elevation: float, floor: tuple, grid_size: int) -> tuple[tuple[int, int, int], np.ndarray]:
-    """The first grid index and the voxels (d, h, w, 4) of the grid's window that can hold the object."""
-    start, rows = object_window_indices(resolution, factors, placement, elevation, grid_size, within=within)
-    return start, gather(voxel_table(pooled, floor), rows)
