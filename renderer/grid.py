@@ -27,6 +27,7 @@ import math
 from functools import lru_cache
 
 import numpy as np
+from numba import njit, prange
 
 from renderer.camera import Camera, camera_to_grid_index
 from renderer.scene import GRID_EXTENT, GRID_SIZE, OBJECT_SIZE, ObjectSpec
@@ -155,10 +156,9 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     n_rows = int(np.prod([-(-resolution // f) for f in factors]))
     indices = np.full((grid_size,) * 3, n_rows, dtype=np.int32)
     indices[ground_mask(elevation_deg, grid_size)] = n_rows + 1
-    ranges, rows, inside = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
-    if rows is not None:
-        window = indices[tuple(slice(lo, hi) for lo, hi in ranges)]  # a view: writing it writes `indices`
-        window[inside] = rows[inside]
+    ranges = object_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
+    window = indices[tuple(slice(lo, hi) for lo, hi in ranges)]  # a view: writing it writes `indices`
+    _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within, out=window)
     return indices
 
 
@@ -169,11 +169,11 @@ def object_window_indices(resolution: int, factors: tuple[int, int, int], object
     (d, h, w) int32 of its voxels as sample_indices gives them (`within` as there), but the empty row P for the
     ground too. Work in proportion to the object's box, not the grid (the voxel shader needs nothing else)."""
     n_rows = int(np.prod([-(-resolution // f) for f in factors]))
-    ranges, rows, inside = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
+    ranges, rows = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within, fill=n_rows)
     start = tuple(lo for lo, _ in ranges)
     if rows is None:
         return start, np.full([max(hi - lo, 0) for lo, hi in ranges], n_rows, dtype=np.int32)
-    return start, np.where(inside, rows, np.int32(n_rows))
+    return start, rows
 
 
 def pool_object(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.ndarray, tuple | None]:
@@ -184,47 +184,78 @@ def pool_object(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple
 
 
 def object_window_voxels(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
-                         object_spec: ObjectSpec, elevation_deg: float, floor_color: tuple[float, float, float],
-                         grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
+                         object_spec: ObjectSpec, elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
     """The first grid index and the voxels (d, h, w, 4) of the scene grid's window that holds the object, without
     the ground, from pool_object's result: what scene_grid gives there, at a cost in proportion to the object's box."""
     start, rows = object_window_indices(resolution, factors, object_spec, elevation_deg, grid_size, within=within)
-    return start, gather(voxel_table(pooled, floor_color), rows)
+    voxels = np.empty((*rows.shape, 4), dtype=np.float32)
+    _gather_merged(np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4), rows, voxels)
+    return start, voxels
 
 
-def object_window_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, floor_color: tuple[float, float, float],
-                       elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
+@njit(cache=True, parallel=True)
+def _gather_merged(merged, rows, out):
+    """out[i, j, k] = merged[rows[i, j, k]], all zero where the row is past the merged voxels (gather's empty row,
+    without copying every merged voxel into a table first)."""
+    for i in prange(rows.shape[0]):
+        for j in range(rows.shape[1]):
+            for k in range(rows.shape[2]):
+                row = rows[i, j, k]
+                for channel in range(4):
+                    out[i, j, k, channel] = merged[row, channel] if row < merged.shape[0] else np.float32(0.0)
+
+
+def object_window_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, elevation_deg: float,
+                       grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
     """pool_object and object_window_voxels at once: the object's window of the `grid_size`^3 scene grid."""
     resolution = object_rgba.shape[0]
     factors = pool_factors(resolution, object_spec.scale, grid_size)
     pooled, within = pool_object(object_rgba, factors)
-    return object_window_voxels(pooled, within, resolution, factors, object_spec, elevation_deg, floor_color, grid_size)
+    return object_window_voxels(pooled, within, resolution, factors, object_spec, elevation_deg, grid_size)
 
 
 def _sample_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
-                   grid_size: int, within: tuple[tuple[int, int], ...] | None):
-    """The object_window ranges, and over them the merged voxel each grid voxel centre falls in (flat row index)
-    and whether it falls in one at all; (ranges, None, None) when the window is empty."""
+                   grid_size: int, within: tuple[tuple[int, int], ...] | None, out: np.ndarray | None = None,
+                   fill: int = -1) -> tuple[list[tuple[int, int]], np.ndarray | None]:
+    """The object_window ranges, and over them the merged voxel (flat row index) each grid voxel centre falls in:
+    written into `out` (the ranges' shape, or a new int32 array) where it falls in one, elsewhere `fill` (-1: left
+    as it is); (ranges, None) when the window is empty."""
     pooled_shape = tuple(-(-resolution // f) for f in factors)
     first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
     block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)  # merged voxel sides, object units
     grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
     ranges = object_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
     if any(lo >= hi for lo, hi in ranges):
-        return ranges, None, None
-    d, r, c = (np.arange(lo, hi) + 0.5 for lo, hi in ranges)
-    inside = np.ones((len(d), len(r), len(c)), dtype=bool)
-    flat = np.zeros(inside.shape, dtype=np.int32)
-    for axis in range(3):
-        # Merged-voxel coordinate along this object axis: affine in (depth, row, column); one column's worth,
-        # broadcast, when it does not change along the columns (the up axis, for a camera without roll).
-        m = grid_to_object[axis] / block[axis]
-        cell = _affine_over_grid(m[0], m[1], m[2], m[3] - OBJECT_BOX_MIN[axis] / block[axis], d, r, c)
-        np.floor(cell, out=cell)
-        inside &= (cell >= first[axis]) & (cell < stop[axis])
-        flat *= pooled_shape[axis]
-        flat += np.clip(cell, 0, pooled_shape[axis] - 1, out=cell).astype(np.int32)
-    return ranges, flat, inside
+        return ranges, None
+    # Merged-voxel coordinate along each object axis: affine in the grid voxel centre (depth, row, column).
+    cell = grid_to_object[:3] / block[:, None]
+    cell[:, 3] -= OBJECT_BOX_MIN / block
+    if out is None:
+        out = np.empty([hi - lo for lo, hi in ranges], dtype=np.int32)
+    centres = [np.arange(lo, hi) + 0.5 for lo, hi in ranges]
+    _merged_voxel_rows(cell, *centres, np.asarray(first, dtype=np.float64), np.asarray(stop, dtype=np.float64),
+                       np.asarray(pooled_shape, dtype=np.int64), fill, out)
+    return ranges, out
+
+
+@njit(cache=True, parallel=True)
+def _merged_voxel_rows(cell, d, r, c, first, stop, shape, fill, out):
+    """out[i, j, k] = flat index of the merged voxel holding grid voxel centre (d[i], r[j], c[k]), whose cell along
+    object axis a is floor(cell[a] . (d, r, c, 1)) (summed as depth + (row + constant), then column), if every cell
+    lies in [first, stop); else `fill`, or left as it is when `fill` is -1. One pass, no (D, H, W) temporaries."""
+    for i in prange(d.shape[0]):
+        for j in range(r.shape[0]):
+            p0 = cell[0, 0] * d[i] + (cell[0, 1] * r[j] + cell[0, 3])
+            p1 = cell[1, 0] * d[i] + (cell[1, 1] * r[j] + cell[1, 3])
+            p2 = cell[2, 0] * d[i] + (cell[2, 1] * r[j] + cell[2, 3])
+            for k in range(c.shape[0]):
+                a = math.floor(p0 + cell[0, 2] * c[k])
+                b = math.floor(p1 + cell[1, 2] * c[k])
+                e = math.floor(p2 + cell[2, 2] * c[k])
+                if first[0] <= a < stop[0] and first[1] <= b < stop[1] and first[2] <= e < stop[2]:
+                    out[i, j, k] = (int(a) * shape[1] + int(b)) * shape[2] + int(e)
+                elif fill != -1:
+                    out[i, j, k] = fill
 
 
 def object_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,

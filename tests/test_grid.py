@@ -93,6 +93,27 @@ def test_single_object_voxel_lands_where_the_camera_predicts():
     assert 100 < inside.sum() < 150  # about (0.1 / 0.02)^3 = 125 grid voxels
 
 
+def test_every_grid_voxel_takes_the_object_voxel_its_centre_falls_in():
+    """A random 12^3 object, turned, moved and stretched: each grid voxel (outside the ground) holds the object
+    voxel whose box contains its centre, found here by mapping every centre into object space one by one."""
+    rng = np.random.default_rng(7)
+    n = 12
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    filled = rng.random((n, n, n)) < 0.3
+    rgba[filled] = np.concatenate([rng.random((int(filled.sum()), 3)), np.ones((int(filled.sum()), 1))], axis=1)
+    spec = ObjectSpec(mesh="m", translation=(-0.15, 0.2), rotation_deg=-52.0, scale=(1.1, 0.8, 1.3))
+    assert pool_factors(n, spec.scale) == (1, 1, 1)
+    grid = scene_grid(rgba, spec, FLOOR, 35.0)
+    centres = apply_transform(world_to_object(spec) @ Camera(35.0).camera_to_world(), grid_centers_camera())
+    index = np.floor((centres - np.array([-0.5, 0.0, -0.5])) * n).astype(int)
+    inside = np.all((index >= 0) & (index < n), axis=-1)
+    expected = np.zeros(grid.shape, dtype=np.float32)
+    expected[inside] = rgba[tuple(index[inside].T)]
+    not_ground = ~ground_mask(35.0)
+    np.testing.assert_array_equal(grid[not_ground], expected[not_ground])
+    assert expected[..., 3].sum() > 1000
+
+
 def test_pool_voxels_by_hand():
     rgba = np.zeros((4, 4, 4, 4), dtype=np.float32)
     rgba[0, 0, 0] = [1.0, 0.0, 0.0, 1.0]
@@ -227,7 +248,7 @@ def test_object_window_grid_is_the_scene_grids_object_there(grid_size):
     voxel of the whole grid lies inside the window."""
     rgba = sphere_voxels()
     spec = ObjectSpec(translation=(0.2, -0.1), rotation_deg=35.0, scale=(1.0, 1.3, 0.8))
-    start, window = object_window_grid(rgba, spec, FLOOR, 20.0, grid_size)
+    start, window = object_window_grid(rgba, spec, 20.0, grid_size)
     whole = scene_grid(rgba, spec, FLOOR, 20.0, grid_size=grid_size)
     whole[ground_mask(20.0, grid_size)] = 0.0
     box = tuple(slice(a, a + n) for a, n in zip(start, window.shape[:3]))

@@ -240,6 +240,7 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
         for part in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
+    assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
     assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels and the lit floor stay
     assert reran["paint"] == {"pool", "window", "geometry", "surface", "shade"}
 

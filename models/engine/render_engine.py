@@ -22,11 +22,11 @@ when those change:
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
                                                                           it, and previews)
     shade_pool      paint, merge factors of the finer grid                the shader's finer grid (config.shading_grid_factor
-    shade_window    as gather                                             > 1): its merged voxels, the object's window
-    shade_geometry  as gather                                             the voxel shader's object geometry (networks
-    shade_surface   as gather                                             that read the shader: renderer/shading/), the
+    shade_window    pool, placement (not the floor color)                 > 1): its merged voxels, the object's window
+    shade_geometry  as shade_window                                       the voxel shader's object geometry (networks
+    shade_surface   as shade_window                                       that read the shader: renderer/shading/), the
     shade_floor     as floor_light                                        surface the camera sees, the empty floor's
-    shade           as gather, and the light position                     lighting, the shaded image and buffers
+    shade           as shade_window, floor color, light position          lighting, the shaded image and buffers
     preview_*       as shade_geometry, shade_surface, shade               the shader of the network's own grid: the drag
                                                                           preview when the shader's grid is finer
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
@@ -35,8 +35,9 @@ when those change:
 
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
 runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
-networks that read the shader, like the shipped NVR+, after every edit below that reruns gather, and
-shade_floor and shade after a light move; for the others a light move reruns the light stage alone):
+networks that read the shader, like the shipped NVR+: shade_window, shade_geometry and shade_surface after an edit
+below that reruns placement or paint, shade_floor and shade after one that reruns floor_light; for the others a light
+move reruns the light stage alone):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -150,6 +151,7 @@ class _Keys(NamedTuple):
     layout: tuple
     splat: tuple
     floor_light: tuple
+    shape: tuple  # what the shader's object geometry reads: the painted object and its placement
     shade: tuple
     splat_branch: tuple
 
@@ -286,10 +288,11 @@ class RenderEngine:
         splat = (paint_key, layout, floor)
         floor_light = (elevation, floor, scene.light.position)
         grid = (paint_key, placement, floor)
-        shade = (grid, scene.light.position)
+        shape = (paint_key, placement)
+        shade = (shape, floor, scene.light.position)
         splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
         return _Keys(pool=(paint_key, factors), placement=placement, grid=grid, layout=layout, splat=splat,
-                     floor_light=floor_light, shade=shade, splat_branch=splat_branch)
+                     floor_light=floor_light, shape=shape, shade=shade, splat_branch=splat_branch)
 
     def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
@@ -358,16 +361,16 @@ class RenderEngine:
                 n, size = painted.shape[0], self.config.shading_grid_size
                 factors = pool_factors(n, scene.object.scale, size)
                 pooled, within = self._stage("shade_pool", (keys.pool[0], factors), lambda: pool_object(painted, factors))
-                start, window = self._stage("shade_window", keys.grid, lambda: object_window_voxels(
-                    pooled, within, n, factors, scene.object, elevation, floor, size))
+                start, window = self._stage("shade_window", keys.shape, lambda: object_window_voxels(
+                    pooled, within, n, factors, scene.object, elevation, size))
                 return object_geometry(window, elevation, start, size)
             pooled, placement = self._placed(scene, painted, keys)
             box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
-            window = gather(voxel_table(pooled, floor), placement.indices[box])
+            window = gather(voxel_table(pooled, (0.0, 0.0, 0.0)), placement.indices[box])  # the ground: not read
             return object_geometry(window, elevation, tuple(s.start for s in box), self.config.grid_size)
 
-        geometry = self._stage(geometry_stage, keys.grid, geometry_of_window)
-        surface = self._stage(surface_stage, keys.grid, lambda: visible_surface(geometry, self.output_size))
+        geometry = self._stage(geometry_stage, keys.shape, geometry_of_window)
+        surface = self._stage(surface_stage, keys.shape, lambda: visible_surface(geometry, self.output_size))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
         return self._stage(shade_stage, keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,

@@ -167,8 +167,7 @@ class VoxelRenderSet(Dataset):
             return ShadingGrid(voxels.numpy().transpose(1, 2, 3, 0))
         from renderer.grid import object_window_grid
 
-        start, window = object_window_grid(object_rgba, scene.object, scene.floor.color, scene.camera.elevation_deg,
-                                           self.shading_grid_size)
+        start, window = object_window_grid(object_rgba, scene.object, scene.camera.elevation_deg, self.shading_grid_size)
         return ShadingGrid(window, start, self.shading_grid_size)
 
 

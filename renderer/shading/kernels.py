@@ -179,9 +179,9 @@ def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask
 
 
 @njit(cache=True, parallel=True)
-def surface_normals_and_colors(smooth, occupied, rgb, points, normals, colors):
+def surface_normals_and_colors(smooth, occupied, rgb, rgb_offset, points, normals, colors):
     """Per surface point: the unit normal (the gradient of the smoothed distance field) and the color of
-    the nearest occupied voxel (within two voxels; grey if none)."""
+    the nearest occupied voxel (within two voxels; grey if none), rgb[crop index + rgb_offset]."""
     n0, n1, n2 = occupied.shape
     for i in prange(points.shape[0]):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
@@ -203,7 +203,8 @@ def surface_normals_and_colors(smooth, occupied, rgb, points, normals, colors):
                         d2 = (a + 0.5 - x) ** 2 + (b + 0.5 - y) ** 2 + (c + 0.5 - z) ** 2
                         if d2 < best:
                             best = d2
-                            colors[i, 0], colors[i, 1], colors[i, 2] = rgb[a, b, c, 0], rgb[a, b, c, 1], rgb[a, b, c, 2]
+                            a1, b1, c1 = a + rgb_offset[0], b + rgb_offset[1], c + rgb_offset[2]
+                            colors[i, 0], colors[i, 1], colors[i, 2] = rgb[a1, b1, c1, 0], rgb[a1, b1, c1, 1], rgb[a1, b1, c1, 2]
 
 
 @njit(cache=True, parallel=True)
@@ -367,31 +368,40 @@ def _nearest_along_lines(occupied, out):
 
 
 @njit(cache=True, parallel=True)
-def _distance_pass(grid):
-    """One separable pass of the squared distance transform along the last (contiguous) axis, in place."""
-    rows, n = grid.shape[0] * grid.shape[1], grid.shape[2]
-    lines = grid.reshape(rows, n)
-    for line in prange(rows):
-        out = np.empty(n)
-        v = np.empty(n, dtype=np.int64)
-        z = np.empty(n + 1)
-        _lower_envelope(lines[line].astype(np.float64), n, out, v, z)
-        for q in range(n):
-            lines[line, q] = out[q]
+def _distance_pass(grid, axis, root):
+    """One separable pass of the squared distance transform along `axis` (0 or 1), in place, each line gathered into
+    a buffer (float64, as the envelope computes) and written back; `root`: write the square root (the last pass)."""
+    n0, n1, n2 = grid.shape
+    outer, length = (n1, n0) if axis == 0 else (n0, n1)
+    for o in prange(outer):
+        line = np.empty(length)
+        out = np.empty(length)
+        v = np.empty(length, dtype=np.int64)
+        z = np.empty(length + 1)
+        for k in range(n2):
+            for p in range(length):
+                line[p] = grid[p, o, k] if axis == 0 else grid[o, p, k]
+            _lower_envelope(line, length, out, v, z)
+            for p in range(length):
+                value = np.float32(out[p])
+                if root:
+                    value = np.float32(math.sqrt(value))
+                if axis == 0:
+                    grid[p, o, k] = value
+                else:
+                    grid[o, p, k] = value
 
 
 def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
     """Euclidean distance (float32, in voxels) from every voxel centre to the nearest occupied one: the
-    exact separable transform (Felzenszwalb and Huttenlocher 2012), compiled, one axis at a time along
-    contiguous lines, the first by two scans; scipy's distance_transform_edt gives the same but also computes
-    the nearest voxel's index, 3x slower here."""
+    exact separable transform (Felzenszwalb and Huttenlocher 2012), compiled, the last axis by two scans per line,
+    then the other two in place; scipy's distance_transform_edt gives the same but also computes the nearest
+    voxel's index, 3x slower here."""
     grid = np.empty(occupied.shape, dtype=np.float32)
     _nearest_along_lines(np.ascontiguousarray(occupied, dtype=np.bool_), grid)
-    for axis in range(2):
-        lines = np.ascontiguousarray(np.moveaxis(grid, axis, -1))
-        _distance_pass(lines)
-        grid = np.moveaxis(lines, -1, axis)
-    return np.sqrt(grid).astype(np.float32)
+    _distance_pass(grid, 1, False)
+    _distance_pass(grid, 0, True)
+    return grid
 
 
 @njit(cache=True, parallel=True)

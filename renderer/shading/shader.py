@@ -29,11 +29,8 @@ and the shading already baked into photo-colored voxels.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
 
 import numpy as np
 from scipy import ndimage, special
@@ -44,7 +41,7 @@ from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import grid_index_to_world, ground_mask, occupied_spans, scene_grid
 from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
-from renderer.shading import kernels
+from renderer.shading import filters, kernels
 from renderer.splat import cached_floor_mask
 
 THIN_LEVEL = 0.35  # voxels above a thin part's core where its surface is drawn (if more than SURFACE_LEVEL)
@@ -90,7 +87,8 @@ class ObjectGeometry:
     elevation_deg: float
     offset: np.ndarray  # (3,) grid index of the crop's first voxel
     occupied: np.ndarray  # (d, r, c) bool: object voxels (the ground left out)
-    rgb: np.ndarray  # (d, r, c, 3) float32 sRGB
+    rgb: np.ndarray  # (.., .., .., 3) sRGB of the grid (window) it was made from, a view: read at occupied voxels only
+    rgb_offset: np.ndarray  # (3,) int: a crop index plus this indexes `rgb`
     distance_and_core: np.ndarray  # (d, r, c, 2) float32: voxels from the nearest occupied voxel centre, and
     # the least of that within CORE_SIZE voxels (side by side: a ray's step reads both with one lookup)
     smooth: np.ndarray  # distance blurred by NORMAL_SIGMA: its gradient is the normal
@@ -177,34 +175,19 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
         lo = np.maximum(found.min(axis=0) - CROP_MARGIN, 0)
         hi = np.minimum(found.max(axis=0) + CROP_MARGIN + 1, n)
     occupied = _in_box(occupied_window, start, lo, hi)
-    # A chain of array filters, two at a time where they are independent (scipy's filters let go of the GIL).
-    solid, rgb = _two_at_once(lambda: _solid(occupied),
-                              lambda: _in_box(np.asarray(grid[..., :3], dtype=np.float32), start, lo, hi))
+    solid = _solid(occupied)
     raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
-    distance, broad = _two_at_once(lambda: ndimage.gaussian_filter(raw, DISTANCE_SIGMA, truncate=BLUR_TRUNCATE),
-                                   lambda: _broad(solid))
+    distance = filters.gaussian_blur(raw, DISTANCE_SIGMA, BLUR_TRUNCATE)
     # Normals from the distance blurred by NORMAL_SIGMA in all: blur `distance` by what is missing.
     extra = math.sqrt(max(NORMAL_SIGMA**2 - DISTANCE_SIGMA**2, 0.0))
-    smooth, core = _two_at_once(
-        lambda: ndimage.gaussian_filter(distance, extra, truncate=BLUR_TRUNCATE) if extra > 0.0 else distance,
-        lambda: ndimage.minimum_filter(distance, CORE_SIZE))
+    smooth = filters.gaussian_blur(distance, extra, BLUR_TRUNCATE) if extra > 0.0 else distance
+    core = filters.minimum_filter(distance, CORE_SIZE)
     centres = found + 0.5
     occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(
-        elevation_deg=float(elevation_deg), offset=lo, occupied=occupied, rgb=rgb,
-        distance_and_core=np.stack([distance, core], axis=-1), smooth=smooth, broad=broad,
+        elevation_deg=float(elevation_deg), offset=lo, occupied=occupied, rgb=grid[..., :3], rgb_offset=lo - start,
+        distance_and_core=np.stack([distance, core], axis=-1), smooth=smooth, broad=_broad(solid),
         grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders))
-
-
-def _two_at_once(first: Callable[[], Any], second: Callable[[], Any]) -> tuple[Any, Any]:
-    """Both results, `second` computed on a helper thread while this one computes `first`."""
-    pending = _helper_thread().submit(second)
-    return first(), pending.result()
-
-
-@lru_cache(maxsize=1)
-def _helper_thread() -> ThreadPoolExecutor:
-    return ThreadPoolExecutor(max_workers=1, thread_name_prefix="shader")
 
 
 def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -260,7 +243,8 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
     colors = np.zeros((len(points_crop), 3), dtype=np.float32)
     occlusion = np.ones(len(points_crop), dtype=np.float32)
     if len(points_crop):
-        kernels.surface_normals_and_colors(geometry.smooth, geometry.occupied, geometry.rgb, points_crop, normals_crop, colors)
+        kernels.surface_normals_and_colors(geometry.smooth, geometry.occupied, geometry.rgb, geometry.rgb_offset,
+                                           points_crop, normals_crop, colors)
         occlusion = _surface_occlusion(geometry, points_crop, normals_crop)
     linear = geometry.grid_to_world[:3, :3]
     points_world = (points_crop + geometry.offset) @ linear.T + geometry.grid_to_world[:3, 3]
@@ -387,8 +371,7 @@ def _solid(occupied: np.ndarray) -> np.ndarray:
     is only diagonally connected, so the diagonal gaps a ray could slip through are closed first; then
     everything not connected to the crop's border (6-connected) is inside."""
     closed = _erode_cube(_dilate_cube(occupied)) | occupied
-    outside, _ = ndimage.label(np.pad(~closed, 1, constant_values=True))
-    return outside[1:-1, 1:-1, 1:-1] != outside[0, 0, 0]
+    return ~filters.connected_to_border(closed)
 
 
 def _dilate_cube(mask: np.ndarray) -> np.ndarray:
@@ -417,9 +400,7 @@ def _shifted(array: np.ndarray, axis: int, side: int) -> np.ndarray:
 def _broad(solid: np.ndarray) -> np.ndarray:
     """The solid occupancy averaged over 2^3 blocks and blurred by BROAD_SIGMA voxels (at half resolution:
     occlusion is a broad effect), sampled at BROAD_SCALE times the crop's coordinates."""
-    padded = np.pad(solid.astype(np.float32), [(0, n % 2) for n in solid.shape])
-    half = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2, padded.shape[2] // 2, 2).mean(axis=(1, 3, 5))
-    return ndimage.gaussian_filter(half, BROAD_SIGMA * BROAD_SCALE, truncate=BLUR_TRUNCATE)
+    return filters.gaussian_blur(filters.block_mean2(solid), BROAD_SIGMA * BROAD_SCALE, BLUR_TRUNCATE)
 
 
 def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:

@@ -2,13 +2,13 @@
 
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
-    window     pool, placement, elevation, floor color                     paint, object move, camera, floor color
+    window     pool, placement, elevation (the object alone: no floor color)  paint, object move, camera
     geometry   window                                                      the same
     surface    geometry, image size                                        the same
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
     shade      surface, floor                                              any of the above
 
-So a light move reruns only `floor` and `shade`, the light-dependent part, and an object move all but `floor`.
+So a light move or a floor color reruns only `floor` and `shade`, and an object move all but `floor`.
 The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
 compares voxel arrays.
 """
@@ -43,10 +43,10 @@ class StagedShader:
         n = object_rgba.shape[0]
         factors = pool_factors(n, o.scale, self.grid_size)
         pooled, within = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
-        grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation, floor)
+        grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation)  # not the floor: the object alone
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
         start, window = self._stage("window", grid_key, lambda: object_window_voxels(
-            pooled, within, n, factors, o, elevation, floor, self.grid_size))
+            pooled, within, n, factors, o, elevation, self.grid_size))
         geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position

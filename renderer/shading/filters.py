@@ -1,0 +1,193 @@
+"""Compiled 3-D filters for the shader's geometry stage, giving what scipy.ndimage gives (tested against it).
+
+Written here because scipy's filters run on one thread and copy every line into a buffer: on a 256^3 grid's
+crop of a chair (96 x 117 x 95 voxels) its gaussian blur took 9.6 ms and its 5^3 minimum filter 8.8 ms, where
+these passes run over both cores with the innermost loop along contiguous memory. Each blur pass rounds to
+float32 and adds in scipy's order, so the results are scipy's to the last bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+def gaussian_weights(sigma: float, truncate: float) -> np.ndarray:
+    """The normalised 1-D gaussian of scipy.ndimage.gaussian_filter: radius int(truncate * sigma + 0.5)."""
+    radius = int(truncate * float(sigma) + 0.5)
+    x = np.arange(-radius, radius + 1)
+    weights = np.exp(-0.5 / (float(sigma) * float(sigma)) * x**2)
+    return weights / weights.sum()
+
+
+def gaussian_blur(volume: np.ndarray, sigma: float, truncate: float) -> np.ndarray:
+    """scipy.ndimage.gaussian_filter(volume, sigma, truncate=truncate) of a float32 (D, H, W) volume ('reflect' border)."""
+    full = gaussian_weights(sigma, truncate)
+    weights = full[len(full) // 2:]  # the centre, then outwards
+    current = np.ascontiguousarray(volume, dtype=np.float32)
+    for axis in range(3):
+        out = np.empty_like(current)
+        _blur_pass(current, weights, axis, out)
+        current = out
+    return current
+
+
+def minimum_filter(volume: np.ndarray, size: int) -> np.ndarray:
+    """scipy.ndimage.minimum_filter(volume, size) of a float32 (D, H, W) volume (odd `size`, 'reflect' border:
+    the reflected voxels lie inside the window already, so the window is clipped to the volume)."""
+    if size % 2 != 1:
+        raise ValueError(f"the minimum filter's size must be odd, got {size}")
+    current = np.ascontiguousarray(volume, dtype=np.float32)
+    for axis in range(3):
+        out = np.empty_like(current)
+        _minimum_pass(current, size // 2, axis, out)
+        current = out
+    return current
+
+
+@njit(cache=True, inline="always")
+def _reflect(i, n):
+    """Index i folded into [0, n) as scipy's 'reflect' border extends a line (d c b a | a b c d | d c b a)."""
+    period = 2 * n
+    m = i % period
+    return m if m < n else period - 1 - m
+
+
+@njit(cache=True, parallel=True)
+def _blur_pass(volume, weights, axis, out):
+    """One axis of the blur: out = volume correlated with the symmetric kernel whose centre and right half are
+    `weights`, in float64 as scipy sums (centre first, then the outermost pair inwards), rounded to float32."""
+    n0, n1, n2 = volume.shape
+    radius = weights.shape[0] - 1
+    if axis == 2:
+        for line in prange(n0 * n1):
+            i, j = line // n1, line % n1
+            padded = np.empty(n2 + 2 * radius)
+            for q in range(n2 + 2 * radius):
+                padded[q] = volume[i, j, _reflect(q - radius, n2)]
+            for k in range(n2):
+                total = padded[k + radius] * weights[0]
+                for t in range(radius, 0, -1):
+                    total += (padded[k + radius - t] + padded[k + radius + t]) * weights[t]
+                out[i, j, k] = total
+        return
+    outer, length = (n1, n0) if axis == 0 else (n0, n1)
+    for o in prange(outer):
+        total = np.empty(n2)
+        for p in range(length):
+            for k in range(n2):
+                total[k] = np.float64(_along(volume, axis, o, p, k)) * weights[0]
+            for t in range(radius, 0, -1):
+                before, after = _reflect(p - t, length), _reflect(p + t, length)
+                for k in range(n2):
+                    total[k] += (np.float64(_along(volume, axis, o, before, k))
+                                 + np.float64(_along(volume, axis, o, after, k))) * weights[t]
+            for k in range(n2):
+                _store(out, axis, o, p, k, total[k])
+
+
+@njit(cache=True, parallel=True)
+def _minimum_pass(volume, radius, axis, out):
+    """One axis of the minimum filter: the least value within `radius` voxels along `axis`."""
+    n0, n1, n2 = volume.shape
+    if axis == 2:
+        for line in prange(n0 * n1):
+            i, j = line // n1, line % n1
+            for k in range(n2):
+                least = volume[i, j, k]
+                for q in range(max(k - radius, 0), min(k + radius + 1, n2)):
+                    least = min(least, volume[i, j, q])
+                out[i, j, k] = least
+        return
+    outer, length = (n1, n0) if axis == 0 else (n0, n1)
+    for o in prange(outer):
+        for p in range(length):
+            for k in range(n2):
+                _store(out, axis, o, p, k, _along(volume, axis, o, p, k))
+            for q in range(max(p - radius, 0), min(p + radius + 1, length)):
+                for k in range(n2):
+                    value = _along(volume, axis, o, q, k)
+                    if value < _along(out, axis, o, p, k):
+                        _store(out, axis, o, p, k, value)
+
+
+@njit(cache=True, inline="always")
+def _along(volume, axis, o, p, k):
+    """volume at position p along `axis` (0 or 1), o along the other of the first two axes, k along the last."""
+    return volume[p, o, k] if axis == 0 else volume[o, p, k]
+
+
+@njit(cache=True, inline="always")
+def _store(volume, axis, o, p, k, value):
+    if axis == 0:
+        volume[p, o, k] = value
+    else:
+        volume[o, p, k] = value
+
+
+@njit(cache=True, parallel=True)
+def block_mean2(occupied):
+    """The mean of every 2 x 2 x 2 block of a bool volume (float32, half size rounded up; missing voxels past an
+    odd side count as empty, as if the volume were padded with zeros)."""
+    n0, n1, n2 = occupied.shape
+    h0, h1, h2 = (n0 + 1) // 2, (n1 + 1) // 2, (n2 + 1) // 2
+    out = np.empty((h0, h1, h2), dtype=np.float32)
+    for a in prange(h0):
+        for b in range(h1):
+            for c in range(h2):
+                count = 0
+                for i in range(2 * a, min(2 * a + 2, n0)):
+                    for j in range(2 * b, min(2 * b + 2, n1)):
+                        for k in range(2 * c, min(2 * c + 2, n2)):
+                            count += occupied[i, j, k]
+                out[a, b, c] = count / 8.0
+    return out
+
+
+def connected_to_border(blocked: np.ndarray) -> np.ndarray:
+    """The voxels not `blocked` that a 6-connected path of such voxels joins to the volume's border: the outside of
+    the blocked voxels, whose complement is them with their insides. A flood fill from the border's free voxels by
+    sweeps along each axis, in both directions, until a round of sweeps reaches nothing new (two or three rounds on
+    furniture; a breadth-first fill visits the same voxels one at a time, twice as slow as scipy's labelling)."""
+    free = ~np.ascontiguousarray(blocked, dtype=np.bool_)
+    reached = np.zeros_like(free)
+    for side in (np.s_[0], np.s_[-1]):
+        for axis in range(3):
+            index = [slice(None)] * 3
+            index[axis] = side
+            reached[tuple(index)] = free[tuple(index)]
+    while sum(_sweep(free, reached, axis) for axis in range(3)) > 0:
+        pass
+    return reached
+
+
+@njit(cache=True, parallel=True)
+def _sweep(free, reached, axis):
+    """Spread `reached` along `axis` through free voxels, forwards then backwards; how many voxels it newly reached."""
+    n0, n1, n2 = free.shape
+    count = 0
+    if axis == 2:
+        for line in prange(n0 * n1):
+            i, j = line // n1, line % n1
+            for k in range(1, n2):
+                if reached[i, j, k - 1] and free[i, j, k] and not reached[i, j, k]:
+                    reached[i, j, k] = True
+                    count += 1
+            for k in range(n2 - 2, -1, -1):
+                if reached[i, j, k + 1] and free[i, j, k] and not reached[i, j, k]:
+                    reached[i, j, k] = True
+                    count += 1
+        return count
+    outer, length = (n1, n0) if axis == 0 else (n0, n1)
+    for o in prange(outer):
+        for p in range(1, length):
+            for k in range(n2):
+                if _along(reached, axis, o, p - 1, k) and _along(free, axis, o, p, k) and not _along(reached, axis, o, p, k):
+                    _store(reached, axis, o, p, k, True)
+                    count += 1
+        for p in range(length - 2, -1, -1):
+            for k in range(n2):
+                if _along(reached, axis, o, p + 1, k) and _along(free, axis, o, p, k) and not _along(reached, axis, o, p, k):
+                    _store(reached, axis, o, p, k, True)
+                    count += 1
+    return count
