@@ -60,16 +60,22 @@ def _blur_pass(volume, weights, axis, out):
     n0, n1, n2 = volume.shape
     radius = weights.shape[0] - 1
     if axis == 2:
-        for line in prange(n0 * n1):
-            i, j = line // n1, line % n1
-            padded = np.empty(n2 + 2 * radius)
-            for q in range(n2 + 2 * radius):
-                padded[q] = volume[i, j, _reflect(q - radius, n2)]
-            for k in range(n2):
-                total = padded[k + radius] * weights[0]
+        for i in prange(n0):
+            padded = np.empty(n2 + 2 * radius)  # one line with its reflected border, in float64
+            total = np.empty(n2)
+            for j in range(n1):
+                for k in range(n2):
+                    padded[k + radius] = volume[i, j, k]
+                for q in range(radius):  # the borders (an index modulo per voxel would cost more than the sums)
+                    padded[q] = volume[i, j, _reflect(q - radius, n2)]
+                    padded[n2 + radius + q] = volume[i, j, _reflect(n2 + q, n2)]
+                for k in range(n2):  # each sum over the whole line at once: the loops over k vectorise
+                    total[k] = padded[k + radius] * weights[0]
                 for t in range(radius, 0, -1):
-                    total += (padded[k + radius - t] + padded[k + radius + t]) * weights[t]
-                out[i, j, k] = total
+                    for k in range(n2):
+                        total[k] += (padded[k + radius - t] + padded[k + radius + t]) * weights[t]
+                for k in range(n2):
+                    out[i, j, k] = total[k]
         return
     outer, length = (n1, n0) if axis == 0 else (n0, n1)
     for o in prange(outer):
@@ -91,24 +97,27 @@ def _minimum_pass(volume, radius, axis, out):
     """One axis of the minimum filter: the least value within `radius` voxels along `axis`."""
     n0, n1, n2 = volume.shape
     if axis == 2:
-        for line in prange(n0 * n1):
-            i, j = line // n1, line % n1
-            for k in range(n2):
-                least = volume[i, j, k]
-                for q in range(max(k - radius, 0), min(k + radius + 1, n2)):
-                    least = min(least, volume[i, j, q])
-                out[i, j, k] = least
+        for i in prange(n0):
+            for j in range(n1):
+                for k in range(n2):
+                    out[i, j, k] = volume[i, j, k]
+                for shift in range(1, radius + 1):  # each neighbour offset over the whole line at once
+                    for k in range(n2 - shift):
+                        out[i, j, k] = min(out[i, j, k], volume[i, j, k + shift])
+                    for k in range(shift, n2):
+                        out[i, j, k] = min(out[i, j, k], volume[i, j, k - shift])
         return
     outer, length = (n1, n0) if axis == 0 else (n0, n1)
     for o in prange(outer):
+        least = np.empty(n2, dtype=volume.dtype)
         for p in range(length):
             for k in range(n2):
-                _store(out, axis, o, p, k, _along(volume, axis, o, p, k))
+                least[k] = _along(volume, axis, o, p, k)
             for q in range(max(p - radius, 0), min(p + radius + 1, length)):
                 for k in range(n2):
-                    value = _along(volume, axis, o, q, k)
-                    if value < _along(out, axis, o, p, k):
-                        _store(out, axis, o, p, k, value)
+                    least[k] = min(least[k], _along(volume, axis, o, q, k))
+            for k in range(n2):
+                _store(out, axis, o, p, k, least[k])
 
 
 @njit(cache=True, inline="always")

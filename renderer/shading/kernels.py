@@ -325,26 +325,37 @@ def light_form_factors(points, normals, lights, area, surface, below):
 
 
 @njit(cache=True, inline="always")
-def _lower_envelope(f, n, out, v, z):
-    """Felzenszwalb and Huttenlocher's 1-D squared distance transform of the samples f[0:n] into out."""
-    k = 0
-    v[0] = 0
-    z[0] = -1e30
-    z[1] = 1e30
-    for q in range(1, n):
-        s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * q - 2.0 * v[k])
-        while s <= z[k]:
-            k -= 1
-            s = ((f[q] + q * q) - (f[v[k]] + v[k] * v[k])) / (2.0 * q - 2.0 * v[k])
+def _lower_envelope(f, n, out, v, numerator, denominator):
+    """Felzenszwalb and Huttenlocher's 1-D squared distance transform of the samples f[0:n] into out, in integers.
+
+    The samples are squared distances (whole numbers, exact in float32) or EMPTY_DISTANCE2, which never wins
+    against a finite one and so is left out of the envelope; a line of nothing else stays EMPTY_DISTANCE2.
+    Each boundary between parabolas is kept as a fraction and compared by cross-multiplying, so no comparison
+    is rounded (and there is no division)."""
+    k = -1
+    for q in range(n):
+        if f[q] >= EMPTY_DISTANCE2:
+            continue
+        g = np.int64(f[q]) + q * q
+        while k >= 0:
+            top = g - (np.int64(f[v[k]]) + v[k] * v[k])  # the boundary with parabola v[k]: top / bottom
+            bottom = 2 * (q - v[k])
+            if k > 0 and top * denominator[k] <= numerator[k] * bottom:
+                k -= 1  # parabola v[k] is nowhere lowest: drop it
+                continue
+            numerator[k + 1], denominator[k + 1] = top, bottom
+            break
         k += 1
         v[k] = q
-        z[k] = s
-        z[k + 1] = 1e30
-    k = 0
+    if k < 0:
+        for q in range(n):
+            out[q] = EMPTY_DISTANCE2
+        return
+    last, k = k, 0
     for q in range(n):
-        while z[k + 1] < q:
+        while k < last and numerator[k + 1] < q * denominator[k + 1]:
             k += 1
-        out[q] = (q - v[k]) ** 2 + f[v[k]]
+        out[q] = (q - v[k]) ** 2 + np.int64(f[v[k]])
 
 
 @njit(cache=True, parallel=True)
@@ -370,20 +381,21 @@ def _nearest_along_lines(occupied, out):
 @njit(cache=True, parallel=True)
 def _distance_pass(grid, axis, root):
     """One separable pass of the squared distance transform along `axis` (0 or 1), in place, each line gathered into
-    a buffer (float64, as the envelope computes) and written back; `root`: write the square root (the last pass)."""
+    a buffer and written back; `root`: write the square root (the last pass)."""
     n0, n1, n2 = grid.shape
     outer, length = (n1, n0) if axis == 0 else (n0, n1)
     for o in prange(outer):
-        line = np.empty(length)
-        out = np.empty(length)
+        line = np.empty(length, dtype=np.float32)
+        out = np.empty(length, dtype=np.float32)
         v = np.empty(length, dtype=np.int64)
-        z = np.empty(length + 1)
+        numerator = np.empty(length + 1, dtype=np.int64)
+        denominator = np.empty(length + 1, dtype=np.int64)
         for k in range(n2):
             for p in range(length):
                 line[p] = grid[p, o, k] if axis == 0 else grid[o, p, k]
-            _lower_envelope(line, length, out, v, z)
+            _lower_envelope(line, length, out, v, numerator, denominator)
             for p in range(length):
-                value = np.float32(out[p])
+                value = out[p]
                 if root:
                     value = np.float32(math.sqrt(value))
                 if axis == 0:
