@@ -485,8 +485,11 @@ def test_refiner_cached_render_equals_uncached(scene, edit):
     image = live.render(edited)
     if edit == "light":  # the object's geometry and what the camera sees of it are kept
         assert list(live.last_report.stages_run) == ["shade_floor", "shade", "splat_branch", "light"]
+    if edit in ("paint stroke", "object color"):  # paint keeps occupancy: the surface stays, its colors are redone
+        assert not {"shade_geometry", "shade_surface"} & set(live.last_report.stages_run)
+        assert {"shade_window", "shade_colors", "shade"} <= set(live.last_report.stages_run)
     if edit in ("floor color", "floor paint"):  # the shader's object stages do not read the floor
-        assert not {"shade_window", "shade_geometry", "shade_surface"} & set(live.last_report.stages_run)
+        assert not {"shade_window", "shade_geometry", "shade_surface", "shade_colors"} & set(live.last_report.stages_run)
         assert {"shade_floor", "shade"} <= set(live.last_report.stages_run)
     np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
     assert np.abs(image - live.render(scene)).max() > 1e-4

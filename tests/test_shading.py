@@ -12,7 +12,7 @@ from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
 from renderer.scene import GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
-from renderer.shading import kernels, shade_grid, shade_scene
+from renderer.shading import kernels, repaint_surface, shade, shade_grid, shade_scene, visible_surface
 from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates, object_geometry
 from renderer.shading.staged import StagedShader
 
@@ -323,3 +323,23 @@ def test_network_buffers_hold_the_shaded_image_and_its_buffers_in_order():
     assert np.all(buffers[~on, 9] == 0.0)
     for channel, field in ((10, image.visibility), (11, image.occlusion), (12, image.coverage)):
         np.testing.assert_array_equal(buffers[..., channel], field)
+
+
+def test_a_repainted_surface_is_the_surface_of_the_painted_object():
+    """Paint keeps occupancy: the surface traced for one paint, given the other paint's colors, is the surface traced
+    for that paint from scratch (and so is its shaded image); and its colors are the paint's, not the first's."""
+    rgba = ball(24, color=(0.7, 0.3, 0.2))
+    painted = rgba.copy()
+    painted[:12, ..., :3] = (0.1, 0.5, 0.9)
+    spec, elevation = ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7), rotation_deg=30.0), 25.0
+    first, second = (object_geometry(scene_grid(v, spec, FLOOR, elevation), elevation) for v in (rgba, painted))
+    fresh = visible_surface(second, SIZE)
+    repainted = repaint_surface(visible_surface(first, SIZE), second)
+    for part in ("albedo", "color_voxels", "points", "normals", "coverage"):
+        np.testing.assert_array_equal(getattr(repainted, part), getattr(fresh, part))
+    for part in ("albedo", "albedo_srgb", "normal", "occlusion"):
+        np.testing.assert_array_equal(getattr(repainted.images, part), getattr(fresh.images, part))
+    light = (0.5, 2.7, 0.3)
+    np.testing.assert_array_equal(shade(second, repainted, light, FLOOR).image, shade(second, fresh, light, FLOOR).image)
+    blue = np.all(np.isclose(repainted.images.albedo_srgb, (0.1, 0.5, 0.9)), axis=-1)
+    assert 0 < blue.sum() < repainted.pixels.shape[0]  # part of the ball was painted blue, and it shows

@@ -21,13 +21,14 @@ when those change:
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
                                                                           it, and previews)
-    shade_pool      paint, merge factors of the finer grid                the shader's finer grid (config.shading_grid_factor
-    shade_window    pool, placement (not the floor color)                 > 1): its merged voxels, the object's window
-    shade_geometry  as shade_window                                       the voxel shader's object geometry (networks
-    shade_surface   as shade_window                                       that read the shader: renderer/shading/), the
-    shade_floor     as floor_light                                        surface the camera sees, the empty floor's
-    shade           as shade_window, floor color, light position          lighting, the shaded image and buffers
-    preview_*       as shade_geometry, shade_surface, shade               the shader of the network's own grid: the drag
+    shade_pool      paint, merge factors of the finer grid                the voxel shader (networks that read it:
+    shade_window    paint, placement (not the floor color)                renderer/shading/): the finer grid's merged
+    shade_geometry  placement (paint keeps occupancy)                     voxels (config.shading_grid_factor > 1), the
+    shade_surface   as shade_geometry                                     object's window of the grid, its geometry,
+    shade_colors    as shade_window                                       the surface the camera sees, that surface's
+    shade_floor     as floor_light                                        colors, the empty floor's lighting, the
+    shade           as shade_window, floor color, light position          shaded image and buffers
+    preview_*       as shade_window ... shade                             the shader of the network's own grid: the drag
                                                                           preview when the shader's grid is finer
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
                   reads them)
@@ -35,9 +36,9 @@ when those change:
 
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
 runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
-networks that read the shader, like the shipped NVR+: shade_window, shade_geometry and shade_surface after an edit
-below that reruns placement or paint, shade_floor and shade after one that reruns floor_light; for the others a light
-move reruns the light stage alone):
+networks that read the shader, like the shipped NVR+: shade_window and shade_colors after an edit below that reruns
+paint or placement, shade_geometry and shade_surface only after one that reruns placement, shade_floor after one that
+reruns floor_light, and shade after all of these; for the others a light move reruns the light stage alone):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -98,7 +99,6 @@ from renderer.grid import (
     occupied_spans,
     pool_factors,
     pool_object,
-    pool_voxels,
     repool_voxels,
     sample_indices,
     voxel_table,
@@ -106,7 +106,7 @@ from renderer.grid import (
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
 from renderer.scene import Scene
-from renderer.shading import ObjectGeometry, ShadedImage, network_buffers, object_geometry, shade, visible_surface
+from renderer.shading import ShadedImage, network_buffers, object_geometry, repaint_surface, shade, visible_surface
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
@@ -140,6 +140,7 @@ class _Pooled(NamedTuple):
     painted: np.ndarray  # the painted voxels they were merged from
     source: tuple  # where those voxels were read from (_voxel_source)
     factors: tuple[int, int, int]
+    within: tuple | None  # the box of the non-empty merged voxels (renderer.grid.pool_object); paint keeps it
 
 
 class _Keys(NamedTuple):
@@ -151,7 +152,7 @@ class _Keys(NamedTuple):
     layout: tuple
     splat: tuple
     floor_light: tuple
-    shape: tuple  # what the shader's object geometry reads: the painted object and its placement
+    painted: tuple  # the painted object and its placement (the shader's window of it)
     shade: tuple
     splat_branch: tuple
 
@@ -288,16 +289,16 @@ class RenderEngine:
         splat = (paint_key, layout, floor)
         floor_light = (elevation, floor, scene.light.position)
         grid = (paint_key, placement, floor)
-        shape = (paint_key, placement)
-        shade = (shape, floor, scene.light.position)
+        painted_placed = (paint_key, placement)
+        shade = (painted_placed, floor, scene.light.position)
         splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
         return _Keys(pool=(paint_key, factors), placement=placement, grid=grid, layout=layout, splat=splat,
-                     floor_light=floor_light, shape=shape, shade=shade, splat_branch=splat_branch)
+                     floor_light=floor_light, painted=painted_placed, shade=shade, splat_branch=splat_branch)
 
     def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
         n, factors = keys.placement[1:3]
-        pooled = self._stage("pool", keys.pool, lambda: self._pool(painted, keys.pool[0][0], factors)).voxels
+        pooled = self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], factors)).voxels
         return pooled, self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
@@ -316,12 +317,15 @@ class RenderEngine:
         self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", keys.grid, lambda: self.encoder.encode(background, plan, self._grid_tensor(crop)))
 
-    def _pool(self, painted: np.ndarray, source: tuple, factors: tuple[int, int, int]) -> _Pooled:
-        """Merged voxels; after a paint edit (same object, same merge factors) only the blocks it touched are merged."""
-        last = self._memo["pool"][1] if "pool" in self._memo else None
+    def _pool(self, stage: str, painted: np.ndarray, source: tuple, factors: tuple[int, int, int]) -> _Pooled:
+        """Merged voxels (the network's grid's, or the shader's finer grid's); after a paint edit (same object, same
+        merge factors) only the blocks it touched are merged, and their box stays (paint keeps occupancy)."""
+        last = self._memo[stage][1] if stage in self._memo else None
         if last is not None and (last.source, last.factors) == (source, factors):
-            return _Pooled(repool_voxels(last.voxels, last.painted, painted, factors), painted, source, factors)
-        return _Pooled(pool_voxels(painted, factors), painted, source, factors)
+            return _Pooled(repool_voxels(last.voxels, last.painted, painted, factors), painted, source, factors,
+                           last.within)
+        pooled, within = pool_object(painted, factors)
+        return _Pooled(pooled, painted, source, factors, within)
 
     def _background(self, floor: tuple, elevation: float) -> Background:
         """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""
@@ -349,32 +353,37 @@ class RenderEngine:
     def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys, fine: bool = True) -> ShadedImage:
         """The voxel shader's image of the scene, from its cached stages (renderer/shading/). `fine`: from the grid the
         network's shader input is drawn from (config.shading_grid_size); else from the network's own grid, the fast
-        drag preview. The two are one set of stages when the grids are the same."""
+        drag preview. The two are one set of stages when the grids are the same.
+
+        The object's geometry and the surface the camera sees are kept on its placement alone (a paint stroke keeps
+        every voxel's occupancy); after a paint edit only the window's voxels and the surface's colors are redone."""
         elevation, finer = scene.camera.elevation_deg, self.config.shading_grid_factor > 1
         fine = fine and finer
-        geometry_stage, surface_stage, shade_stage = (("preview_geometry", "preview_surface", "preview_shade")
-                                                      if finer and not fine else
-                                                      ("shade_geometry", "shade_surface", "shade"))
+        stage = {name: (f"preview_{name}" if finer and not fine else f"shade_{name}")
+                 for name in ("window", "geometry", "surface", "colors")}
+        stage["shade"] = "preview_shade" if finer and not fine else "shade"
 
-        def geometry_of_window() -> ObjectGeometry:  # the shader reads only the grid's window that holds the object
+        def window() -> tuple[tuple[int, int, int], np.ndarray]:  # the shader reads only the grid's window of the object
             if fine:  # the finer grid's own merged voxels (kept while the object moves) and window
                 n, size = painted.shape[0], self.config.shading_grid_size
                 factors = pool_factors(n, scene.object.scale, size)
-                pooled, within = self._stage("shade_pool", (keys.pool[0], factors), lambda: pool_object(painted, factors))
-                start, window = self._stage("shade_window", keys.shape, lambda: object_window_voxels(
-                    pooled, within, n, factors, scene.object, elevation, size))
-                return object_geometry(window, elevation, start, size)
+                pooled = self._stage("shade_pool", (keys.pool[0], factors),
+                                     lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
+                return object_window_voxels(pooled.voxels, pooled.within, n, factors, scene.object, elevation, size)
             pooled, placement = self._placed(scene, painted, keys)
             box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
-            window = gather(voxel_table(pooled, (0.0, 0.0, 0.0)), placement.indices[box])  # the ground: not read
-            return object_geometry(window, elevation, tuple(s.start for s in box), self.config.grid_size)
+            return tuple(s.start for s in box), gather(voxel_table(pooled, (0.0, 0.0, 0.0)), placement.indices[box])
 
-        geometry = self._stage(geometry_stage, keys.shape, geometry_of_window)
-        surface = self._stage(surface_stage, keys.shape, lambda: visible_surface(geometry, self.output_size))
+        grid_size = self.config.shading_grid_size if fine else self.config.grid_size
+        start, voxels = self._stage(stage["window"], keys.painted, window)
+        shape = self._stage(stage["geometry"], keys.placement, lambda: object_geometry(voxels, elevation, start, grid_size))
+        geometry = replace(shape, rgb=voxels[..., :3])  # this paint's colors (kept geometry: an earlier paint's window)
+        traced = self._stage(stage["surface"], keys.placement, lambda: visible_surface(geometry, self.output_size))
+        surface = self._stage(stage["colors"], keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
-        return self._stage(shade_stage, keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
-                                                                  floor_terms))
+        return self._stage(stage["shade"], keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
+                                                                     floor_terms))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""

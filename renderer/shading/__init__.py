@@ -7,11 +7,12 @@ from renderer.shading.shader import (
     VisibleSurface,
     network_buffers,
     object_geometry,
+    repaint_surface,
     shade,
     shade_grid,
     shade_scene,
     visible_surface,
 )
 
-__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "object_geometry", "shade", "network_buffers", "shade_grid", "shade_scene",
+__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "object_geometry", "repaint_surface", "shade", "network_buffers", "shade_grid", "shade_scene",
            "visible_surface"]

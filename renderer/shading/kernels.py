@@ -179,9 +179,9 @@ def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask
 
 
 @njit(cache=True, parallel=True)
-def surface_normals_and_colors(smooth, occupied, rgb, rgb_offset, points, normals, colors):
-    """Per surface point: the unit normal (the gradient of the smoothed distance field) and the color of
-    the nearest occupied voxel (within two voxels; grey if none), rgb[crop index + rgb_offset]."""
+def surface_normals_and_voxels(smooth, occupied, points, normals, voxels):
+    """Per surface point: the unit normal (the gradient of the smoothed distance field) and the crop index of
+    the nearest occupied voxel within two voxels, whose color it takes (-1s if none: it is drawn grey)."""
     n0, n1, n2 = occupied.shape
     for i in prange(points.shape[0]):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
@@ -194,7 +194,7 @@ def surface_normals_and_colors(smooth, occupied, rgb, rgb_offset, points, normal
         else:
             normals[i, 0], normals[i, 1], normals[i, 2] = 0.0, 0.0, 0.0
         best = 1e30
-        colors[i, 0], colors[i, 1], colors[i, 2] = 0.5, 0.5, 0.5
+        voxels[i, 0], voxels[i, 1], voxels[i, 2] = -1, -1, -1
         ci, cj, ck = int(x), int(y), int(z)
         for a in range(max(ci - 2, 0), min(ci + 3, n0)):
             for b in range(max(cj - 2, 0), min(cj + 3, n1)):
@@ -203,8 +203,7 @@ def surface_normals_and_colors(smooth, occupied, rgb, rgb_offset, points, normal
                         d2 = (a + 0.5 - x) ** 2 + (b + 0.5 - y) ** 2 + (c + 0.5 - z) ** 2
                         if d2 < best:
                             best = d2
-                            a1, b1, c1 = a + rgb_offset[0], b + rgb_offset[1], c + rgb_offset[2]
-                            colors[i, 0], colors[i, 1], colors[i, 2] = rgb[a1, b1, c1, 0], rgb[a1, b1, c1, 1], rgb[a1, b1, c1, 2]
+                            voxels[i, 0], voxels[i, 1], voxels[i, 2] = a, b, c
 
 
 @njit(cache=True, parallel=True)

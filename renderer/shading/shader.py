@@ -29,7 +29,7 @@ and the shading already baked into photo-colored voxels.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
@@ -110,6 +110,7 @@ class VisibleSurface:
     pixels: np.ndarray  # (N, 2) int: row, column of the pixels with an object point
     points: np.ndarray  # (N, 3) world
     normals: np.ndarray  # (N, 3) world, unit
+    color_voxels: np.ndarray  # (N, 3) int: crop index of the voxel whose color the point takes (-1: none, grey)
     albedo: np.ndarray  # (N, 3) linear
     occlusion: np.ndarray  # (N,) ambient light reaching the point from the sky, 0..1
     depth: np.ndarray  # (N,) distance along the view axis
@@ -240,11 +241,10 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
         points_crop = point[r_idx, c_idx]
         coverage[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = cover
     normals_crop = np.zeros((len(points_crop), 3))
-    colors = np.zeros((len(points_crop), 3), dtype=np.float32)
+    color_voxels = np.full((len(points_crop), 3), -1, dtype=np.int64)
     occlusion = np.ones(len(points_crop), dtype=np.float32)
     if len(points_crop):
-        kernels.surface_normals_and_colors(geometry.smooth, geometry.occupied, geometry.rgb, geometry.rgb_offset,
-                                           points_crop, normals_crop, colors)
+        kernels.surface_normals_and_voxels(geometry.smooth, geometry.occupied, points_crop, normals_crop, color_voxels)
         occlusion = _surface_occlusion(geometry, points_crop, normals_crop)
     linear = geometry.grid_to_world[:3, :3]
     points_world = (points_crop + geometry.offset) @ linear.T + geometry.grid_to_world[:3, 3]
@@ -254,12 +254,29 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
 
     floor, floor_points = _floor_points(camera)
     floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_grid)
-    albedo = srgb_to_linear(np.clip(colors, 0.0, 1.0)).astype(np.float32)
-    images = _surface_images(size, pixels, np.clip(colors, 0.0, 1.0), albedo, normals_world, depth, occlusion, floor,
-                             floor_occlusion)
+    colors, albedo = _surface_colors(geometry, color_voxels)
+    images = _surface_images(size, pixels, colors, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
-                          albedo=albedo, occlusion=occlusion, depth=depth, floor=floor, floor_points=floor_points,
-                          floor_occlusion=floor_occlusion, images=images)
+                          color_voxels=color_voxels, albedo=albedo, occlusion=occlusion, depth=depth, floor=floor,
+                          floor_points=floor_points, floor_occlusion=floor_occlusion, images=images)
+
+
+def repaint_surface(surface: VisibleSurface, geometry: ObjectGeometry) -> VisibleSurface:
+    """`surface` with the colors of `geometry`, an object of the same shape and placement painted differently: a
+    paint stroke keeps every voxel's occupancy, so what the camera sees stays and only its colors are looked up."""
+    colors, albedo = _surface_colors(geometry, surface.color_voxels)
+    return replace(surface, albedo=albedo, images=replace(surface.images, **_color_images(surface.size, surface.pixels,
+                                                                                           colors, albedo)))
+
+
+def _surface_colors(geometry: ObjectGeometry, color_voxels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sRGB colors (clipped to [0, 1]) and linear albedos (N, 3) float32 of the voxels at crop indices
+    `color_voxels` (grey where -1)."""
+    colors = np.full(color_voxels.shape, 0.5, dtype=np.float32)
+    found = color_voxels[:, 0] >= 0
+    colors[found] = geometry.rgb[tuple((color_voxels[found] + geometry.rgb_offset).T)]
+    colors = np.clip(colors, 0.0, 1.0)
+    return colors, srgb_to_linear(colors).astype(np.float32)
 
 
 def _close_specks(cover: np.ndarray, size: int) -> np.ndarray:
@@ -282,17 +299,26 @@ def _surface_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: n
                     depth: np.ndarray, occlusion: np.ndarray, floor: np.ndarray, floor_occlusion: np.ndarray) -> SurfaceImages:
     """The visible points' values drawn into images (the floor's occlusion too); read-only, as they are shared."""
     r, c = pixels[:, 0], pixels[:, 1]
-    images = {name: np.zeros((size, size) + shape, dtype=np.float32)
-              for name, shape in (("albedo", (3,)), ("albedo_srgb", (3,)), ("normal", (3,)), ("depth", ()))}
+    images = {name: np.zeros((size, size) + shape, dtype=np.float32) for name, shape in (("normal", (3,)), ("depth", ()))}
     images["floor_occlusion"] = np.ones((size, size), dtype=np.float32)
     images["floor_occlusion"][floor] = floor_occlusion
     images["occlusion"] = images["floor_occlusion"].copy()
-    for name, values in (("albedo", albedo), ("albedo_srgb", colors), ("normal", normals), ("depth", depth),
-                         ("occlusion", occlusion)):
+    for name, values in (("normal", normals), ("depth", depth), ("occlusion", occlusion)):
         images[name][r, c] = values
     for image in images.values():
         image.flags.writeable = False
-    return SurfaceImages(**images)
+    return SurfaceImages(**images, **_color_images(size, pixels, colors, albedo))
+
+
+def _color_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: np.ndarray) -> dict[str, np.ndarray]:
+    """The albedo images (linear, and sRGB as a network reads it) of the visible points; read-only."""
+    images = {}
+    for name, values in (("albedo", albedo), ("albedo_srgb", colors)):
+        image = np.zeros((size, size, 3), dtype=np.float32)
+        image[pixels[:, 0], pixels[:, 1]] = values
+        image.flags.writeable = False
+        images[name] = image
+    return images
 
 
 def _pixel_window(geometry: ObjectGeometry, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
