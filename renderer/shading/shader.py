@@ -95,6 +95,7 @@ class ObjectGeometry:
     broad: np.ndarray  # occupancy blurred by BROAD_SIGMA
     grid_to_world: np.ndarray  # 4x4, continuous grid index -> world
     occluders: np.ndarray  # (M, 3) float64 world centres of the occupied voxels
+    occluder_box: np.ndarray  # (2, 3) their least and greatest world coordinates (0s if none): kept for every light
 
     @property
     def empty(self) -> bool:
@@ -188,7 +189,8 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
     return ObjectGeometry(
         elevation_deg=float(elevation_deg), offset=lo, occupied=occupied, rgb=grid[..., :3], rgb_offset=lo - start,
         distance_and_core=np.stack([distance, core], axis=-1), smooth=smooth, broad=_broad(solid),
-        grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders))
+        grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders),
+        occluder_box=np.stack([occluders.min(axis=0), occluders.max(axis=0)]) if len(occluders) else np.zeros((2, 3)))
 
 
 def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -526,7 +528,7 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
     points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
     seen = np.ones(len(floor_points))
-    lo, hi = geometry.occluders.min(axis=0), geometry.occluders.max(axis=0)
+    lo, hi = geometry.occluder_box
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
         kernels.light_visibility(floor_points, bias, lights, maps, bounds, seen)
