@@ -43,7 +43,7 @@ def compare(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:
 
 def run(device: str, precisions: list[str], scenes: int, repeats: int) -> dict:
     """Images and edit latencies of the shipped NVR+ on `device` in each precision and on the CPU in fp32."""
-    settings = BenchSettings(repeats=repeats, full_grid_edits=False)
+    settings = BenchSettings(repeats=repeats, edit_repeats=repeats, full_grid_edits=False)
     results: dict = {"machine": machine_description(), "device": device, "scenes": []}
     if device.startswith("cuda"):
         results["gpu"] = torch.cuda.get_device_name(device)
