@@ -2,7 +2,7 @@
 
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
-    window     pool, placement, elevation (the object alone: no floor color)  paint, object move, camera
+    window     pool, placement, elevation (not the floor color)            paint, object move, camera
     geometry   window                                                      the same
     surface    geometry, image size                                        the same
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
