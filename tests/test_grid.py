@@ -12,6 +12,7 @@ from renderer.grid import (
     gather,
     grid_index_to_world,
     ground_mask,
+    ground_mask_window,
     object_window,
     object_window_grid,
     object_window_indices,
@@ -278,3 +279,11 @@ def test_repooling_after_a_change_equals_pooling_from_scratch(factors):
     np.testing.assert_array_equal(repooled, pool_voxels(after, factors))
     np.testing.assert_array_equal(pooled, pool_voxels(before, factors))  # the old result is left alone
     np.testing.assert_array_equal(repool_voxels(pooled, before, before, factors), pooled)
+
+
+@pytest.mark.parametrize("elevation", [0.0, 20.0, 57.5, 89.0])
+@pytest.mark.parametrize("start, shape", [((0, 0, 0), (64, 64, 64)), ((10, 30, 5), (20, 25, 9)), ((63, 0, 40), (1, 64, 1))])
+def test_the_ground_of_a_window_is_the_whole_grids_ground_there(elevation, start, shape):
+    window = tuple(slice(a, a + n) for a, n in zip(start, shape))
+    mask = np.broadcast_to(ground_mask_window(elevation, 64, start, shape), shape)
+    np.testing.assert_array_equal(mask, ground_mask(elevation, 64)[window])

@@ -39,7 +39,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import grid_index_to_world, ground_mask, occupied_spans, scene_grid
+from renderer.grid import grid_index_to_world, ground_mask_window, occupied_spans, scene_grid
 from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import filters, kernels
 from renderer.splat import cached_floor_mask
@@ -164,8 +164,8 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
             or np.any(start < 0) or np.any(start + grid.shape[:3] > n)):
         raise InputError(f"a scene grid must be (N, N, N, 4) or a window of one, got {grid.shape} from {start.tolist()} "
                          f"in {n}^3")
-    window = tuple(slice(a, a + size) for a, size in zip(start, grid.shape[:3]))
-    occupied_window = (grid[..., 3] > 0.5) & ~ground_mask(float(elevation_deg), n)[window]
+    ground = ground_mask_window(float(elevation_deg), n, tuple(start), grid.shape[:3])
+    occupied_window = (grid[..., 3] > 0.5) & ~ground
     grid_to_world = grid_index_to_world(float(elevation_deg), n)
     spans = occupied_spans(occupied_window)  # argwhere over the object's box only, not the whole window
     found = (np.zeros((0, 3), dtype=int) if spans is None else
