@@ -262,10 +262,10 @@ def build_shadow_maps(occluders, radius, lights, size, depth, bounds):
             for u in range(max(int(a - r), 0), min(int(a + r) + 1, size)):
                 du = u + 0.5 - a
                 left = reach - du * du
-                for v in range(v0, v1):
+                for v in range(v0, v1):  # without a branch: which texels a disc covers is unpredictable
                     dv = v + 0.5 - b
-                    if dv * dv <= left and near < out[u, v]:
-                        out[u, v] = near
+                    current = out[u, v]
+                    out[u, v] = near if (dv * dv <= left) & (near < current) else current
 
 
 @njit(cache=True, parallel=True)
