@@ -134,6 +134,31 @@ def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits
 
 
 @njit(cache=True, parallel=True)
+def _cell_bounds(fields):
+    """Per cell (voxel centres i..i+1, j..j+1, k..k+1): the least distance (fields[..., 0]) and the most core
+    (fields[..., 1]) of its eight corners, by a pairwise min and max along each axis in turn."""
+    n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
+    least = np.empty((n0, n1, n2 - 1), dtype=fields.dtype)
+    most = np.empty((n0, n1, n2 - 1), dtype=fields.dtype)
+    for i in prange(n0):
+        for j in range(n1):
+            for k in range(n2 - 1):
+                least[i, j, k] = min(fields[i, j, k, 0], fields[i, j, k + 1, 0])
+                most[i, j, k] = max(fields[i, j, k, 1], fields[i, j, k + 1, 1])
+    for i in prange(n0):
+        for j in range(n1 - 1):
+            for k in range(n2 - 1):
+                least[i, j, k] = min(least[i, j, k], least[i, j + 1, k])
+                most[i, j, k] = max(most[i, j, k], most[i, j + 1, k])
+    for j in prange(n1 - 1):  # in place along i, ascending: each thread its own j, so i + 1 is not yet updated
+        for i in range(n0 - 1):
+            for k in range(n2 - 1):
+                least[i, j, k] = min(least[i, j, k], least[i + 1, j, k])
+                most[i, j, k] = max(most[i, j, k], most[i + 1, j, k])
+    return least, most
+
+
+@njit(cache=True, parallel=True)
 def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask):
     """mask[r, c] = True (image pixel row0 + r, col0 + c) where the centre ray may stop in `trace_surface`.
 
@@ -145,16 +170,11 @@ def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask
     (u * depth, v * depth, depth)."""
     n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
     rows, cols = mask.shape
+    least_of, most_of = _cell_bounds(fields)
     for i in prange(n0 - 1):
         for j in range(n1 - 1):
             for k in range(n2 - 1):
-                least, most = 1e30, -1e30
-                for a in range(i, i + 2):
-                    for b in range(j, j + 2):
-                        for c in range(k, k + 2):
-                            least = min(least, fields[a, b, c, 0])
-                            most = max(most, fields[a, b, c, 1])
-                if least - max(level, most + thin) >= HIT_GAP + slack:
+                if least_of[i, j, k] - max(level, most_of[i, j, k] + thin) >= HIT_GAP + slack:
                     continue
                 u0, u1, v0, v1 = 1e30, -1e30, 1e30, -1e30
                 for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
