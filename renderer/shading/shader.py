@@ -169,7 +169,8 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
     grid_to_world = grid_index_to_world(float(elevation_deg), n)
     spans = occupied_spans(occupied_window)  # argwhere over the object's box only, not the whole window
     found = (np.zeros((0, 3), dtype=int) if spans is None else
-             np.argwhere(occupied_window[tuple(slice(*span) for span in spans)]) + start + [lo for lo, _ in spans])
+             kernels.occupied_indices(occupied_window[tuple(slice(*span) for span in spans)]) + start
+             + [lo for lo, _ in spans])
     if found.size == 0:
         lo = np.zeros(3, dtype=int)
         hi = np.ones(3, dtype=int)
