@@ -344,9 +344,3 @@ def test_a_repainted_surface_is_the_surface_of_the_painted_object():
     blue = np.all(np.isclose(repainted.images.albedo_srgb, (0.1, 0.5, 0.9)), axis=-1)
     assert 0 < blue.sum() < repainted.pixels.shape[0]  # part of the ball was painted blue, and it shows
 
-
-@pytest.mark.parametrize("shape", [(1, 1, 1), (0, 3, 4), (5, 7, 4), (20, 31, 17)])
-@pytest.mark.parametrize("density", [0.0, 0.05, 1.0])
-def test_occupied_indices_are_numpys_argwhere(shape, density):
-    mask = np.random.default_rng(4).random(shape) < density
-    np.testing.assert_array_equal(kernels.occupied_indices(mask), np.argwhere(mask).reshape(-1, 3))

@@ -1,4 +1,4 @@
-"""The shader's compiled volume filters (renderer/shading/filters.py) against scipy.ndimage, to the last bit."""
+"""The shader's compiled volume filters (renderer/shading/filters.py) against scipy.ndimage and numpy, to the last bit."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from renderer.shading.filters import block_mean2, connected_to_border, gaussian_blur, minimum_filter
+from renderer.shading.filters import block_mean2, connected_to_border, gaussian_blur, minimum_filter, occupied_indices
 
 SHAPES = [(1, 1, 1), (2, 3, 1), (5, 1, 7), (4, 9, 3), (17, 12, 23)]
 
@@ -59,3 +59,10 @@ def test_a_closed_box_keeps_its_inside():
     blocked[3:6, 3:6, 3:6] = False  # a hollow cube: its cavity is not reached
     reached = connected_to_border(blocked)
     assert not reached[3:6, 3:6, 3:6].any() and reached[0].all() and reached.sum() == 9**3 - 5**3
+
+
+@pytest.mark.parametrize("shape", [(1, 1, 1), (0, 3, 4), (5, 7, 4), (20, 31, 17)])
+@pytest.mark.parametrize("density", [0.0, 0.05, 1.0])
+def test_occupied_indices_are_numpys_argwhere(shape, density):
+    mask = np.random.default_rng(4).random(shape) < density
+    np.testing.assert_array_equal(occupied_indices(mask), np.argwhere(mask).reshape(-1, 3))

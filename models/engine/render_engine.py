@@ -298,8 +298,8 @@ class RenderEngine:
     def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
         n, factors = keys.placement[1:3]
-        pooled = self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], factors)).voxels
-        return pooled, self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
+        pooled = self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], factors))
+        return pooled.voxels, self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         pooled, placement = self._placed(scene, painted, keys)
@@ -333,12 +333,11 @@ class RenderEngine:
         columns = narrow.width if narrow is not None and ground_is_column_invariant(elevation, g) else g
         return self.encoder.background(self._grid_tensor(ground_grid(floor, elevation, g, columns)))
 
-    def _place(self, n: int, factors: tuple[int, int, int], scene: Scene, pooled: np.ndarray) -> _Placement:
+    def _place(self, n: int, factors: tuple[int, int, int], scene: Scene, pooled: _Pooled) -> _Placement:
         g, elevation = self.config.grid_size, scene.camera.elevation_deg
-        within = occupied_spans(non_empty_voxels(pooled))
-        indices = sample_indices(n, factors, scene.object, elevation, g, within)
-        window = object_window(n, factors, scene.object, elevation, g, within)
-        spans = changed_spans(indices, pooled, ground_mask(elevation, g), window)
+        indices = sample_indices(n, factors, scene.object, elevation, g, pooled.within)
+        window = object_window(n, factors, scene.object, elevation, g, pooled.within)
+        spans = changed_spans(indices, pooled.voxels, ground_mask(elevation, g), window)
         return _Placement(indices, None if spans is None else self.encoder.plan(spans), window)
 
     def _splat_layout(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> SplatLayout:

@@ -435,40 +435,6 @@ def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
     return grid
 
 
-def occupied_indices(mask: np.ndarray) -> np.ndarray:
-    """np.argwhere(mask) of a 3-D bool array ((N, 3) int64 in C order): counted and written one depth slice per
-    thread (numpy's runs on one)."""
-    mask = np.ascontiguousarray(mask, dtype=np.bool_)
-    counts = _slice_counts(mask)
-    first = np.concatenate([np.zeros(1, dtype=np.int64), np.cumsum(counts)])
-    out = np.empty((int(first[-1]), 3), dtype=np.int64)
-    _fill_indices(mask, first, out)
-    return out
-
-
-@njit(cache=True, parallel=True)
-def _slice_counts(mask):
-    counts = np.zeros(mask.shape[0], dtype=np.int64)
-    for i in prange(mask.shape[0]):
-        total = 0
-        for j in range(mask.shape[1]):
-            for k in range(mask.shape[2]):
-                total += mask[i, j, k]
-        counts[i] = total
-    return counts
-
-
-@njit(cache=True, parallel=True)
-def _fill_indices(mask, first, out):
-    for i in prange(mask.shape[0]):
-        row = first[i]
-        for j in range(mask.shape[1]):
-            for k in range(mask.shape[2]):
-                if mask[i, j, k]:
-                    out[row, 0], out[row, 1], out[row, 2] = i, j, k
-                    row += 1
-
-
 @njit(cache=True, parallel=True)
 def composite(from_light, from_ambient, floor, visibility, floor_occlusion, background, rows, cols, radiance, cover,
               out):

@@ -168,15 +168,15 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
     occupied_window = (grid[..., 3] > 0.5) & ~ground
     grid_to_world = grid_index_to_world(float(elevation_deg), n)
     spans = occupied_spans(occupied_window)  # argwhere over the object's box only, not the whole window
-    found = (np.zeros((0, 3), dtype=int) if spans is None else
-             kernels.occupied_indices(occupied_window[tuple(slice(*span) for span in spans)]) + start
-             + [lo for lo, _ in spans])
-    if found.size == 0:
+    if spans is None:
+        found = np.zeros((0, 3), dtype=int)
         lo = np.zeros(3, dtype=int)
         hi = np.ones(3, dtype=int)
-    else:
-        lo = np.maximum(found.min(axis=0) - CROP_MARGIN, 0)
-        hi = np.minimum(found.max(axis=0) + CROP_MARGIN + 1, n)
+    else:  # the occupied voxels' box is the spans, in the window from `start`
+        first, stop = start + [a for a, _ in spans], start + [b for _, b in spans]
+        found = filters.occupied_indices(occupied_window[tuple(slice(*span) for span in spans)]) + first
+        lo = np.maximum(first - CROP_MARGIN, 0)
+        hi = np.minimum(stop + CROP_MARGIN, n)
     occupied = _in_box(occupied_window, start, lo, hi)
     solid = _solid(occupied)
     raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
