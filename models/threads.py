@@ -14,5 +14,6 @@ import torch
 
 def set_threads(count: int) -> None:
     """Run torch's operations and numba's parallel kernels on `count` threads (numba: at most its pool's size)."""
-    torch.set_num_threads(count)
+    # numba first: its first call starts its thread pool, which sets OpenMP's count (torch's) to the pool's size.
     numba.set_num_threads(max(1, min(count, numba.config.NUMBA_NUM_THREADS)))
+    torch.set_num_threads(count)
