@@ -291,7 +291,7 @@ def cmd_train(args: argparse.Namespace) -> None:
         steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
         lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, precision=precision,
         threads=args.threads, loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes,
-        perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop,
+        perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop, mse_weight=args.mse_weight,
         config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
     print(f"wrote {train(args.out, config, resume=args.resume)}")
@@ -482,6 +482,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-minutes", type=float, default=5.0)
     p.add_argument("--vgg-weights", default=None, help="torchvision VGG16 state dict for the perceptual loss")
     p.add_argument("--perceptual-crop", type=int, default=128, help="side of the perceptual loss crop (0: whole image)")
+    p.add_argument("--mse-weight", type=float, default=0.0, metavar="GAMMA",
+                   help="add GAMMA x the mean squared error to the loss (0: the paper's L1 + perceptual)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a network config field, e.g. --set grid_size=64 (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")

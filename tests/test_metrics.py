@@ -207,3 +207,28 @@ def test_loss_is_l1_plus_beta_perceptual(perceptual: PerceptualLoss) -> None:
     assert parts["l1"] == pytest.approx((images - targets).abs().mean().item())
     assert parts["perceptual"] == pytest.approx(perceptual(images, targets).mean().item())
     assert total.item() == pytest.approx(parts["l1"] + 0.5 * parts["perceptual"])
+
+
+def test_the_squared_error_term_adds_gamma_times_the_mse(perceptual: PerceptualLoss) -> None:
+    gen = torch.Generator().manual_seed(5)
+    images, targets = torch.rand(2, 3, 16, 16, generator=gen), torch.rand(2, 3, 16, 16, generator=gen)
+    plain_total, _ = RenderLoss(0.5)(images, targets)
+    total, parts = RenderLoss(0.5, mse_weight=10.0)(images, targets)
+    mse = float(np.mean((images.numpy().astype(np.float64) - targets.numpy()) ** 2))
+    assert parts["mse"] == pytest.approx(mse, rel=1e-5)
+    assert total.item() == pytest.approx(plain_total.item() + 10.0 * mse, rel=1e-5)
+
+
+def test_with_the_squared_term_the_best_constant_moves_from_the_median_towards_the_mean() -> None:
+    """Targets 0, 0 and 0.9 for one pixel: L1 alone is least at their median 0, MSE at their mean 0.3."""
+    targets = torch.tensor([0.0, 0.0, 0.9]).reshape(3, 1, 1, 1).expand(3, 3, 16, 16)
+    candidates = torch.linspace(0.0, 0.9, 91)
+
+    def best(mse_weight: float) -> float:
+        loss = RenderLoss(0.0, mse_weight=mse_weight)
+        totals = [loss(torch.full_like(targets, float(c)), targets)[0].item() for c in candidates]
+        return float(candidates[int(np.argmin(totals))])
+
+    assert best(0.0) == pytest.approx(0.0)
+    # L1's slope is 1/3 above the median; 2 gamma (c - 0.3) / 1 balances it at c = 0.3 - 1 / (6 gamma).
+    assert best(10.0) == pytest.approx(0.3 - 1.0 / 60.0, abs=0.006)

