@@ -343,4 +343,3 @@ def test_a_repainted_surface_is_the_surface_of_the_painted_object():
     np.testing.assert_array_equal(shade(second, repainted, light, FLOOR).image, shade(second, fresh, light, FLOOR).image)
     blue = np.all(np.isclose(repainted.images.albedo_srgb, (0.1, 0.5, 0.9)), axis=-1)
     assert 0 < blue.sum() < repainted.pixels.shape[0]  # part of the ball was painted blue, and it shows
-

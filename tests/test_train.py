@@ -103,14 +103,14 @@ def _with_colors_reordered(source: Path, out: Path, order: list[int]) -> None:
 
 
 def test_a_color_permuted_sample_is_the_sample_of_the_scene_with_its_colors_permuted(data, tmp_path):
-    """Light and sky are white, so the grid, the splat, the shader's image and buffers and the target of a scene
+    """Light and sky are white, so the grid, the splat, the lit floor, the shader's image and buffers and the target of a scene
     whose colors all have their channels reordered are the originals' with those channels reordered."""
     from models.training.data import permute_colors
 
     order = [2, 0, 1]
     _with_colors_reordered(data, tmp_path / "permuted", order)
-    plain = VoxelRenderSet([data], grid_size=16, shading=True)
-    permuted = VoxelRenderSet([tmp_path / "permuted"], grid_size=16, shading=True)
+    plain = VoxelRenderSet([data], grid_size=16, shading=True, floor_light=True)
+    permuted = VoxelRenderSet([tmp_path / "permuted"], grid_size=16, shading=True, floor_light=True)
     for index in range(len(plain)):
         batch = {key: value[None] for key, value in plain[index].items() if key != "index"}
         got = permute_colors(batch, torch.tensor([order]))

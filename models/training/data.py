@@ -205,16 +205,14 @@ def shading_tensor(grid: ShadingGrid, scene: Scene, size: int) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(buffers.transpose(2, 0, 1)))
 
 
-# Which channels hold colors, per input: a color permutation reorders these and leaves the rest.
-_COLOR_CHANNELS = {
-    "voxels": [0, 1, 2], "splat": [0, 1, 2], "target": [0, 1, 2], "floor_light": [0, 1, 2],
-}
-
-
-def _shading_color_channels() -> list[list[int]]:
+def _color_channel_groups() -> dict[str, list[list[int]]]:
+    """Per input that holds colors, its groups of (r, g, b) channels: a color permutation reorders each group and
+    leaves every other channel (the voxels' occupancy, the shader's normals, depth, visibility, coverage)."""
     from renderer.shading import BUFFER_CHANNELS
 
-    return [[BUFFER_CHANNELS.index(f"{group} {c}") for c in "rgb"] for group in ("image", "albedo")]
+    rgb = [[0, 1, 2]]
+    shading = [[BUFFER_CHANNELS.index(f"{group} {c}") for c in "rgb"] for group in ("image", "albedo")]
+    return {"voxels": rgb, "splat": rgb, "target": rgb, "floor_light": rgb, "shading": shading}
 
 
 def color_orders(seed: int, step: int, batch: int) -> torch.Tensor:
@@ -235,9 +233,7 @@ def permute_colors(batch: dict[str, torch.Tensor], orders: torch.Tensor) -> dict
     count = orders.shape[0]
     rows = torch.arange(count)[:, None]
     out = dict(batch)
-    groups = {key: [channels] for key, channels in _COLOR_CHANNELS.items()}
-    groups["shading"] = _shading_color_channels()
-    for key, channel_groups in groups.items():
+    for key, channel_groups in _color_channel_groups().items():
         if key not in batch:
             continue
         index = torch.arange(batch[key].shape[1]).repeat(count, 1)
