@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import shutil
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from renderer.errors import InputError
-from renderer.io import atomic_path, load_json, remove_stale_temporaries, save_json, save_png
+from renderer.io import atomic_path, load_image, load_json, remove_stale_temporaries, save_json, save_png
 from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 from renderer.scene import (
     ELEVATION_RANGE,
@@ -46,6 +47,7 @@ from renderer.scene import (
     LightSpec,
     ObjectSpec,
     Scene,
+    scene_from_dict,
 )
 
 DATA_FORMAT = 1
@@ -75,6 +77,7 @@ class DataConfig:
     seed: int = 0
     categories: tuple[str, ...] = ("chair",)
     resolution: int = 100
+    delight: bool = True  # photo-colored voxels carry the source photo's colors with its light divided out
 
     def check(self) -> None:
         """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
@@ -100,6 +103,7 @@ class DataConfig:
     def from_dict(cls, data: dict[str, Any]) -> DataConfig:
         data = dict(data)
         data["categories"] = tuple(data.get("categories", ("chair",)))
+        data.setdefault("delight", False)  # data sets made before the light was divided out
         return cls(**data)
 
 
@@ -229,10 +233,17 @@ def prepare_folder(out: Path, config: DataConfig) -> None:
     config_file = out / "config.json"
     if config_file.exists():
         stored = load_json(config_file).get("config")
-        if stored != config.to_dict():
+        if not isinstance(stored, dict) or _config_or_none(stored) != config:
             raise InputError("holds a data set made with other arguments; use another --out folder", out)
     else:
         save_json(config_file, {"format": DATA_FORMAT, "config": config.to_dict()})
+
+
+def _config_or_none(stored: dict[str, Any]) -> DataConfig | None:
+    try:
+        return DataConfig.from_dict(stored)
+    except TypeError:  # keys this version does not know
+        return None
 
 
 def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[str, Any]:
@@ -241,7 +252,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     from renderer.capture.pose import PhotoPose
     from renderer.objects import apply_appearance, generate_object, split_seeds
     from renderer.pathtrace.path_tracer import render_pathtraced
-    from renderer.photo import color_voxels_from_photo, is_mirror_symmetric
+    from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, photo_albedo
     from renderer.splat import splat_scene
     from renderer.transform import object_to_world
     from renderer.voxels import save_voxels, voxelize
@@ -269,8 +280,11 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, np.asarray(single_color, dtype=np.float32), 0.0)
     else:
         mirror = bool(is_mirror_symmetric(rgba[..., 3] > 0.5))
+        photo, trusted = source.image, None
+        if config.delight:
+            photo, trusted = photo_albedo(source.image, source_scene, rgba)
         rgba = color_voxels_from_photo(
-            rgba, object_to_world(source_scene.object), source.image, source_camera, mirror=mirror
+            rgba, object_to_world(source_scene.object), photo, source_camera, mirror=mirror, trusted=trusted
         ).rgba
     save_voxels(out / voxel_file, rgba)
     save_png(out / f"objects/{name}_source.png", source.image)
@@ -344,16 +358,90 @@ def generate_dataset(out: str | Path, config: DataConfig, shard: tuple[int, int]
     return write_manifest(out, config)
 
 
-def _run_jobs(jobs: list, workers: int) -> Iterator[int]:
+def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_one) -> Iterator[int]:
     if workers <= 1:
         for job in jobs:
-            yield _generate_one(job)
+            yield work(job)
         return
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        yield from pool.map(_generate_one, jobs)
+        yield from pool.map(work, jobs)
+
+
+def delight_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True) -> Path:
+    """A copy in `out` of a data set made before the light was divided out (config delight false) as generation
+    makes it now: photo-colored voxels recolored from their source photos with the light divided out, splats
+    redrawn from them. Targets and source photos are hard links where the file system allows (else copies);
+    rerun to resume. Returns the manifest path."""
+    from tqdm import tqdm
+
+    source, out = Path(source), Path(out)
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= MAX_WORKERS:
+        raise InputError(f"--workers must be a whole number from 1 to {MAX_WORKERS}, got {workers!r}")
+    stored = load_json(source / "config.json").get("config")
+    config = _config_or_none(stored) if isinstance(stored, dict) else None
+    if config is None:
+        raise InputError("config.json does not describe a data set", source)
+    if config.delight:
+        raise InputError("its voxels already carry colors with the light divided out", source)
+    if source.resolve() == out.resolve():
+        raise InputError("give another --out folder: the data set is copied, not changed in place", out)
+    config = dataclasses.replace(config, delight=True)
+    prepare_folder(out, config)
+    todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
+    bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"delight {source.name}")
+    for _ in _run_jobs([(str(source), str(out), name) for name in todo], workers, _delight_one):
+        bar.update(1)
+    bar.close()
+    return write_manifest(out, config)
+
+
+def _delight_one(args: tuple[str, str, str]) -> int:
+    """Recolor one object of a data set into `out` (see delight_dataset); its record is written last."""
+    from renderer.camera import Camera
+    from renderer.photo import color_voxels_from_photo, photo_albedo
+    from renderer.splat import splat_scene
+    from renderer.transform import object_to_world
+    from renderer.voxels import load_voxels, save_voxels
+
+    source, out, name = Path(args[0]), Path(args[1]), args[2]
+    record = load_json(source / "records" / f"{name}.json")
+    obj = record["object"]
+    floor_color = tuple(float(c) for c in obj["floor_color"])
+    rgba = load_voxels(source / obj["voxels"])
+    recolor = obj["setting"] != "single"
+    if recolor:
+        pose = load_json(source / obj["source_camera"])
+        view = View(elevation_deg=float(pose["elevation_deg"]), rotation_deg=float(pose["rotation_deg"]),
+                    translation=tuple(pose["translation"]), scale=tuple(pose["scale"]), light=tuple(pose["light"]))
+        source_scene = view_scene(view, obj["voxels"], floor_color, int(pose["width"]))
+        photo = load_image(source / obj["source_image"])[0]
+        albedo, known = photo_albedo(photo, source_scene, rgba)
+        rgba = color_voxels_from_photo(rgba, object_to_world(source_scene.object), albedo,
+                                       Camera.from_scene(source_scene), mirror=bool(obj["mirror_symmetry_used"]),
+                                       trusted=known).rgba
+        save_voxels(out / obj["voxels"], rgba)
+    links = [obj["source_image"], obj["source_camera"]] + [s["target"] for s in record["samples"]]
+    links += [] if recolor else [obj["voxels"]] + [s["splat"] for s in record["samples"]]
+    for rel in links:
+        _link_or_copy(source / rel, out / rel)
+    if recolor:
+        for sample in record["samples"]:
+            scene = scene_from_dict(sample["scene"])
+            save_png(out / sample["splat"], splat_scene(scene, rgba, floor_color))
+    save_json(out / "records" / f"{name}.json", record)
+    return int(obj["index"])
+
+
+def _link_or_copy(source: Path, target: Path) -> None:
+    with atomic_path(target) as tmp:
+        tmp.unlink()
+        try:
+            os.link(source, tmp)
+        except OSError:
+            shutil.copyfile(source, tmp)
 
 
 def write_manifest(out: Path, config: DataConfig) -> Path:

@@ -9,6 +9,11 @@ Visible voxels take the photo color at their centre's projection (bilinear). A h
 takes the color of the first occupied voxel that the ray from the camera through its centre
 meets; with `mirror`, a hidden voxel whose mirror voxel across the object's plane x = 0
 (i -> N-1-i) is visible copies that voxel's color instead.
+
+A photo shows color times light. When the photo's light is known (the data generator's source images,
+a capture with the light given), `photo_albedo` divides out the light the voxel shader computes for the
+object under it, so that the voxels carry albedo, as mesh colors and paint do, rather than a shading the
+renderers would apply a second time.
 """
 
 from __future__ import annotations
@@ -18,8 +23,10 @@ from typing import NamedTuple
 import numpy as np
 
 from renderer.camera import Camera
+from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.raymarch import OccupancyMarcher
+from renderer.scene import Scene
 from renderer.surface import check_object_voxels, grid_from_world, occupancy, surface_mask, voxel_centers_at
 from renderer.transform import apply_transform
 
@@ -27,6 +34,12 @@ from renderer.transform import apply_transform
 # tolerates a few percent of voxels that differ through rounding on thin parts, and rejects
 # shapes whose halves differ in a tenth of their volume (one armrest, an off-centre lever).
 MIRROR_IOU_THRESHOLD = 0.9
+# Dividing out the light: the shading is drawn for a grey object of this linear albedo (headroom to twice the
+# light an albedo of 1 would reflect before the sRGB image clips); pixels whose shading is below MIN_SHADING
+# (deep shadow, where the photo holds little but noise) or that are not fully covered keep no color of their own.
+SHADING_GREY = 0.5
+MIN_SHADING = 0.02
+SHADING_GRID_SIZE = 256  # the voxel shader's finer grid: one grid voxel per object voxel at scale 1
 
 
 class PhotoColors(NamedTuple):
@@ -64,6 +77,25 @@ def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.
         source = _trusted_sources(source, visible, occupied, matrix, camera, np.asarray(trusted, dtype=bool))
     rgba[occupied, :3] = _photo_at_voxels(photo, matrix, camera, source[occupied], n)
     return PhotoColors(rgba, visible)
+
+
+def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A photo taken by `scene`'s camera of the object voxels `object_rgba`, placed and lit as in `scene`, with the
+    light divided out: the albedo (H, W, 3) sRGB in [0, 1], and (H, W) bool where it is known (the object covers
+    the pixel fully, the light there is strong enough to divide, the shading did not clip). Elsewhere the albedo
+    is 0; pass the mask to color_voxels_from_photo as `trusted`."""
+    from renderer.shading.shader import shade_scene  # numba kernels: loaded only when a light is divided out
+
+    camera = Camera.from_scene(scene)
+    photo = _check_photo(photo_rgb, camera)
+    grey = check_object_voxels(object_rgba).copy()
+    occupied = occupancy(grey)
+    grey[..., :3] = np.where(occupied[..., None], np.float32(linear_to_srgb(SHADING_GREY)), np.float32(0.0))
+    shaded = shade_scene(scene, grey, scene.floor.color, grid_size=SHADING_GRID_SIZE)
+    shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
+    known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
+    albedo = np.where(known[..., None], srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING), 0.0)
+    return np.clip(linear_to_srgb(np.clip(albedo, 0.0, 1.0)), 0.0, 1.0).astype(np.float32), known
 
 
 def _trusted_sources(source: np.ndarray, visible: np.ndarray, occupied: np.ndarray, matrix: np.ndarray, camera: Camera,

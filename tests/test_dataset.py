@@ -3,13 +3,16 @@
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from renderer.dataset import (
     DataConfig,
+    delight_dataset,
     generate_dataset,
     merge_datasets,
     sample_test_sequence,
@@ -100,6 +103,32 @@ def test_a_folder_of_another_config_is_refused(reference):
     other = DataConfig(**{**TINY.to_dict(), "categories": ("chair",), "seed": 1})
     with pytest.raises(InputError, match="other arguments"):
         generate_dataset(reference, other, progress=False)
+
+
+def test_a_set_made_before_delighting_is_copied_as_generation_makes_it_now(reference, tmp_path):
+    """`nvr data delight`: the copy's voxels and splats are the ones generation with the light divided out makes
+    (up to the source photo's 8-bit rounding, which generation does not go through), its targets are links."""
+    old = tmp_path / "old"
+    generate_dataset(old, replace(TINY, delight=False), progress=False)
+    stored = json.loads((old / "config.json").read_text())
+    del stored["config"]["delight"]  # as data sets made before the option hold it
+    (old / "config.json").write_text(json.dumps(stored))
+    delight_dataset(old, tmp_path / "new", progress=False)
+    new = tmp_path / "new"
+    assert manifest_of(new)["config"] == TINY.to_dict()
+    assert manifest_of(new)["samples"] == manifest_of(reference)["samples"]
+    for obj in manifest_of(reference)["objects"]:
+        before, after, made = (np.load(f / obj["voxels"])["rgba"].astype(int) for f in (old, new, reference))
+        occupied = made[..., 3] > 0
+        assert np.array_equal(after[..., 3], made[..., 3])
+        assert np.abs(after - made)[occupied].max() <= 3  # 8-bit steps
+        assert np.abs(after - before)[occupied].mean() > 5  # the light was divided out: colors changed
+    for sample in manifest_of(reference)["samples"]:
+        assert (new / sample["target"]).stat().st_ino == (old / sample["target"]).stat().st_ino
+        splat_new, splat_made = (np.asarray(Image.open(f / sample["splat"]), dtype=int) for f in (new, reference))
+        assert np.abs(splat_new - splat_made).max() <= 3
+    with pytest.raises(InputError, match="already carry"):
+        delight_dataset(new, tmp_path / "again", progress=False)
 
 
 def test_sampling_protocol_ranges():
