@@ -6,6 +6,7 @@ Every user error (bad file, impossible value) prints one line and exits with cod
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 import time
 from pathlib import Path
@@ -138,8 +139,9 @@ def cmd_capture(args: argparse.Namespace) -> None:
     search = args.auto or pose is None
     rgba = voxelize(mesh, resolution=args.res)
     box = _parse_box(args.box, photo.shape)
+    light = None if args.light is None else _parse_numbers(args.light, 3, "--light", "x,y,z")
     captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
-                                  free_focal=args.free_focal, box=box)
+                                  free_focal=args.free_focal, box=box, light=light)
     save_voxels(voxels_out, captured.rgba)
     save_pose(camera_out, captured.pose)
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
@@ -156,8 +158,19 @@ def cmd_capture(args: argparse.Namespace) -> None:
     occupied = int((captured.rgba[..., 3] > 0.5).sum())
     mirror = "used" if captured.mirror_used else "not used"
     print(f"colors: {seen} of {occupied} voxels seen in the photo; mirror copy {mirror} "
-          f"(symmetry IoU {captured.mirror_score:.2f})")
+          f"(symmetry IoU {captured.mirror_score:.2f}); {captured.light_note}")
     print(f"wrote {scene_out}, {voxels_out}, {camera_out}")
+
+
+def _parse_numbers(text: str, count: int, option: str, form: str) -> tuple[float, ...]:
+    """An option of `count` comma-separated finite numbers."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count or not all(math.isfinite(v) for v in values):
+        raise InputError(f"{option} takes {form} ({count} numbers), got {text!r}")
+    return values
 
 
 def _parse_box(text: str | None, shape) -> tuple[int, int, int, int] | None:
@@ -411,6 +424,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--auto", action="store_true",
                    help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
     p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
+    p.add_argument("--light", default=None, metavar="X,Y,Z",
+                   help="the light's centre when the photo was taken (world units; default: the camera file's "
+                        "light, if any): its light is then divided out of the colors")
     p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
                    help="the object's box in photo pixels: outside it is background (needed on cluttered photos)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")

@@ -83,7 +83,8 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     """A photo taken by `scene`'s camera of the object voxels `object_rgba`, placed and lit as in `scene`, with the
     light divided out: the albedo (H, W, 3) sRGB in [0, 1], and (H, W) bool where it is known (the object covers
     the pixel fully, the light there is strong enough to divide, the shading did not clip). Elsewhere the albedo
-    is 0; pass the mask to color_voxels_from_photo as `trusted`."""
+    is that of the nearest pixel where it is known (0 if none is); pass the mask to color_voxels_from_photo as
+    `trusted`."""
     from renderer.shading.shader import shade_scene  # numba kernels: loaded only when a light is divided out
 
     camera = Camera.from_scene(scene)
@@ -94,7 +95,14 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     shaded = shade_scene(scene, grey, scene.floor.color, grid_size=SHADING_GRID_SIZE)
     shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
     known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
-    albedo = np.where(known[..., None], srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING), 0.0)
+    albedo = srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING)
+    if known.any() and not known.all():  # the nearest known albedo elsewhere: bilinear reads beside a known pixel
+        from scipy import ndimage
+
+        nearest = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
+        albedo = albedo[nearest[0], nearest[1]]
+    elif not known.any():
+        albedo = np.zeros_like(albedo)
     return np.clip(linear_to_srgb(np.clip(albedo, 0.0, 1.0)), 0.0, 1.0).astype(np.float32), known
 
 

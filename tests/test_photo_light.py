@@ -1,10 +1,14 @@
 """Dividing a photo's light out (renderer.photo.photo_albedo): photos whose albedo is known, drawn by the voxel
 shader and by the path tracer, give it back; dark, empty and odd inputs stay finite."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
 
+from renderer.capture.capture import capture_appearance
+from renderer.capture.pose import pose_from_dict
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
 from renderer.pathtrace.path_tracer import render_pathtraced
@@ -40,11 +44,11 @@ def test_a_photo_drawn_by_the_shader_gives_back_the_voxel_colors(light):
     photo = shade_scene(scene, rgba, FLOOR, grid_size=256).image
     albedo, known = photo_albedo(photo, scene, rgba)
     assert known.sum() > 100
-    # Every pixel whose light is known is one of the two colors, and both halves are seen.
-    distance = np.stack([np.abs(albedo[known] - np.float32(c)).max(axis=1) for c in (RED, BLUE)])
+    # Every pixel whose light is known is one of the two colors, and both halves are seen; the other pixels take
+    # a known one's.
+    distance = np.stack([np.abs(albedo - np.float32(c)).max(axis=2) for c in (RED, BLUE)])
     assert distance.min(axis=0).max() < 2e-3
-    assert (distance[0] < 2e-3).sum() > 20 and (distance[1] < 2e-3).sum() > 20
-    assert np.all(albedo[~known] == 0.0)
+    assert (distance[0][known] < 2e-3).sum() > 20 and (distance[1][known] < 2e-3).sum() > 20
 
 
 def test_a_path_traced_photo_of_a_grey_box_gives_back_its_albedo():
@@ -88,3 +92,41 @@ def test_a_photo_of_another_size_is_refused():
     rgba = two_colored_block()
     with pytest.raises(InputError, match="32x32 pixels but its camera is 64x64"):
         photo_albedo(np.zeros((32, 32, 3), dtype=np.float32), photo_scene(), rgba)
+
+
+def captured_colors(photo, pose, rgba, light=None):
+    capture = capture_appearance(rgba, None, photo, None, pose, search=False, light=light)
+    return capture.rgba, capture.light_note
+
+
+def test_capture_divides_out_the_light_its_camera_file_names():
+    rgba = two_colored_block()
+    rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, np.float32(RED), np.float32(0.0))
+    light = (0.6, 2.6, 0.4)
+    scene = replace(photo_scene(light), floor=FloorSpec())  # capture knows no floor color: the scene's default
+    photo = shade_scene(scene, rgba, scene.floor.color, grid_size=256).image
+    pose = pose_from_dict({"elevation_deg": 30.0, "width": SIZE, "height": SIZE, "rotation_deg": 25.0,
+                           "light": list(light)})
+    assert pose.light == light and pose_from_dict(pose.to_dict()) == pose
+    occupied = rgba[..., 3] > 0.5
+    delit, note = captured_colors(photo, pose, rgba)
+    assert "divided out" in note
+    # Every voxel, seen or copied from a seen one, gets the block's color back: the shading is gone.
+    assert np.abs(delit[occupied, :3] - np.float32(RED)).max() < 0.01
+    kept, note = captured_colors(photo, replace(pose, light=None), rgba)
+    assert "unknown" in note
+    assert np.median(np.abs(kept[occupied, :3] - np.float32(RED)).max(axis=1)) > 0.2
+    # The --light option gives the same as the camera file's light.
+    given, _ = captured_colors(photo, replace(pose, light=None), rgba, light=light)
+    np.testing.assert_array_equal(given, delit)
+    # Off the scene camera (another lens) the shader cannot draw the photo's view: the shading is kept, and said so.
+    zoomed = replace(pose, camera=replace(pose.camera, focal_mm=50.0))
+    off, note = captured_colors(photo, zoomed, rgba)
+    assert "not the scene camera" in note
+    np.testing.assert_array_equal(off, captured_colors(photo, replace(zoomed, light=None), rgba)[0])
+
+
+@pytest.mark.parametrize("light", [[1.0, 2.0], [1.0, "up", 0.0], [1.0, float("nan"), 0.0]])
+def test_a_camera_file_with_a_bad_light_is_refused(light):
+    with pytest.raises(InputError, match="light must be"):
+        pose_from_dict({"elevation_deg": 30.0, "width": SIZE, "height": SIZE, "light": light}, path="cam.json")

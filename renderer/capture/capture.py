@@ -3,7 +3,9 @@ object's voxels from the pixels they project to (renderer/photo.py).
 
 The pose comes from a camera file, from the automatic search (renderer/capture/align.py) on the
 object's mask in the photo (renderer/capture/segment.py), or from both: the file's pose refined
-by the search. Colors keep the photo's shading; the network is trained on such inputs.
+by the search. When the pose knows the photo's light and its camera is the scene camera (a square photo
+on the scene camera's orbit, as the data generator and the editor take them), the light is divided out of
+the colors (renderer.photo.photo_albedo), as the training data's are; otherwise they keep the photo's shading.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
+from renderer.camera import Camera
 from renderer.capture.align import (
     Alignment,
     align_pose,
@@ -30,8 +33,8 @@ from renderer.capture.pose import PhotoPose
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
-from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
-from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
+from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score, photo_albedo
+from renderer.scene import CameraSpec, LightSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
@@ -49,6 +52,7 @@ class Capture:
     mirror_score: float  # IoU of the occupancy with its mirror across x = 0
     mirror_used: bool  # hidden voxels copied their mirror voxel's color
     alignment: Alignment | None  # the search's result; None when the camera file alone gave the pose
+    light_note: str  # whether the photo's light was divided out of the colors, and if not why
 
 
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
@@ -165,7 +169,7 @@ def mask_at_size(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
                        path: str | Path | None = None, free_focal: bool = False, mask: np.ndarray | None = None,
-                       **hints) -> Capture:
+                       light: tuple[float, float, float] | None = None, **hints) -> Capture:
     """Color `object_rgba` (voxels of `mesh`) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
@@ -173,7 +177,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     of the same photo is scaled to it; another aspect ratio is an error. Colors come from pixels well
     inside the object's mask: `mask` when given, else the search's last segmentation, else the photo
     segmented with the user's `hints` (box, strokes: see find_pose) and the pose's silhouette (when `mesh`
-    is given).
+    is given). `light` (world), when given, is the photo's light; else the pose's, if it knows one.
     """
     if pose is None and not search:
         raise InputError("a photo needs a camera file or the automatic alignment", path)
@@ -183,8 +187,10 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     alignment = None
     if search:
         alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, **hints)
-        pose = alignment.pose
+        pose = replace(alignment.pose, light=None if pose is None else pose.light)
         mask = alignment.mask if mask is None else mask
+    if light is not None:
+        pose = replace(pose, light=tuple(float(v) for v in light))
     pose = pose.at_size(w, h)
     if mask is None:
         try:
@@ -195,12 +201,31 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     occupied = object_rgba[..., 3] > 0.5
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
+    trusted = trusted_pixels(mask)
+    light_scene, light_note = photo_light_scene(pose)
     try:
+        if light_scene is not None:
+            photo_rgb, known = photo_albedo(photo_rgb, light_scene, object_rgba)
+            trusted = known if trusted is None else trusted & known
         colors = color_voxels_from_photo(object_rgba, pose.object_to_world(), photo_rgb, pose.camera, mirror=mirror,
-                                         trusted=trusted_pixels(mask))
+                                         trusted=trusted)
     except InputError as exc:
         raise InputError(exc.problem, path) from None
-    return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment)
+    return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment, light_note)
+
+
+def photo_light_scene(pose: PhotoPose) -> tuple[Scene | None, str]:
+    """The scene the photo shows, lit as it was, when its light can be divided out (the pose knows the light and its
+    camera is the scene camera at a square size); else None. The note says which, for the user."""
+    if pose.light is None:
+        return None, "the photo's light is unknown: colors keep its shading"
+    c = pose.camera
+    if c != Camera(c.elevation_deg, width=c.width, height=c.width):
+        return None, ("the photo's camera is not the scene camera (a square photo from its orbit, 40 mm lens): "
+                      "colors keep its shading")
+    scene = Scene(object=pose.placed(ObjectSpec()), light=LightSpec(tuple(float(v) for v in pose.light)),
+                  camera=CameraSpec(c.elevation_deg), image_size=c.width)
+    return scene, f"the photo's light at {list(pose.light)} divided out"
 
 
 def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:

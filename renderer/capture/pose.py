@@ -10,7 +10,8 @@ Camera file (JSON; the data generator writes one beside each appearance image):
     rotation_deg, translation [x, z], scale   the object's placement (default: the scene's)
     distance, focal_mm, sensor_mm             the camera (default: the scene camera's)
     azimuth_deg, principal_offset [du, dv]    optional, for photos taken off the usual orbit
-Other keys (the generator's "light") are ignored.
+    light [x, y, z]                           optional: the square light's centre when the photo was taken
+                                              (world units); capture then divides the light out of the colors
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ class PhotoPose:
     rotation_deg: float = 0.0
     translation: tuple[float, float] = (0.0, 0.0)
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    light: tuple[float, float, float] | None = None  # the light's centre in the photo, when known
 
     def placed(self, spec: ObjectSpec) -> ObjectSpec:
         """`spec` moved to where the object stood in the photo."""
@@ -69,6 +71,8 @@ class PhotoPose:
             data["azimuth_deg"] = c.azimuth_deg
         if c.principal_offset != (0.0, 0.0):
             data["principal_offset"] = list(c.principal_offset)
+        if self.light is not None:
+            data["light"] = list(self.light)
         return data
 
 
@@ -97,8 +101,10 @@ def pose_from_dict(data: Any, spec: ObjectSpec = DEFAULT_PLACEMENT, path: str | 
     scale = tuple(_numbers(data, "scale", 3, path, spec.scale))
     if min(scale) <= 0:
         raise InputError("scale must be positive", path)
+    light = tuple(_numbers(data, "light", 3, path, ())) if "light" in data else None
     return PhotoPose(camera, rotation_deg=_number(data, "rotation_deg", path, spec.rotation_deg),
-                     translation=tuple(_numbers(data, "translation", 2, path, spec.translation)), scale=scale)
+                     translation=tuple(_numbers(data, "translation", 2, path, spec.translation)), scale=scale,
+                     light=light)
 
 
 def load_pose(path: str | Path, spec: ObjectSpec = DEFAULT_PLACEMENT) -> PhotoPose:
