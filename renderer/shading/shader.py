@@ -23,7 +23,8 @@ the 128^3 grid merges in pairs); lengths below in voxels are the grid's voxels.
 
 A light move reruns only `shade`, an object move all three. Known gaps (a network's job): the
 floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
-and the shading already baked into photo-colored voxels.
+and whatever shading stays in photo-colored voxels (renderer/photo.py divides the photo's light out
+when it is known, with this shader's own light, so its errors stay in the colors).
 """
 
 from __future__ import annotations
