@@ -130,3 +130,18 @@ def test_capture_divides_out_the_light_its_camera_file_names():
 def test_a_camera_file_with_a_bad_light_is_refused(light):
     with pytest.raises(InputError, match="light must be"):
         pose_from_dict({"elevation_deg": 30.0, "width": SIZE, "height": SIZE, "light": light}, path="cam.json")
+
+
+def test_the_editors_photo_keeps_its_light_whatever_pose_it_takes(tmp_path):
+    """The light is the photo's: a search's or a drag's pose, which knows none, does not drop it."""
+    from PIL import Image
+
+    from app.editor.photo_capture import PhotoAlignment
+
+    Image.new("RGB", (SIZE, SIZE), (120, 120, 120)).save(tmp_path / "photo.png")
+    (tmp_path / "camera.json").write_text('{"elevation_deg": 30, "width": 64, "height": 64, "light": [0.5, 2.5, 0.2]}')
+    photo = PhotoAlignment(tmp_path / "photo.png", photo_scene(), tmp_path / "camera.json")
+    assert photo.pose.light == (0.5, 2.5, 0.2)
+    photo.set_pose(replace(photo.pose, rotation_deg=40.0, light=None))
+    photo.turn(10.0, 0.0)
+    assert photo.pose.light == (0.5, 2.5, 0.2) and photo.pose.rotation_deg == pytest.approx(45.0)

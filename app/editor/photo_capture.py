@@ -122,7 +122,9 @@ class PhotoAlignment:
     def set_pose(self, pose: PhotoPose) -> None:
         h, w = self.rgb.shape[:2]
         elevation = float(np.clip(pose.camera.elevation_deg, 0.0, MAX_ELEVATION_DEG))
-        self.pose = replace(pose, camera=replace(pose.camera, elevation_deg=elevation)).at_size(w, h)
+        # The light is the photo's (its camera file's), whatever pose a search or a drag proposes.
+        self.pose = replace(pose, camera=replace(pose.camera, elevation_deg=elevation),
+                            light=self.pose.light).at_size(w, h)
         self.revision += 1
 
     def turn(self, dx_pixels: float, dy_pixels: float) -> None:
