@@ -129,6 +129,7 @@ def cmd_capture(args: argparse.Namespace) -> None:
     from renderer.scene import save_scene
     from renderer.voxels import save_voxels, voxelize
 
+    light = None if args.light is None else _parse_numbers(args.light, 3, "--light", "x,y,z")
     scene_out = _output_path(args.output, args.force)
     stem = scene_out.with_suffix("")
     voxels_out = _output_path(f"{stem}_colors.npz", args.force)
@@ -139,7 +140,6 @@ def cmd_capture(args: argparse.Namespace) -> None:
     search = args.auto or pose is None
     rgba = voxelize(mesh, resolution=args.res)
     box = _parse_box(args.box, photo.shape)
-    light = None if args.light is None else _parse_numbers(args.light, 3, "--light", "x,y,z")
     captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
                                   free_focal=args.free_focal, box=box, light=light)
     save_voxels(voxels_out, captured.rgba)

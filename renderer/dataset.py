@@ -389,8 +389,10 @@ def delight_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
     config = dataclasses.replace(config, delight=True)
-    prepare_folder(out, config)
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
+    for name in todo:  # every record readable before anything is written
+        _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json")
+    prepare_folder(out, config)
     bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"delight {source.name}")
     for _ in _run_jobs([(str(source), str(out), name) for name in todo], workers, _delight_one):
         bar.update(1)
@@ -398,15 +400,38 @@ def delight_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     return write_manifest(out, config)
 
 
+RECORD_OBJECT_KEYS = ("index", "setting", "floor_color", "voxels", "source_image", "source_camera",
+                      "mirror_symmetry_used")
+
+
+def _check_record(record: Any, path: Path) -> None:
+    """InputError naming `path` unless the record holds what recoloring an object reads."""
+    obj = record.get("object") if isinstance(record, dict) else None
+    samples = record.get("samples") if isinstance(record, dict) else None
+    missing = [key for key in RECORD_OBJECT_KEYS if not isinstance(obj, dict) or key not in obj]
+    if missing or not isinstance(samples, list) or not all(
+            isinstance(s, dict) and all(k in s for k in ("scene", "target", "splat")) for s in samples):
+        what = f"object keys {', '.join(missing)}" if missing else "samples with a scene, target and splat each"
+        raise InputError(f"not a data set record: it lacks {what}", path)
+
+
 def _delight_one(args: tuple[str, str, str]) -> int:
     """Recolor one object of a data set into `out` (see delight_dataset); its record is written last."""
+    source, out, name = Path(args[0]), Path(args[1]), args[2]
+    try:
+        return _delight_object(source, out, name)
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise InputError(f"a malformed record or camera file ({type(exc).__name__}: {exc})",
+                         source / "records" / f"{name}.json") from None
+
+
+def _delight_object(source: Path, out: Path, name: str) -> int:
     from renderer.camera import Camera
     from renderer.photo import color_voxels_from_photo, photo_albedo
     from renderer.splat import splat_scene
     from renderer.transform import object_to_world
     from renderer.voxels import load_voxels, save_voxels
 
-    source, out, name = Path(args[0]), Path(args[1]), args[2]
     record = load_json(source / "records" / f"{name}.json")
     obj = record["object"]
     floor_color = tuple(float(c) for c in obj["floor_color"])
@@ -436,6 +461,8 @@ def _delight_one(args: tuple[str, str, str]) -> int:
 
 
 def _link_or_copy(source: Path, target: Path) -> None:
+    if not source.is_file():
+        raise InputError("file not found", source)
     with atomic_path(target) as tmp:
         tmp.unlink()
         try:
