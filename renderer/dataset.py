@@ -426,10 +426,9 @@ def _delight_one(args: tuple[str, str, str]) -> int:
 
 
 def _delight_object(source: Path, out: Path, name: str) -> int:
-    from renderer.camera import Camera
+    from renderer.capture.pose import lit_photo_scene, load_pose
     from renderer.photo import color_voxels_from_photo, photo_albedo
     from renderer.splat import splat_scene
-    from renderer.transform import object_to_world
     from renderer.voxels import load_voxels, save_voxels
 
     record = load_json(source / "records" / f"{name}.json")
@@ -438,15 +437,16 @@ def _delight_object(source: Path, out: Path, name: str) -> int:
     rgba = load_voxels(source / obj["voxels"])
     recolor = obj["setting"] != "single"
     if recolor:
-        pose = load_json(source / obj["source_camera"])
-        view = View(elevation_deg=float(pose["elevation_deg"]), rotation_deg=float(pose["rotation_deg"]),
-                    translation=tuple(pose["translation"]), scale=tuple(pose["scale"]), light=tuple(pose["light"]))
-        source_scene = view_scene(view, obj["voxels"], floor_color, int(pose["width"]))
+        camera_file = source / obj["source_camera"]
+        pose = load_pose(camera_file)
+        try:
+            source_scene = lit_photo_scene(pose, floor_color)
+        except InputError as exc:
+            raise InputError(exc.problem, camera_file) from None
         photo = load_image(source / obj["source_image"])[0]
         albedo, known = photo_albedo(photo, source_scene, rgba)
-        rgba = color_voxels_from_photo(rgba, object_to_world(source_scene.object), albedo,
-                                       Camera.from_scene(source_scene), mirror=bool(obj["mirror_symmetry_used"]),
-                                       trusted=known).rgba
+        rgba = color_voxels_from_photo(rgba, pose.object_to_world(), albedo, pose.camera,
+                                       mirror=bool(obj["mirror_symmetry_used"]), trusted=known).rgba
         save_voxels(out / obj["voxels"], rgba)
     links = [obj["source_image"], obj["source_camera"]] + [s["target"] for s in record["samples"]]
     links += [] if recolor else [obj["voxels"]] + [s["splat"] for s in record["samples"]]

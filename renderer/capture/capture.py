@@ -18,7 +18,6 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from renderer.camera import Camera
 from renderer.capture.align import (
     Alignment,
     align_pose,
@@ -29,12 +28,12 @@ from renderer.capture.align import (
     silhouette_iou,
 )
 from renderer.capture.grabcut import Hints, context_window
-from renderer.capture.pose import PhotoPose
+from renderer.capture.pose import PhotoPose, lit_photo_scene
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score, photo_albedo
-from renderer.scene import CameraSpec, LightSpec, ObjectSpec, Scene, validate
+from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
@@ -202,7 +201,11 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
     trusted = trusted_pixels(mask)
-    light_scene, light_note = photo_light_scene(pose)
+    try:
+        light_scene = lit_photo_scene(pose)
+        light_note = f"the photo's light at {list(pose.light)} divided out"
+    except InputError as exc:
+        light_scene, light_note = None, f"{exc.problem}: colors keep its shading"
     try:
         if light_scene is not None:
             photo_rgb, known = photo_albedo(photo_rgb, light_scene, object_rgba)
@@ -212,20 +215,6 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     except InputError as exc:
         raise InputError(exc.problem, path) from None
     return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment, light_note)
-
-
-def photo_light_scene(pose: PhotoPose) -> tuple[Scene | None, str]:
-    """The scene the photo shows, lit as it was, when its light can be divided out (the pose knows the light and its
-    camera is the scene camera at a square size); else None. The note says which, for the user."""
-    if pose.light is None:
-        return None, "the photo's light is unknown: colors keep its shading"
-    c = pose.camera
-    if c != Camera(c.elevation_deg, width=c.width, height=c.width):
-        return None, ("the photo's camera is not the scene camera (a square photo from its orbit, 40 mm lens): "
-                      "colors keep its shading")
-    scene = Scene(object=pose.placed(ObjectSpec()), light=LightSpec(tuple(float(v) for v in pose.light)),
-                  camera=CameraSpec(c.elevation_deg), image_size=c.width)
-    return scene, f"the photo's light at {list(pose.light)} divided out"
 
 
 def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:

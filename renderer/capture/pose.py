@@ -25,7 +25,7 @@ import numpy as np
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.io import load_json, save_json
-from renderer.scene import ObjectSpec
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 from renderer.transform import object_to_world, world_to_object
 
 DEFAULT_PLACEMENT = ObjectSpec()  # placement keys a camera file lacks come from here unless a scene's are given
@@ -105,6 +105,19 @@ def pose_from_dict(data: Any, spec: ObjectSpec = DEFAULT_PLACEMENT, path: str | 
     return PhotoPose(camera, rotation_deg=_number(data, "rotation_deg", path, spec.rotation_deg),
                      translation=tuple(_numbers(data, "translation", 2, path, spec.translation)), scale=scale,
                      light=light)
+
+
+def lit_photo_scene(pose: PhotoPose, floor_color: tuple[float, float, float] = FloorSpec().color) -> Scene:
+    """The scene the photo shows, lit as it was, as the voxel shader can draw it (to divide the photo's light out);
+    InputError saying why when it cannot: the pose knows no light, or its camera is not the scene camera."""
+    if pose.light is None:
+        raise InputError("the photo's light is unknown")
+    c = pose.camera
+    if c != Camera(c.elevation_deg, width=c.width, height=c.width):
+        raise InputError("the photo's camera is not the scene camera (a square photo from its orbit, 40 mm lens)")
+    return Scene(object=pose.placed(ObjectSpec()), floor=FloorSpec(tuple(float(v) for v in floor_color)),
+                 light=LightSpec(tuple(float(v) for v in pose.light)), camera=CameraSpec(c.elevation_deg),
+                 image_size=c.width)
 
 
 def load_pose(path: str | Path, spec: ObjectSpec = DEFAULT_PLACEMENT) -> PhotoPose:
