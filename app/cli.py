@@ -276,16 +276,16 @@ def cmd_data_generate(args: argparse.Namespace) -> None:
         setting=args.setting, split=args.split, objects=args.objects, views=args.views, size=args.size,
         spp=args.spp, denoise=not args.no_denoise, seed=args.seed,
         categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), resolution=args.res,
-        delight=not args.no_delight,
+        delight=not args.no_delight, hidden_rule=args.hidden_voxels,
     )
     manifest = generate_dataset(args.out, config, shard=parse_shard(args.shard), workers=args.workers)
     print(f"wrote {manifest}")
 
 
-def cmd_data_delight(args: argparse.Namespace) -> None:
-    from renderer.dataset import delight_dataset
+def cmd_data_recolor(args: argparse.Namespace) -> None:
+    from renderer.dataset import recolor_dataset
 
-    print(f"wrote {delight_dataset(args.data, args.out, workers=args.workers)}")
+    print(f"wrote {recolor_dataset(args.data, args.out, workers=args.workers)}")
 
 
 def cmd_data_merge(args: argparse.Namespace) -> None:
@@ -473,6 +473,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-denoise", action="store_true", help="keep the raw path-traced targets")
     p.add_argument("--no-delight", action="store_true",
                    help="photo-colored voxels keep the source photo's light (the paper's inputs)")
+    p.add_argument("--hidden-voxels", choices=["blend", "ray"], default="blend",
+                   help="voxels the source photo does not show: a blend of the colors seen around them, or the "
+                        "paper's first voxel on the camera ray")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--categories", default="chair", help="comma-separated object categories")
     p.add_argument("--res", type=int, default=100, help="object voxels per side")
@@ -483,12 +486,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     p.add_argument("parts", nargs="+", help="shard folders")
     p.set_defaults(func=cmd_data_merge)
-    p = data.add_parser("delight", help="copy a data set made before photo colors had their light divided out, "
-                                        "recoloring its voxels as generation does now")
+    p = data.add_parser("recolor", help="copy a data set whose photo colors were made by older rules (light kept, "
+                                        "hidden voxels from the camera ray), recoloring its voxels as generation "
+                                        "does now")
     p.add_argument("data", help="the data folder to copy (left unchanged)")
     p.add_argument("--out", required=True, help="new data folder (rerun to resume); targets are hard links")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
-    p.set_defaults(func=cmd_data_delight)
+    p.set_defaults(func=cmd_data_recolor)
 
     p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")
     p.add_argument("--data", required=True, nargs="+", help="data folders made by `nvr data generate`")

@@ -36,6 +36,7 @@ import numpy as np
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_image, load_json, remove_stale_temporaries, save_json, save_png
 from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
+from renderer.photo import HIDDEN_RULES
 from renderer.scene import (
     ELEVATION_RANGE,
     LIGHT_XZ_RANGE,
@@ -78,6 +79,7 @@ class DataConfig:
     categories: tuple[str, ...] = ("chair",)
     resolution: int = 100
     delight: bool = True  # photo-colored voxels carry the source photo's colors with its light divided out
+    hidden_rule: str = "blend"  # how photo coloring colors voxels the photo does not show (renderer.photo.HIDDEN_RULES)
 
     def check(self) -> None:
         """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
@@ -93,6 +95,8 @@ class DataConfig:
                 raise InputError(f"--{name} must be a whole number from {low} to {high}, got {value!r}")
         if not self.categories:
             raise InputError("at least one object category is needed")
+        if self.hidden_rule not in HIDDEN_RULES:
+            raise InputError(f"unknown rule for hidden voxels {self.hidden_rule!r} (choose from {', '.join(HIDDEN_RULES)})")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -104,6 +108,7 @@ class DataConfig:
         data = dict(data)
         data["categories"] = tuple(data.get("categories", ("chair",)))
         data.setdefault("delight", False)  # data sets made before the light was divided out
+        data.setdefault("hidden_rule", "ray")  # and before hidden voxels took a blend of the colors around them
         return cls(**data)
 
 
@@ -284,8 +289,8 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         if config.delight:
             photo, trusted = photo_albedo(source.image, source_scene, rgba)
         rgba = color_voxels_from_photo(
-            rgba, object_to_world(source_scene.object), photo, source_camera, mirror=mirror, trusted=trusted
-        ).rgba
+            rgba, object_to_world(source_scene.object), photo, source_camera, mirror=mirror, trusted=trusted,
+            hidden_rule=config.hidden_rule).rgba
     save_voxels(out / voxel_file, rgba)
     save_png(out / f"objects/{name}_source.png", source.image)
     source_pose = PhotoPose(source_camera, source_view.rotation_deg, source_view.translation, source_view.scale)
@@ -370,11 +375,11 @@ def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_o
         yield from pool.map(work, jobs)
 
 
-def delight_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True) -> Path:
-    """A copy in `out` of a data set made before the light was divided out (config delight false) as generation
-    makes it now: photo-colored voxels recolored from their source photos with the light divided out, splats
-    redrawn from them. Targets and source photos are hard links where the file system allows (else copies);
-    rerun to resume. Returns the manifest path."""
+def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True) -> Path:
+    """A copy in `out` of a data set whose photo colors were made by older rules (config delight false, or
+    hidden_rule "ray"), as generation makes them now: photo-colored voxels recolored from their source photos
+    with the light divided out and hidden voxels blended, splats redrawn from them. Targets and source photos
+    are hard links where the file system allows (else copies); rerun to resume. Returns the manifest path."""
     from tqdm import tqdm
 
     source, out = Path(source), Path(out)
@@ -384,17 +389,19 @@ def delight_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     config = _config_or_none(stored) if isinstance(stored, dict) else None
     if config is None:
         raise InputError("config.json does not describe a data set", source)
-    if config.delight:
-        raise InputError("its voxels already carry colors with the light divided out", source)
+    now = DataConfig()
+    if (config.delight, config.hidden_rule) == (now.delight, now.hidden_rule):
+        raise InputError("its photo colors are already made as generation makes them now", source)
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
-    config = dataclasses.replace(config, delight=True)
+    config = dataclasses.replace(config, delight=now.delight, hidden_rule=now.hidden_rule)
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
     for name in todo:  # every record readable before anything is written
         _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json")
     prepare_folder(out, config)
-    bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"delight {source.name}")
-    for _ in _run_jobs([(str(source), str(out), name) for name in todo], workers, _delight_one):
+    bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"recolor {source.name}")
+    jobs = [(str(source), str(out), name, config.hidden_rule) for name in todo]
+    for _ in _run_jobs(jobs, workers, _recolor_one):
         bar.update(1)
     bar.close()
     return write_manifest(out, config)
@@ -415,17 +422,17 @@ def _check_record(record: Any, path: Path) -> None:
         raise InputError(f"not a data set record: it lacks {what}", path)
 
 
-def _delight_one(args: tuple[str, str, str]) -> int:
-    """Recolor one object of a data set into `out` (see delight_dataset); its record is written last."""
-    source, out, name = Path(args[0]), Path(args[1]), args[2]
+def _recolor_one(args: tuple[str, str, str, str]) -> int:
+    """Recolor one object of a data set into `out` (see recolor_dataset); its record is written last."""
+    source, out, name, hidden_rule = Path(args[0]), Path(args[1]), args[2], args[3]
     try:
-        return _delight_object(source, out, name)
+        return _recolor_object(source, out, name, hidden_rule)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"a malformed record or camera file ({type(exc).__name__}: {exc})",
                          source / "records" / f"{name}.json") from None
 
 
-def _delight_object(source: Path, out: Path, name: str) -> int:
+def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str) -> int:
     from renderer.capture.pose import lit_photo_scene, load_pose
     from renderer.photo import color_voxels_from_photo, photo_albedo
     from renderer.splat import splat_scene
@@ -446,7 +453,8 @@ def _delight_object(source: Path, out: Path, name: str) -> int:
         photo = load_image(source / obj["source_image"])[0]
         albedo, known = photo_albedo(photo, source_scene, rgba)
         rgba = color_voxels_from_photo(rgba, pose.object_to_world(), albedo, pose.camera,
-                                       mirror=bool(obj["mirror_symmetry_used"]), trusted=known).rgba
+                                       mirror=bool(obj["mirror_symmetry_used"]), trusted=known,
+                                       hidden_rule=hidden_rule).rgba
         save_voxels(out / obj["voxels"], rgba)
     links = [obj["source_image"], obj["source_camera"]] + [s["target"] for s in record["samples"]]
     links += [] if recolor else [obj["voxels"]] + [s["splat"] for s in record["samples"]]

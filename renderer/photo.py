@@ -5,10 +5,17 @@ principal offset place the object in the picture). Visibility comes from ray mar
 the occupancy (renderer/raymarch.py): a surface voxel is visible when the camera sees the
 centre of one of its exposed faces and its centre projects inside the photo.
 
-Visible voxels take the photo color at their centre's projection (bilinear). A hidden voxel
-takes the color of the first occupied voxel that the ray from the camera through its centre
-meets; with `mirror`, a hidden voxel whose mirror voxel across the object's plane x = 0
-(i -> N-1-i) is visible copies that voxel's color instead.
+Visible voxels take the photo color at their centre's projection (bilinear); with `mirror`, a
+hidden voxel whose mirror voxel across the object's plane x = 0 (i -> N-1-i) is visible copies
+that voxel's color. Every other voxel (hidden, or visible only where the photo is not trusted)
+takes one of two rules:
+- "blend" (the default): a blend of the well-seen voxels' colors around it, a normalized convolution
+  whose Gaussian widens (HIDDEN_SIGMAS) until some well-seen voxel is near. Unknown parts get the
+  local mean color rather than a guess: on textured objects the paper's rule smears the colors of
+  the silhouette's pixels into streaks across faces the photo sees edge-on or not at all.
+- "ray" (the paper's section 3.2): the color of the first occupied voxel that the ray from the
+  camera through its centre meets; a visible voxel on an untrusted pixel takes the nearest well-seen
+  voxel's. Kept for data sets made with it.
 
 A photo shows color times light. When the photo's light is known (the data generator's source images,
 a capture with the light given), `photo_albedo` divides out the light the voxel shader computes for the
@@ -40,6 +47,13 @@ MIRROR_IOU_THRESHOLD = 0.9
 SHADING_GREY = 0.5
 MIN_SHADING = 0.02
 SHADING_GRID_SIZE = 256  # the voxel shader's finer grid: one grid voxel per object voxel at scale 1
+HIDDEN_RULES = ("blend", "ray")  # how voxels the photo does not show well are colored (see the module docstring)
+# The blend's Gaussians, in voxels: the narrowest whose weight of well-seen voxels reaches HIDDEN_MIN_WEIGHT
+# colors a voxel (a plane of well-seen voxels reaches it from 3.3 voxels away at 1.5, 6 at 3, ...); the widest
+# colors whatever is left.
+HIDDEN_SIGMAS = (1.5, 3.0, 6.0, 12.0, 24.0)
+HIDDEN_MIN_WEIGHT = 0.02
+HIDDEN_TRUNCATE = 3.0  # the Gaussians reach this many sigmas
 
 
 class PhotoColors(NamedTuple):
@@ -48,15 +62,20 @@ class PhotoColors(NamedTuple):
 
 
 def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, photo_rgb: np.ndarray,
-                            camera: Camera, mirror: bool = False, trusted: np.ndarray | None = None) -> PhotoColors:
+                            camera: Camera, mirror: bool = False, trusted: np.ndarray | None = None,
+                            hidden_rule: str = "blend") -> PhotoColors:
     """Color every occupied voxel from `photo_rgb` ((H, W, 3) sRGB) seen by `camera`; occupancy is unchanged.
 
     `trusted` ((H, W) bool): the pixels surely on the object (the mask away from its edge). A visible voxel
-    that lands elsewhere takes the color of the nearest voxel that lands on a trusted pixel, as hidden
-    voxels do, so the background around the silhouette never colors the object.
+    that lands elsewhere is colored like a hidden one, by `hidden_rule` (HIDDEN_RULES), so the background
+    around the silhouette never colors the object.
     """
+    if hidden_rule not in HIDDEN_RULES:
+        raise InputError(f"unknown rule for hidden voxels {hidden_rule!r} (choose from {', '.join(HIDDEN_RULES)})")
     rgba = check_object_voxels(object_rgba).copy()
     photo = _check_photo(photo_rgb, camera)
+    if hidden_rule == "blend":
+        return _blended_colors(rgba, np.asarray(object_to_world_matrix, dtype=np.float64), photo, camera, mirror, trusted)
     occupied = occupancy(rgba)
     n = occupied.shape[0]
     matrix = np.asarray(object_to_world_matrix, dtype=np.float64)
@@ -77,6 +96,64 @@ def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.
         source = _trusted_sources(source, visible, occupied, matrix, camera, np.asarray(trusted, dtype=bool))
     rgba[occupied, :3] = _photo_at_voxels(photo, matrix, camera, source[occupied], n)
     return PhotoColors(rgba, visible)
+
+
+def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, camera: Camera, mirror: bool,
+                    trusted: np.ndarray | None) -> PhotoColors:
+    """The "blend" rule: well-seen voxels (visible, on a trusted pixel) take their pixel's color, their hidden
+    mirror voxels copy it (with `mirror`), every other voxel the blend of well-seen colors around it."""
+
+    occupied = occupancy(rgba)
+    n = occupied.shape[0]
+    camera_grid = apply_transform(grid_from_world(matrix, n), camera.position)
+    visible = OccupancyMarcher(occupied).visible_from(camera_grid) & _in_frame(occupied, matrix, camera)
+    well_seen = visible.copy()
+    if trusted is not None:
+        flat = np.flatnonzero(visible)
+        col, row = _pixel_of_voxels(matrix, camera, flat, n)
+        well_seen.reshape(-1)[flat] = np.asarray(trusted, dtype=bool)[row, col]
+    if not well_seen.any():
+        well_seen = visible  # nothing is sure: keep what the photo shows rather than nothing
+    colors = np.zeros((n, n, n, 3), dtype=np.float32)
+    colors[well_seen] = _photo_at_voxels(photo, matrix, camera, np.flatnonzero(well_seen), n)
+    known = well_seen.copy()
+    if mirror:
+        mirrored = occupied & ~known & known[::-1]
+        colors[mirrored] = colors[::-1][mirrored]
+        known |= mirrored
+    todo = occupied & ~known
+    # (weight, weight * color) of the well-seen voxels; the mirror copies add no information of their own
+    sums = np.concatenate([well_seen[..., None], colors * well_seen[..., None]], axis=3).astype(np.float32)
+    for sigma in HIDDEN_SIGMAS:
+        if not todo.any() or not well_seen.any():
+            break
+        blurred = _pooled_blur(sums, sigma, todo)
+        total = blurred[:, 0]
+        take = (total >= HIDDEN_MIN_WEIGHT) if sigma < HIDDEN_SIGMAS[-1] else (total > 0)
+        where = tuple(index[take] for index in np.nonzero(todo))
+        colors[where] = blurred[take, 1:] / total[take, None]
+        todo[where] = False
+    if todo.any():  # beyond the widest blend's reach: the mean of every well-seen color
+        colors[todo] = colors[well_seen].mean(axis=0) if well_seen.any() else 0.0
+    rgba[occupied, :3] = np.clip(colors[occupied], 0.0, 1.0)
+    return PhotoColors(rgba, visible)
+
+
+def _pooled_blur(sums: np.ndarray, sigma: float, at: np.ndarray) -> np.ndarray:
+    """The Gaussian blur (sigma in voxels) of the (N, N, N, C) `sums`, read at the voxels of `at` ((M, C)). Wide
+    blurs run on sums pooled in blocks of about sigma / 3 voxels (the same weights, a coarser grid): the blend
+    needs their smooth trend only, and the full-size blur would cost 20 times more at sigma 24."""
+    from scipy import ndimage
+
+    n = sums.shape[0]
+    block = max(1, int(sigma // 3))
+    padded = -(-n // block) * block
+    pooled = np.zeros((padded,) * 3 + sums.shape[3:], dtype=np.float32)
+    pooled[:n, :n, :n] = sums
+    pooled = pooled.reshape(padded // block, block, padded // block, block, padded // block, block, -1).mean(axis=(1, 3, 5))
+    blurred = ndimage.gaussian_filter(pooled, (sigma / block,) * 3 + (0,), truncate=HIDDEN_TRUNCATE)
+    index = np.nonzero(at)
+    return blurred[index[0] // block, index[1] // block, index[2] // block]
 
 
 def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -113,9 +190,7 @@ def _trusted_sources(source: np.ndarray, visible: np.ndarray, occupied: np.ndarr
 
     n = occupied.shape[0]
     flat = np.flatnonzero(visible)
-    u, v, _ = _project_voxels(matrix, camera, flat, n)
-    col = np.clip(np.floor(u).astype(np.int64), 0, camera.width - 1)
-    row = np.clip(np.floor(v).astype(np.int64), 0, camera.height - 1)
+    col, row = _pixel_of_voxels(matrix, camera, flat, n)
     good = np.zeros(occupied.size, dtype=bool)
     good[flat[trusted[row, col]]] = True
     if not good.any():
@@ -149,6 +224,14 @@ def _in_frame(occupied: np.ndarray, matrix: np.ndarray, camera: Camera) -> np.nd
     frame = np.zeros(occupied.size, dtype=bool)
     frame[flat[inside]] = True
     return frame.reshape(occupied.shape)
+
+
+def _pixel_of_voxels(matrix: np.ndarray, camera: Camera, flat: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Column and row of the pixel each given voxel's centre projects into (clamped to the photo)."""
+    u, v, _ = _project_voxels(matrix, camera, flat, n)
+    col = np.clip(np.floor(u).astype(np.int64), 0, camera.width - 1)
+    row = np.clip(np.floor(v).astype(np.int64), 0, camera.height - 1)
+    return col, row
 
 
 def _project_voxels(matrix: np.ndarray, camera: Camera, flat: np.ndarray, n: int):

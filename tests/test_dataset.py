@@ -12,9 +12,9 @@ from PIL import Image
 
 from renderer.dataset import (
     DataConfig,
-    delight_dataset,
     generate_dataset,
     merge_datasets,
+    recolor_dataset,
     sample_test_sequence,
     sample_train_views,
 )
@@ -105,15 +105,16 @@ def test_a_folder_of_another_config_is_refused(reference):
         generate_dataset(reference, other, progress=False)
 
 
-def test_a_set_made_before_delighting_is_copied_as_generation_makes_it_now(reference, tmp_path):
-    """`nvr data delight`: the copy's voxels and splats are the ones generation with the light divided out makes
-    (up to the source photo's 8-bit rounding, which generation does not go through), its targets are links."""
+def test_a_set_made_by_older_color_rules_is_copied_as_generation_makes_it_now(reference, tmp_path):
+    """`nvr data recolor`: the copy's voxels and splats are the ones generation makes now, with the light divided
+    out and hidden voxels blended (up to the source photo's 8-bit rounding, which generation does not go through);
+    its targets are links."""
     old = tmp_path / "old"
-    generate_dataset(old, replace(TINY, delight=False), progress=False)
+    generate_dataset(old, replace(TINY, delight=False, hidden_rule="ray"), progress=False)
     stored = json.loads((old / "config.json").read_text())
-    del stored["config"]["delight"]  # as data sets made before the option hold it
+    del stored["config"]["delight"], stored["config"]["hidden_rule"]  # as data sets made before the options hold it
     (old / "config.json").write_text(json.dumps(stored))
-    delight_dataset(old, tmp_path / "new", progress=False)
+    recolor_dataset(old, tmp_path / "new", progress=False)
     new = tmp_path / "new"
     assert manifest_of(new)["config"] == TINY.to_dict()
     assert manifest_of(new)["samples"] == manifest_of(reference)["samples"]
@@ -127,8 +128,8 @@ def test_a_set_made_before_delighting_is_copied_as_generation_makes_it_now(refer
         assert (new / sample["target"]).stat().st_ino == (old / sample["target"]).stat().st_ino
         splat_new, splat_made = (np.asarray(Image.open(f / sample["splat"]), dtype=int) for f in (new, reference))
         assert np.abs(splat_new - splat_made).max() <= 3
-    with pytest.raises(InputError, match="already carry"):
-        delight_dataset(new, tmp_path / "again", progress=False)
+    with pytest.raises(InputError, match="already made as generation makes them now"):
+        recolor_dataset(new, tmp_path / "again", progress=False)
 
 
 def test_sampling_protocol_ranges():

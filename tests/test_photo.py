@@ -1,12 +1,13 @@
 """Coloring voxels from a photo, checked against photos of boxes rendered by an independent
-analytic ray caster: recovered colors, visibility, the first-visible rule and the mirror rule."""
+analytic ray caster: recovered colors, visibility, the hidden voxels' rules (blend, first visible) and the
+mirror rule."""
 
 import numpy as np
 import pytest
 
 from renderer.camera import Camera
 from renderer.errors import InputError
-from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
+from renderer.photo import HIDDEN_RULES, color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
 from renderer.scene import ObjectSpec
 from renderer.transform import object_to_world
 
@@ -101,12 +102,13 @@ def test_visible_voxels_recover_their_face_colors():
     assert np.array_equal(result.rgba[..., 3], rgba[..., 3])
 
 
-def test_hidden_voxels_take_the_occluders_color():
+@pytest.mark.parametrize("rule", HIDDEN_RULES)
+def test_hidden_voxels_behind_a_one_colored_face_take_its_color(rule):
     front = Box((1, 0, 8), (11, 12, 10))
     back = Box((4, 2, 2), (8, 6, 4), faces={key: (0.0, 1.0, 1.0) for key in FACES})
     camera = Camera(20.0, width=160, height=160)
     rgba, matrix, photo = scene([front, back], camera)
-    result = color_voxels_from_photo(rgba, matrix, photo, camera)
+    result = color_voxels_from_photo(rgba, matrix, photo, camera, hidden_rule=rule)
     behind = np.zeros((N, N, N), bool)
     behind[4:8, 2:6, 2:4] = True
     assert not result.visible[behind].any()
@@ -124,7 +126,7 @@ def test_mirror_copies_the_visible_side_and_otherwise_the_first_visible_voxel():
     assert not mirrored.visible[hidden_side].any() and mirrored.visible[::-1][hidden_side].all()
     assert np.abs(mirrored.rgba[hidden_side, :3] - np.float32(FACES[0, 1])).max() < TOLERANCE
 
-    plain = color_voxels_from_photo(rgba, matrix, photo, camera, mirror=False)
+    plain = color_voxels_from_photo(rgba, matrix, photo, camera, mirror=False, hidden_rule="ray")
     origin, d = voxel_rays(np.argwhere(hidden_side), matrix, camera)
     expected, hit_point, _ = first_face(origin, d, [box])
     in_face = (hit_point - box.lo) * N, (box.hi - hit_point) * N
@@ -154,19 +156,50 @@ def test_photo_of_the_wrong_size_is_rejected():
         color_voxels_from_photo(rgba, np.eye(4), np.zeros((80, 100, 3)), Camera(30.0, 128, 128))
 
 
-def test_degenerate_inputs_give_finite_colors():
+@pytest.mark.parametrize("rule", HIDDEN_RULES)
+def test_degenerate_inputs_give_finite_colors(rule):
     camera = Camera(30.0, width=40, height=30)
     photo = np.random.default_rng(0).uniform(size=(30, 40, 3))
     empty = np.zeros((N, N, N, 4), np.float32)
-    result = color_voxels_from_photo(empty, np.eye(4), photo, camera, mirror=True)
+    result = color_voxels_from_photo(empty, np.eye(4), photo, camera, mirror=True, hidden_rule=rule)
     assert np.array_equal(result.rgba, empty) and not result.visible.any()
     box = np.zeros((N, N, N, 4), np.float32)
     Box((2, 0, 2), (10, 8, 10)).fill(box)
     for spec in (ObjectSpec(voxels="v", translation=(5.0, 0.0)),  # outside the photo
                  ObjectSpec(voxels="v", scale=(30.0, 30.0, 30.0)),  # the camera inside the object
                  ObjectSpec(voxels="v", scale=(1e-6, 1e-6, 1e-6))):
-        result = color_voxels_from_photo(box, object_to_world(spec), photo, camera, mirror=True)
+        result = color_voxels_from_photo(box, object_to_world(spec), photo, camera, mirror=True, hidden_rule=rule)
         colors = result.rgba[box[..., 3] > 0, :3]
         assert np.isfinite(colors).all() and colors.min() >= 0 and colors.max() <= 1
-    outside = color_voxels_from_photo(box, object_to_world(ObjectSpec(voxels="v", translation=(5.0, 0.0))), photo, camera)
+    outside = color_voxels_from_photo(box, object_to_world(ObjectSpec(voxels="v", translation=(5.0, 0.0))), photo, camera,
+                                      hidden_rule=rule)
     assert not outside.visible.any()
+
+
+def test_blend_gives_hidden_voxels_the_mean_of_a_striped_face_not_copies_of_its_stripes():
+    """A photo of stripes one voxel wide on the face it shows: hidden voxels deep behind it get about the stripes'
+    mean (the expected color of what the photo does not show), where the paper's ray rule copies the stripes."""
+    n = 24
+    rgba = np.zeros((n, n, n, 4), np.float32)
+    rgba[4:20, 0:16, 4:20, 3] = 1.0
+    camera = Camera(0.0, width=192, height=192)  # straight at the +z face
+    matrix = np.eye(4)
+    red, green = np.array([0.9, 0.1, 0.1]), np.array([0.1, 0.8, 0.2])
+    u, v, _ = camera.project(np.array([[-0.5, 0.0, 0.5], [0.5, 0.0, 0.5]]))
+    columns = np.arange(camera.width) + 0.5
+    stripe = np.floor((columns - u[0]) / ((u[1] - u[0]) / n)).astype(int) % 2  # which voxel column, by parity
+    photo = np.where(stripe[None, :, None] == 0, red, green) * np.ones((camera.height, 1, 1))
+    deep = np.zeros((n, n, n), bool)
+    deep[6:18, 2:14, 4:10] = True  # the back half, 10+ voxels behind the face, away from the sides
+    mean = (red + green) / 2
+    blend = color_voxels_from_photo(rgba, matrix, photo, camera)
+    assert not blend.visible[deep].any()
+    assert np.abs(blend.rgba[deep, :3] - mean).max() < 0.1
+    ray = color_voxels_from_photo(rgba, matrix, photo, camera, hidden_rule="ray")
+    assert np.abs(ray.rgba[deep, :3] - mean).max() > 0.3  # the rules really differ here
+
+
+def test_an_unknown_hidden_rule_is_refused():
+    with pytest.raises(InputError, match="unknown rule for hidden voxels"):
+        color_voxels_from_photo(np.zeros((N, N, N, 4), np.float32), np.eye(4), np.zeros((8, 8, 3)), Camera(30.0, 8, 8),
+                                hidden_rule="nearest")
