@@ -285,7 +285,7 @@ def cmd_data_generate(args: argparse.Namespace) -> None:
 def cmd_data_recolor(args: argparse.Namespace) -> None:
     from renderer.dataset import recolor_dataset
 
-    print(f"wrote {recolor_dataset(args.data, args.out, workers=args.workers)}")
+    print(f"wrote {recolor_dataset(args.data, args.out, workers=args.workers, hidden_rule=args.hidden_voxels)}")
 
 
 def cmd_data_merge(args: argparse.Namespace) -> None:
@@ -492,6 +492,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("data", help="the data folder to copy (left unchanged)")
     p.add_argument("--out", required=True, help="new data folder (rerun to resume); targets are hard links")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.add_argument("--hidden-voxels", choices=["blend", "ray"], default="blend",
+                   help="the rule for voxels the source photo does not show (as for generate)")
     p.set_defaults(func=cmd_data_recolor)
 
     p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")

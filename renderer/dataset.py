@@ -375,11 +375,12 @@ def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_o
         yield from pool.map(work, jobs)
 
 
-def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True) -> Path:
-    """A copy in `out` of a data set whose photo colors were made by older rules (config delight false, or
-    hidden_rule "ray"), as generation makes them now: photo-colored voxels recolored from their source photos
-    with the light divided out and hidden voxels blended, splats redrawn from them. Targets and source photos
-    are hard links where the file system allows (else copies); rerun to resume. Returns the manifest path."""
+def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True,
+                    hidden_rule: str = "blend") -> Path:
+    """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, or
+    another hidden_rule), as generation makes them with `hidden_rule`: photo-colored voxels recolored from their
+    source photos with the light divided out, splats redrawn from them. Targets and source photos are hard links
+    where the file system allows (else copies); rerun to resume. Returns the manifest path."""
     from tqdm import tqdm
 
     source, out = Path(source), Path(out)
@@ -389,12 +390,14 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     config = _config_or_none(stored) if isinstance(stored, dict) else None
     if config is None:
         raise InputError("config.json does not describe a data set", source)
-    now = DataConfig()
-    if (config.delight, config.hidden_rule) == (now.delight, now.hidden_rule):
-        raise InputError("its photo colors are already made as generation makes them now", source)
+    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule)
+    recolored.check()
+    if recolored == config:
+        raise InputError(f"its photo colors are already made by these rules (light divided out, hidden voxels "
+                         f"{hidden_rule})", source)
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
-    config = dataclasses.replace(config, delight=now.delight, hidden_rule=now.hidden_rule)
+    config = recolored
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
     for name in todo:  # every record readable before anything is written
         _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json")

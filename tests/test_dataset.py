@@ -128,8 +128,10 @@ def test_a_set_made_by_older_color_rules_is_copied_as_generation_makes_it_now(re
         assert (new / sample["target"]).stat().st_ino == (old / sample["target"]).stat().st_ino
         splat_new, splat_made = (np.asarray(Image.open(f / sample["splat"]), dtype=int) for f in (new, reference))
         assert np.abs(splat_new - splat_made).max() <= 3
-    with pytest.raises(InputError, match="already made as generation makes them now"):
+    with pytest.raises(InputError, match="already made by these rules"):
         recolor_dataset(new, tmp_path / "again", progress=False)
+    ray = recolor_dataset(new, tmp_path / "ray", progress=False, hidden_rule="ray").parent  # back to the paper's rule
+    assert manifest_of(ray)["config"]["hidden_rule"] == "ray"
 
 
 def test_sampling_protocol_ranges():
