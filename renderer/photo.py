@@ -102,7 +102,6 @@ def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, cam
                     trusted: np.ndarray | None) -> PhotoColors:
     """The "blend" rule: well-seen voxels (visible, on a trusted pixel) take their pixel's color, their hidden
     mirror voxels copy it (with `mirror`), every other voxel the blend of well-seen colors around it."""
-
     occupied = occupancy(rgba)
     n = occupied.shape[0]
     camera_grid = apply_transform(grid_from_world(matrix, n), camera.position)
