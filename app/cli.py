@@ -269,6 +269,11 @@ def cmd_turntable(args: argparse.Namespace) -> None:
 # --- nvr data ----------------------------------------------------------------------------
 
 
+# renderer.photo.HIDDEN_RULES, written out: importing renderer.photo here would add 0.2-0.3 s to every command;
+# DataConfig.check refuses a rule it does not know, so the two cannot drift silently.
+HIDDEN_VOXEL_RULES = ("blend", "ray")
+
+
 def cmd_data_generate(args: argparse.Namespace) -> None:
     from renderer.dataset import DataConfig, generate_dataset, parse_shard
 
@@ -473,7 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-denoise", action="store_true", help="keep the raw path-traced targets")
     p.add_argument("--no-delight", action="store_true",
                    help="photo-colored voxels keep the source photo's light (the paper's inputs)")
-    p.add_argument("--hidden-voxels", choices=["blend", "ray"], default="blend",
+    p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
                    help="voxels the source photo does not show: a blend of the colors seen around them, or the "
                         "paper's first voxel on the camera ray")
     p.add_argument("--seed", type=int, default=0)
@@ -486,13 +491,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     p.add_argument("parts", nargs="+", help="shard folders")
     p.set_defaults(func=cmd_data_merge)
-    p = data.add_parser("recolor", help="copy a data set whose photo colors were made by older rules (light kept, "
-                                        "hidden voxels from the camera ray), recoloring its voxels as generation "
-                                        "does now")
+    p = data.add_parser("recolor", help="copy a data set whose photo colors other rules made (light kept, or the "
+                                        "other rule for hidden voxels), recoloring its voxels with the light divided "
+                                        "out and the --hidden-voxels rule")
     p.add_argument("data", help="the data folder to copy (left unchanged)")
     p.add_argument("--out", required=True, help="new data folder (rerun to resume); targets are hard links")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
-    p.add_argument("--hidden-voxels", choices=["blend", "ray"], default="blend",
+    p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
                    help="the rule for voxels the source photo does not show (as for generate)")
     p.set_defaults(func=cmd_data_recolor)
 

@@ -70,8 +70,7 @@ def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.
     that lands elsewhere is colored like a hidden one, by `hidden_rule` (HIDDEN_RULES), so the background
     around the silhouette never colors the object.
     """
-    if hidden_rule not in HIDDEN_RULES:
-        raise InputError(f"unknown rule for hidden voxels {hidden_rule!r} (choose from {', '.join(HIDDEN_RULES)})")
+    check_hidden_rule(hidden_rule)
     rgba = check_object_voxels(object_rgba).copy()
     photo = _check_photo(photo_rgb, camera)
     if hidden_rule == "blend":
@@ -96,6 +95,12 @@ def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.
         source = _trusted_sources(source, visible, occupied, matrix, camera, np.asarray(trusted, dtype=bool))
     rgba[occupied, :3] = _photo_at_voxels(photo, matrix, camera, source[occupied], n)
     return PhotoColors(rgba, visible)
+
+
+def check_hidden_rule(hidden_rule: str) -> None:
+    """InputError unless `hidden_rule` is one of HIDDEN_RULES."""
+    if hidden_rule not in HIDDEN_RULES:
+        raise InputError(f"unknown rule for hidden voxels {hidden_rule!r} (choose from {', '.join(HIDDEN_RULES)})")
 
 
 def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, camera: Camera, mirror: bool,
@@ -126,10 +131,11 @@ def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, cam
     for sigma in HIDDEN_SIGMAS:
         if not todo.any() or not well_seen.any():
             break
-        blurred = _pooled_blur(sums, sigma, todo)
+        index = np.nonzero(todo)
+        blurred = _pooled_blur(sums, sigma, index)
         total = blurred[:, 0]
         take = (total >= HIDDEN_MIN_WEIGHT) if sigma < HIDDEN_SIGMAS[-1] else (total > 0)
-        where = tuple(index[take] for index in np.nonzero(todo))
+        where = tuple(i[take] for i in index)
         colors[where] = blurred[take, 1:] / total[take, None]
         todo[where] = False
     if todo.any():  # beyond the widest blend's reach: the mean of every well-seen color
@@ -138,8 +144,9 @@ def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, cam
     return PhotoColors(rgba, visible)
 
 
-def _pooled_blur(sums: np.ndarray, sigma: float, at: np.ndarray) -> np.ndarray:
-    """The Gaussian blur (sigma in voxels) of the (N, N, N, C) `sums`, read at the voxels of `at` ((M, C)). Wide
+def _pooled_blur(sums: np.ndarray, sigma: float, index: tuple[np.ndarray, ...]) -> np.ndarray:
+    """The Gaussian blur (sigma in voxels) of the (N, N, N, C) `sums`, read at the voxels `index` (as np.nonzero
+    gives them; (M, C)). Wide
     blurs run on sums pooled in blocks of about sigma / 3 voxels (the same weights, a coarser grid): the blend
     needs their smooth trend only, and the full-size blur would cost 20 times more at sigma 24."""
     from scipy import ndimage
@@ -151,7 +158,6 @@ def _pooled_blur(sums: np.ndarray, sigma: float, at: np.ndarray) -> np.ndarray:
     pooled[:n, :n, :n] = sums
     pooled = pooled.reshape(padded // block, block, padded // block, block, padded // block, block, -1).mean(axis=(1, 3, 5))
     blurred = ndimage.gaussian_filter(pooled, (sigma / block,) * 3 + (0,), truncate=HIDDEN_TRUNCATE)
-    index = np.nonzero(at)
     return blurred[index[0] // block, index[1] // block, index[2] // block]
 
 
