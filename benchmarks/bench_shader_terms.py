@@ -20,7 +20,7 @@ from models.training.data import VoxelRenderSet
 from renderer.shading import kernels
 
 
-def _lit_everywhere(receivers, bias, lights, depth, bounds, out):
+def _lit_everywhere(receivers, bias, lights, depth, bounds, nearest, spread, out):
     out[:] = 1.0
 
 

@@ -156,11 +156,45 @@ def test_shadow_maps_block_what_lies_between():
     kernels.build_shadow_maps(occluders, 0.05, lights, 16, maps, bounds)
     receivers = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
     seen = np.empty(3)
-    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, seen)
+    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
     assert seen[0] < 0.01 and seen[1] == 1.0 and seen[2] == 1.0  # the last lies between occluder and light
     kernels.build_shadow_maps(np.zeros((0, 3)), 0.05, lights, 16, maps, bounds)
-    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, seen)
+    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
     assert np.all(seen == 1.0)
+
+
+def test_soft_shadow_of_a_plate_matches_the_area_light():
+    # A square plate at height 1 under a square light at height 3 (4 x 4 points): a floor point at x sees the
+    # light but for the part of it whose rays cross the plate, which is exact per axis (similar triangles).
+    # Each light point read as a point (spread 0) steps by 1/16 and bands; read as its square of the light it is
+    # closer everywhere.
+    light_height, plate_height, light_side, plate_side, points = 3.0, 1.0, 1.0, 0.5, 4
+    offsets = ((np.arange(points) + 0.5) / points - 0.5) * light_side
+    lx, lz = np.meshgrid(offsets, offsets, indexing="ij")
+    lights = np.stack([lx.ravel(), np.full(lx.size, light_height), lz.ravel()], axis=1)
+    grid = np.linspace(-plate_side / 2, plate_side / 2, 51)
+    ox, oz = np.meshgrid(grid, grid, indexing="ij")
+    plate = np.stack([ox.ravel(), np.full(ox.size, plate_height), oz.ravel()], axis=1)
+    maps = np.empty((len(lights), 96, 96), dtype=np.float32)
+    bounds = np.zeros((len(lights), 3))
+    kernels.build_shadow_maps(plate, 0.005, lights, 96, maps, bounds)
+    nearest = maps.reshape(len(lights), -1).min(axis=1).astype(np.float64)
+    xs = np.linspace(-1.5, 1.5, 301)
+    receivers = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
+
+    def blocked_share(x):  # of the light's side: light points l whose ray from x crosses the plate
+        ends = [x - (x + side * plate_side / 2) * light_height / plate_height for side in (1, -1)]
+        return max(0.0, min(max(ends), light_side / 2) - max(min(ends), -light_side / 2)) / light_side
+
+    exact = np.array([1.0 - blocked_share(x) * blocked_share(0.0) for x in xs])
+    errors = {}
+    for spread in (0.0, light_side / points):
+        seen = np.empty(len(xs))
+        kernels.light_visibility(receivers, 0.01, lights, maps, bounds, nearest, spread, seen)
+        errors[spread] = np.abs(seen - exact)
+    soft = errors[light_side / points]
+    assert soft.max() < 0.09 and soft.mean() < 0.6 * errors[0.0].mean()
+    assert errors[0.0].max() > 0.12  # the test can tell: points alone band
 
 
 def test_distance_transform_matches_scipy():

@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit, prange
 
 FAR = np.float32(3.0e38)
+SOFT_SHADOW_TAPS = 4  # per side: samples of a light point's square of the shadow map (light_visibility)
 HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
 EMPTY_DISTANCE2 = np.float32(1e20)  # squared distance from a line with nothing occupied (any transform stays below)
 
@@ -288,12 +289,36 @@ def build_shadow_maps(occluders, radius, lights, size, depth, bounds):
                     out[u, v] = near if (dv * dv <= left) & (near < current) else current
 
 
+@njit(cache=True, inline="always")
+def _lit_bilinear(depth, k, a, b, limit):
+    """Share of the four texels nearest map coordinates (a, b) (in texels, centres at .5) whose occluder lies
+    beyond `limit` (or that lie off the map), weighted bilinearly."""
+    size = depth.shape[1]
+    a, b = a - 0.5, b - 0.5
+    u, v = math.floor(a), math.floor(b)
+    fu, fv = a - u, b - v
+    lit = 0.0
+    for du, wu in ((0, 1.0 - fu), (1, fu)):
+        for dv, wv in ((0, 1.0 - fv), (1, fv)):
+            uu, vv = int(u) + du, int(v) + dv
+            if uu < 0 or vv < 0 or uu >= size or vv >= size or limit <= depth[k, uu, vv]:
+                lit += wu * wv
+    return lit
+
+
 @njit(cache=True, parallel=True)
-def light_visibility(receivers, bias, lights, depth, bounds, out):
-    """Share of the light points each receiver (world point) sees past the shadow maps, filtered bilinearly
-    between the four nearest texels."""
+def light_visibility(receivers, bias, lights, depth, bounds, nearest, spread, out):
+    """Share of the light each receiver (world point) sees past the shadow maps.
+
+    Each light point stands for a square of side `spread` of the light (0: a point). A receiver at depth h below
+    the light sees that square through an occluder at depth d over a square of the map of side
+    spread * (1/d - 1/h): the map is averaged over it (percentage-closer soft shadows, with d the mean depth of
+    the occluders found over the widest such square, from the map's nearest occluder `nearest[k]`), so the
+    shadows of the light points blend into one penumbra instead of LIGHT_POINTS^2 overlapping copies. Where
+    that square is under a texel wide the four nearest texels are read bilinearly."""
     size = depth.shape[1]
     count = lights.shape[0]
+    taps = SOFT_SHADOW_TAPS
     for i in prange(receivers.shape[0]):
         x, y, z = receivers[i, 0], receivers[i, 1], receivers[i, 2]
         seen = 0.0
@@ -303,20 +328,41 @@ def light_visibility(receivers, bias, lights, depth, bounds, out):
             if texel == 0.0 or h <= 0.0:
                 seen += 1.0
                 continue
-            a = ((x - lights[k, 0]) / h - bounds[k, 0]) / texel - 0.5
-            b = ((z - lights[k, 2]) / h - bounds[k, 1]) / texel - 0.5
-            if a < -1.0 or b < -1.0 or a > size or b > size:
+            a = ((x - lights[k, 0]) / h - bounds[k, 0]) / texel
+            b = ((z - lights[k, 2]) / h - bounds[k, 1]) / texel
+            reach = 0.0 if spread == 0.0 or nearest[k] >= h else 0.5 * spread * (1.0 / nearest[k] - 1.0 / h) / texel
+            if a < -1.0 - reach or b < -1.0 - reach or a > size + 1.0 + reach or b > size + 1.0 + reach:
                 seen += 1.0
                 continue
-            u, v = math.floor(a), math.floor(b)
-            fu, fv = a - u, b - v
-            lit = 0.0
-            for du, wu in ((0, 1.0 - fu), (1, fu)):
-                for dv, wv in ((0, 1.0 - fv), (1, fv)):
-                    uu, vv = int(u) + du, int(v) + dv
-                    if uu < 0 or vv < 0 or uu >= size or vv >= size or h - bias <= depth[k, uu, vv]:
-                        lit += wu * wv
-            seen += lit
+            limit = h - bias
+            if reach < 0.5:
+                seen += _lit_bilinear(depth, k, a, b, limit)
+                continue
+            # The occluders over the widest square the light's part can be seen through: their mean depth.
+            found, total = 0, 0.0
+            for p in range(taps):
+                uu = int(math.floor(a + reach * ((p + 0.5) / taps * 2.0 - 1.0)))
+                for q in range(taps):
+                    vv = int(math.floor(b + reach * ((q + 0.5) / taps * 2.0 - 1.0)))
+                    if uu >= 0 and vv >= 0 and uu < size and vv < size and depth[k, uu, vv] < limit:
+                        found += 1
+                        total += depth[k, uu, vv]
+            if found == 0:
+                seen += _lit_bilinear(depth, k, a, b, limit)  # a thin occluder the taps stepped over
+                continue
+            blocker = total / found
+            half = 0.5 * spread * (1.0 / blocker - 1.0 / h) / texel
+            if half < 0.5:
+                seen += _lit_bilinear(depth, k, a, b, limit)
+                continue
+            lit = 0
+            for p in range(taps):
+                uu = int(math.floor(a + half * ((p + 0.5) / taps * 2.0 - 1.0)))
+                for q in range(taps):
+                    vv = int(math.floor(b + half * ((q + 0.5) / taps * 2.0 - 1.0)))
+                    if uu < 0 or vv < 0 or uu >= size or vv >= size or limit <= depth[k, uu, vv]:
+                        lit += 1
+            seen += lit / (taps * taps)
         out[i] = seen / count
 
 
