@@ -309,3 +309,21 @@ def test_a_loose_fit_advises_a_box_or_strokes():
     assert fit_advice(Alignment(pose, 0.95, 0, 0.0), hinted=False) is None
     assert "--box" in fit_advice(Alignment(pose, 0.84, 0, 0.0), hinted=False)
     assert "strokes" in fit_advice(Alignment(pose, 0.84, 0, 0.0), hinted=True)
+
+
+def test_trusted_pixels_keep_the_middle_of_thin_parts_and_never_their_edge():
+    """A 300 x 300 mask (margin 3 px) holding a thick square, a bar 5 px wide and a bar 2 px wide, far apart:
+    the square is trusted only more than 3 px in, the wide bar along its middle 3 columns (2-3 px deep) but not
+    its edge columns, the narrow bar (all of it 1 px deep: all of it its middle) whole, nothing else."""
+    from renderer.capture.capture import trusted_pixels
+
+    mask = np.zeros((300, 300), dtype=bool)
+    mask[20:120, 20:120] = True  # thick
+    mask[150:280, 40:45] = True  # 5 px wide: depths 1, 2, 3, 2, 1 across
+    mask[150:280, 200:202] = True  # 2 px wide: depths 1, 1
+    trusted = trusted_pixels(mask)
+    assert trusted[70, 70] and not trusted[20:23, 20:120].any() and trusted[24, 70]
+    middle_rows = slice(160, 270)
+    assert trusted[middle_rows, 41:44].all() and not trusted[middle_rows, [40, 44]].any()
+    assert trusted[150:280, 200:202].all()
+    assert not (trusted & ~mask).any()

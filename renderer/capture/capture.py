@@ -10,6 +10,7 @@ the colors (renderer.photo.photo_albedo), as the training data's are; otherwise 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -219,12 +220,18 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
 
 def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:
     """The pixels surely on the object: its mask farther than TRUST_MARGIN of the photo's shorter side from the
-    mask's edge, where a pose a pixel off or a soft edge would mix in the background. None without a mask:
+    mask's edge, where a pose a pixel off or a soft edge would mix in the background. A part too thin for that
+    (a chair's arm or leg) keeps its middle, the pixels within a pixel of its deepest, so it gets colors of its
+    own instead of its neighbours' (the demo chair's metal arms and base were wood-colored). None without a mask:
     then every pixel counts."""
     if mask is None:
         return None
     h, w = mask.shape
-    return ndimage.distance_transform_edt(mask) > max(1.0, TRUST_MARGIN * min(h, w))
+    margin = max(1.0, TRUST_MARGIN * min(h, w))
+    depth = ndimage.distance_transform_edt(mask)
+    deepest_near = ndimage.maximum_filter(depth, size=2 * math.ceil(margin) + 1)
+    thin_middle = mask & (deepest_near <= margin) & (depth >= deepest_near - 1.0)
+    return (depth > margin) | thin_middle
 
 
 def _downscale(rgb: np.ndarray, alpha: np.ndarray | None, long_side: int) -> tuple[np.ndarray, np.ndarray | None]:
