@@ -306,6 +306,12 @@ def _lit_bilinear(depth, k, a, b, limit):
     return lit
 
 
+@njit(cache=True, inline="always")
+def _tap(centre, half, p, taps):
+    """The texel of tap p of `taps` spread evenly over [centre - half, centre + half] (map coordinates in texels)."""
+    return int(math.floor(centre + half * ((p + 0.5) / taps * 2.0 - 1.0)))
+
+
 @njit(cache=True, parallel=True)
 def light_visibility(receivers, bias, lights, depth, bounds, nearest, spread, out):
     """Share of the light each receiver (world point) sees past the shadow maps.
@@ -341,25 +347,21 @@ def light_visibility(receivers, bias, lights, depth, bounds, nearest, spread, ou
             # The occluders over the widest square the light's part can be seen through: their mean depth.
             found, total = 0, 0.0
             for p in range(taps):
-                uu = int(math.floor(a + reach * ((p + 0.5) / taps * 2.0 - 1.0)))
+                uu = _tap(a, reach, p, taps)
                 for q in range(taps):
-                    vv = int(math.floor(b + reach * ((q + 0.5) / taps * 2.0 - 1.0)))
+                    vv = _tap(b, reach, q, taps)
                     if uu >= 0 and vv >= 0 and uu < size and vv < size and depth[k, uu, vv] < limit:
                         found += 1
                         total += depth[k, uu, vv]
-            if found == 0:
-                seen += _lit_bilinear(depth, k, a, b, limit)  # a thin occluder the taps stepped over
-                continue
-            blocker = total / found
-            half = 0.5 * spread * (1.0 / blocker - 1.0 / h) / texel
-            if half < 0.5:
+            half = 0.0 if found == 0 else 0.5 * spread * (found / total - 1.0 / h) / texel
+            if half < 0.5:  # a sharp shadow, or a thin occluder the taps stepped over
                 seen += _lit_bilinear(depth, k, a, b, limit)
                 continue
             lit = 0
             for p in range(taps):
-                uu = int(math.floor(a + half * ((p + 0.5) / taps * 2.0 - 1.0)))
+                uu = _tap(a, half, p, taps)
                 for q in range(taps):
-                    vv = int(math.floor(b + half * ((q + 0.5) / taps * 2.0 - 1.0)))
+                    vv = _tap(b, half, q, taps)
                     if uu < 0 or vv < 0 or uu >= size or vv >= size or limit <= depth[k, uu, vv]:
                         lit += 1
             seen += lit / (taps * taps)
