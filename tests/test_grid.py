@@ -18,10 +18,13 @@ from renderer.grid import (
     object_window_indices,
     occupied_spans,
     pool_factors,
+    pool_object,
     pool_voxels,
     repool_voxels,
     sample_indices,
     scene_grid,
+    shader_pool_factors,
+    shader_window,
     voxel_table,
 )
 from renderer.mesh import normalise_mesh
@@ -255,6 +258,33 @@ def test_object_window_grid_is_the_scene_grids_object_there(grid_size):
     box = tuple(slice(a, a + n) for a, n in zip(start, window.shape[:3]))
     np.testing.assert_array_equal(window, whole[box])
     assert whole[..., 3].sum() == window[..., 3].sum() > 0
+
+
+def test_a_finer_shader_window_is_the_twice_finer_grid_voted_down():
+    """Above the network's grid the shader's window is supersampled: each voxel is occupied where at least 4 of the 8
+    voxels of the grid twice as fine that it holds are (the finer grid's own window, merged here by numpy), and
+    takes the mean color of those; at the network's grid it is the scene grid's own window."""
+    rgba = sphere_voxels()
+    rgba[..., 0] = np.linspace(0.0, 1.0, rgba.shape[0])[:, None, None] * rgba[..., 3]  # colors that vary
+    spec = ObjectSpec(translation=(0.2, -0.1), rotation_deg=35.0, scale=(1.0, 1.3, 0.8))
+    factors = shader_pool_factors(rgba.shape[0], spec.scale, 2 * GRID_SIZE)
+    start, window = shader_window(*pool_object(rgba, factors), rgba.shape[0], factors, spec, 20.0, 2 * GRID_SIZE)
+    fine_start, fine = object_window_grid(rgba, spec, 20.0, 4 * GRID_SIZE)
+    # The fine window placed in a box of whole coarse voxels from the coarse window's start.
+    offset = np.asarray(fine_start) - 2 * np.asarray(start)
+    assert np.all(offset >= 0) and np.all(offset + fine.shape[:3] <= 2 * np.asarray(window.shape[:3]))
+    placed = np.zeros((*(2 * np.asarray(window.shape[:3])), 4), dtype=np.float32)
+    placed[tuple(slice(o, o + n) for o, n in zip(offset, fine.shape[:3]))] = fine
+    blocks = placed.reshape(window.shape[0], 2, window.shape[1], 2, window.shape[2], 2, 4)
+    count = blocks[..., 3].sum(axis=(1, 3, 5))
+    occupied = count >= 4
+    np.testing.assert_array_equal(window[..., 3], occupied.astype(np.float32))
+    mean_red = (blocks[..., 0] * blocks[..., 3]).sum(axis=(1, 3, 5))[occupied] / count[occupied]
+    np.testing.assert_allclose(window[..., 0][occupied], mean_red, atol=1e-6)
+    assert 0 < occupied.sum() < count.astype(bool).sum()  # the vote drops voxels a single sample would keep
+    factors = shader_pool_factors(rgba.shape[0], spec.scale, GRID_SIZE)
+    assert shader_window(*pool_object(rgba, factors), rgba.shape[0], factors, spec, 20.0, GRID_SIZE)[1].tobytes() == \
+        object_window_grid(rgba, spec, 20.0, GRID_SIZE)[1].tobytes()
 
 
 def test_occupied_spans_bound_the_true_entries():

@@ -95,12 +95,13 @@ from renderer.grid import (
     ground_mask,
     non_empty_voxels,
     object_window,
-    object_window_voxels,
     occupied_spans,
     pool_factors,
     pool_object,
     repool_voxels,
     sample_indices,
+    shader_pool_factors,
+    shader_window,
     voxel_table,
 )
 from renderer.paint import apply_paint
@@ -365,10 +366,10 @@ class RenderEngine:
         def window() -> tuple[tuple[int, int, int], np.ndarray]:  # the shader reads only the grid's window of the object
             if fine:  # the finer grid's own merged voxels (kept while the object moves) and window
                 n, size = painted.shape[0], self.config.shading_grid_size
-                factors = pool_factors(n, scene.object.scale, size)
+                factors = shader_pool_factors(n, scene.object.scale, size)
                 pooled = self._stage("shade_pool", (keys.pool[0], factors),
                                      lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
-                return object_window_voxels(pooled.voxels, pooled.within, n, factors, scene.object, elevation, size)
+                return shader_window(pooled.voxels, pooled.within, n, factors, scene.object, elevation, size)
             pooled, placement = self._placed(scene, painted, keys)
             box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
             return tuple(s.start for s in box), gather(voxel_table(pooled, (0.0, 0.0, 0.0)), placement.indices[box])

@@ -165,10 +165,13 @@ class VoxelRenderSet(Dataset):
         that holds the object (all the shader reads of it)."""
         if self.shading_grid_size == self.grid_size:
             return ShadingGrid(voxels.numpy().transpose(1, 2, 3, 0))
-        from renderer.grid import object_window_grid
+        from renderer.grid import pool_object, shader_pool_factors, shader_window
 
-        start, window = object_window_grid(object_rgba, scene.object, scene.camera.elevation_deg, self.shading_grid_size)
-        return ShadingGrid(window, start, self.shading_grid_size)
+        size = self.shading_grid_size
+        factors = shader_pool_factors(object_rgba.shape[0], scene.object.scale, size)
+        start, window = shader_window(*pool_object(object_rgba, factors), object_rgba.shape[0], factors, scene.object,
+                                      scene.camera.elevation_deg, size)
+        return ShadingGrid(window, start, size)
 
 
 class ShadingGrid(NamedTuple):

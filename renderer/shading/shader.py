@@ -2,9 +2,9 @@
 
 From what the network reads (a camera-aligned RGBA scene grid, the light position, the camera
 elevation, the floor color) and the scene's fixed constants (renderer/scene.py), it draws what the
-path tracer would, approximately. The grid is the network's 128^3 one or a finer one sampled the same
-way (renderer.grid.scene_grid's grid_size: at 256^3 and scale 1 a grid voxel is an object voxel, which
-the 128^3 grid merges in pairs); lengths below in voxels are the grid's voxels.
+path tracer would, approximately. The grid is the network's 128^3 one or the object's window of a finer
+one, each of whose voxels is voted from 2^3 samples (renderer.grid.shader_window: at 256^3 and scale 1 a
+grid voxel is an object voxel, which the 128^3 grid merges in pairs); lengths below in voxels are the grid's voxels.
 
 1. object_geometry (depends on the grid: the object, its placement, the camera): the object's
    voxels without the ground, cropped to their box (from the whole grid or from the window of it
@@ -41,7 +41,14 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import grid_index_to_world, ground_mask_window, occupied_spans, scene_grid
+from renderer.grid import (
+    grid_index_to_world,
+    ground_mask_window,
+    occupied_spans,
+    pool_object,
+    shader_pool_factors,
+    shader_window,
+)
 from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import filters, kernels
 from renderer.splat import cached_floor_mask
@@ -623,7 +630,10 @@ def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_col
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
                 grid_size: int = GRID_SIZE) -> ShadedImage:
     """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's),
-    from its `grid_size`^3 scene grid."""
-    grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size)
-    return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, floor_color,
-                      scene.image_size if size is None else size)
+    from the object's window of its `grid_size`^3 scene grid (renderer.grid.shader_window)."""
+    resolution, elevation = object_rgba.shape[0], scene.camera.elevation_deg
+    factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
+    start, window = shader_window(*pool_object(object_rgba, factors), resolution, factors, scene.object, elevation,
+                                  grid_size)
+    return shade_grid(window, scene.light.position, elevation, floor_color, scene.image_size if size is None else size,
+                      start, grid_size)

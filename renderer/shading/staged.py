@@ -23,7 +23,7 @@ import numpy as np
 
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import object_window_voxels, pool_factors, pool_object
+from renderer.grid import pool_object, shader_pool_factors, shader_window
 from renderer.scene import GRID_SIZE, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
 
@@ -41,11 +41,11 @@ class StagedShader:
         self.stage_ms = {}
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
-        factors = pool_factors(n, o.scale, self.grid_size)
+        factors = shader_pool_factors(n, o.scale, self.grid_size)
         pooled, within = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
         grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation)  # not the floor: the object alone
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
-        start, window = self._stage("window", grid_key, lambda: object_window_voxels(
+        start, window = self._stage("window", grid_key, lambda: shader_window(
             pooled, within, n, factors, o, elevation, self.grid_size))
         geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
