@@ -300,7 +300,7 @@ def supersampled_object_window(pooled: np.ndarray, within: tuple | None, resolut
         cell = _merged_cell_map(resolution, factors, object_spec, elevation_deg, fine)
         _vote_merged_voxels(cell, *(np.arange(a, b) + 0.5 for a, b in zip(lo, hi)), np.asarray(first, dtype=np.float64),
                             np.asarray(stop, dtype=np.float64), np.asarray(pooled_shape, dtype=np.int64),
-                            _grown(pooled[..., 3] >= 0.5).reshape(-1), (pooled[..., 3] >= 0.5).reshape(-1),
+                            dilate_cube(pooled[..., 3] >= 0.5).reshape(-1), (pooled[..., 3] >= 0.5).reshape(-1),
                             np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4), out)
     return tuple(int(v) for v in lo // 2), out
 
@@ -352,20 +352,22 @@ def _vote_merged_voxels(cell, d, r, c, first, stop, shape, near, occupied, merge
                     out[i, j, k, 3] = 1.0
 
 
-def _grown(mask: np.ndarray) -> np.ndarray:
-    """`mask` dilated by one voxel along every axis and diagonal (the 3 x 3 x 3 cube), C-contiguous."""
-    grown = mask.copy()
+def dilate_cube(mask: np.ndarray) -> np.ndarray:
+    """Binary dilation by the 3x3x3 cube, one axis at a time (the cube is the product of three segments)."""
+    out = mask.copy()
     for axis in range(3):
-        step = grown.copy()
-        index = [slice(None)] * 3
-        index[axis] = slice(1, None)
-        lower = tuple(index)
-        index[axis] = slice(None, -1)
-        upper = tuple(index)
-        step[lower] |= grown[upper]
-        step[upper] |= grown[lower]
-        grown = step
-    return np.ascontiguousarray(grown)
+        grown = out.copy()
+        _shifted(grown, axis, 1)[...] |= _shifted(out, axis, -1)
+        _shifted(grown, axis, -1)[...] |= _shifted(out, axis, 1)
+        out = grown
+    return out
+
+
+def _shifted(array: np.ndarray, axis: int, side: int) -> np.ndarray:
+    """The view of `array` without its first (side 1) or last (side -1) slice along `axis`."""
+    index = [slice(None)] * 3
+    index[axis] = slice(1, None) if side == 1 else slice(None, -1)
+    return array[tuple(index)]
 
 
 def object_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,

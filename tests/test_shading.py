@@ -206,12 +206,13 @@ def test_distance_transform_matches_scipy():
 
 
 def test_closing_and_filling_make_a_shell_solid():
-    from renderer.shading.shader import _dilate_cube, _erode_cube, _solid
+    from renderer.grid import dilate_cube
+    from renderer.shading.shader import _erode_cube, _solid
 
     rng = np.random.default_rng(2)
     mask = rng.random((9, 10, 8)) < 0.3
     structure = ndimage.generate_binary_structure(3, 3)
-    np.testing.assert_array_equal(_dilate_cube(mask), ndimage.binary_dilation(mask, structure))
+    np.testing.assert_array_equal(dilate_cube(mask), ndimage.binary_dilation(mask, structure))
     np.testing.assert_array_equal(_erode_cube(mask), ndimage.binary_erosion(mask, structure, border_value=0))
     # A hollow box whose shell has diagonal gaps only: solid inside, empty outside.
     shell = np.zeros((12, 12, 12), dtype=bool)

@@ -42,6 +42,7 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import (
+    dilate_cube,
     grid_index_to_world,
     ground_mask_window,
     occupied_spans,
@@ -413,31 +414,13 @@ def _solid(occupied: np.ndarray) -> np.ndarray:
     """The occupied voxels with their insides: voxelised surfaces are shells, and a slanted one-voxel shell
     is only diagonally connected, so the diagonal gaps a ray could slip through are closed first; then
     everything not connected to the crop's border (6-connected) is inside."""
-    closed = _erode_cube(_dilate_cube(occupied)) | occupied
+    closed = _erode_cube(dilate_cube(occupied)) | occupied
     return ~filters.connected_to_border(closed)
-
-
-def _dilate_cube(mask: np.ndarray) -> np.ndarray:
-    """Binary dilation by the 3x3x3 cube, one axis at a time (the cube is the product of three segments)."""
-    out = mask.copy()
-    for axis in range(3):
-        grown = out.copy()
-        _shifted(grown, axis, 1)[...] |= _shifted(out, axis, -1)
-        _shifted(grown, axis, -1)[...] |= _shifted(out, axis, 1)
-        out = grown
-    return out
 
 
 def _erode_cube(mask: np.ndarray) -> np.ndarray:
     """Binary erosion by the 3x3x3 cube, outside the array counting as empty."""
-    return ~_dilate_cube(np.pad(~mask, 1, constant_values=True))[1:-1, 1:-1, 1:-1]
-
-
-def _shifted(array: np.ndarray, axis: int, side: int) -> np.ndarray:
-    """The view of `array` without its first (side 1) or last (side -1) slice along `axis`."""
-    index = [slice(None)] * 3
-    index[axis] = slice(1, None) if side == 1 else slice(None, -1)
-    return array[tuple(index)]
+    return ~dilate_cube(np.pad(~mask, 1, constant_values=True))[1:-1, 1:-1, 1:-1]
 
 
 def _broad(solid: np.ndarray) -> np.ndarray:
