@@ -243,6 +243,25 @@ def test_specks_inside_a_covered_part_close_and_openings_stay():
     assert np.array_equal(_close_specks(np.zeros((4, 4), np.float32), 256), np.zeros((4, 4)))
 
 
+def test_a_part_in_front_of_another_shows_no_floor_at_its_outline():
+    # A wall, and a rod a few voxels in front of it across its middle. Seen from the front, every pixel inside the
+    # wall's outline is object: the rays that graze the rod's edges go on to the wall, so no floor may show
+    # through there (it drew a bright fringe around the part in front). Where the rod sticks out past the wall,
+    # its edges against the floor stay partly covered (anti-aliased).
+    n = 40
+    wall, both = np.zeros((n, n, n, 4), np.float32), np.zeros((n, n, n, 4), np.float32)
+    wall[8:32, 0:30, 0:6] = (0.3, 0.3, 0.3, 1.0)  # x, y (up), z (towards the camera)
+    both[...] = wall
+    both[0:40, 13:16, 24:27] = (0.8, 0.8, 0.8, 1.0)  # the rod, longer than the wall is wide
+    spec = ObjectSpec(voxels="v.npz", scale=(1.0, 1.0, 1.0))
+    alone, with_rod = (shaded(rgba, spec, np.array([0.0, 2.0, 1.0]), elevation=10.0, size=128) for rgba in (wall, both))
+    inside = ndimage.binary_erosion(alone.coverage >= 1.0, iterations=2)
+    rod = (with_rod.coverage > 0.0) & ~(alone.coverage > 0.0)  # the rod's pixels past the wall's sides
+    assert inside.sum() > 300 and rod.sum() > 50
+    assert with_rod.coverage[inside].min() == 1.0  # before grazing rays went on: 40 pixels at 0.73-1
+    assert ((with_rod.coverage > 0.0) & (with_rod.coverage < 1.0) & rod).sum() > 0
+
+
 @pytest.mark.parametrize("grid_size", [GRID_SIZE, 2 * GRID_SIZE])
 def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_size):
     """Cached stages (and the object's window of the grid instead of the whole grid) give the very image the

@@ -17,6 +17,8 @@ from numba import njit, prange
 FAR = np.float32(3.0e38)
 SOFT_SHADOW_TAPS = 4  # per side: samples of a light point's square of the shadow map (light_visibility)
 HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
+STEP_MIN = 0.3
+EXIT_GAP = 0.5  # voxels outside the surface a ray must get past a grazed part before a part behind it counts
 EMPTY_DISTANCE2 = np.float32(1e20)  # squared distance from a line with nothing occupied (any transform stays below)
 
 
@@ -83,14 +85,18 @@ def _gap(fields, level, thin, x, y, z):
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits, points, deepest, cores):
+def trace_surface(fields, level, thin, probe, full, origin, pixel_to_ray, pixels, hits, points, deepest, cores, behind):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
     nearest occupied voxel, fields[..., 0]) falls to the surface level: `level`, or `thin` above the part's core where that
     is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
     direction is pixel_to_ray @ (u, v, 1), made unit. hits[i] = ray parameter (FAR if none),
     points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
     far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
-    the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one)."""
+    the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one).
+    behind[i] = whether a ray that only grazes the part it hit (its coverage, (surface level - deepest) /
+    ((surface level - core) * `full`), under 1) leaves it by EXIT_GAP and goes on to reach a surface behind it:
+    that ray is covered by the object, not by the floor (else a bright floor fringe outlines a part in front of
+    another)."""
     n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
     for i in prange(pixels.shape[0]):
         u, v = pixels[i, 0], pixels[i, 1]
@@ -101,6 +107,7 @@ def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits
         dx, dy, dz = dx / norm, dy / norm, dz / norm
         hits[i] = FAR
         deepest[i] = FAR
+        behind[i] = False
         t, t_end = _box_interval(origin[0], origin[1], origin[2], dx, dy, dz, n0, n1, n2)
         previous = t
         for _ in range(256):
@@ -129,9 +136,28 @@ def trace_surface(fields, level, thin, probe, origin, pixel_to_ray, pixels, hits
                     s = t + probe * k / 8.0
                     least = min(least, sample_pair(fields, origin[0] + s * dx, origin[1] + s * dy, origin[2] + s * dz)[0])
                 deepest[i] = least
+                surface = max(level, cores[i] + thin)
+                behind[i] = (surface - least < (surface - cores[i]) * full
+                             and _reaches_again(fields, level, thin, origin, dx, dy, dz, t + probe, t_end))
                 break
             previous = t
             t += max(gap, 0.3)
+
+
+@njit(cache=True, fastmath=True, error_model="numpy")
+def _reaches_again(fields, level, thin, origin, dx, dy, dz, t, t_end):
+    """Whether the ray from `origin` along (dx, dy, dz), from parameter t on, first gets EXIT_GAP outside the
+    surface and then reaches it (within HIT_GAP, or steps inside) before t_end."""
+    left = False
+    for _ in range(256):
+        if t > t_end:
+            return False
+        gap = _gap(fields, level, thin, origin[0] + t * dx, origin[1] + t * dy, origin[2] + t * dz)
+        if left and gap < HIT_GAP:
+            return True
+        left = left or gap > EXIT_GAP
+        t += max(gap, STEP_MIN)
+    return False
 
 
 @njit(cache=True, parallel=True)

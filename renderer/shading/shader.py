@@ -392,11 +392,13 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, 
     points = np.zeros((count, 3))
     deepest = np.empty(count)
     cores = np.zeros(count)
-    kernels.trace_surface(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, origin,
+    behind = np.zeros(count, dtype=bool)
+    kernels.trace_surface(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, COVERAGE_FULL, origin,
                           pixel_to_ray, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points,
-                          deepest, cores)
+                          deepest, cores, behind)
     level = np.maximum(SURFACE_LEVEL, cores + THIN_LEVEL)  # the surface level where each ray stopped
     cover = np.clip((level - deepest) / ((level - cores) * COVERAGE_FULL), 0.0, 1.0).astype(np.float32)
+    cover[behind] = 1.0  # it grazed a part in front of another: no floor shows through
     return t.reshape(u.shape), points.reshape(u.shape + (3,)), cover.reshape(u.shape)
 
 
