@@ -174,7 +174,8 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     grey = check_object_voxels(object_rgba).copy()
     occupied = occupancy(grey)
     grey[..., :3] = np.where(occupied[..., None], np.float32(linear_to_srgb(SHADING_GREY)), np.float32(0.0))
-    shaded = shade_scene(scene, grey, scene.floor.color, grid_size=SHADING_GRID_SIZE)
+    # A pixel where one part is drawn over another mixes both in the photo: it must not count as covered.
+    shaded = shade_scene(scene, grey, scene.floor.color, grid_size=SHADING_GRID_SIZE, cover_behind=False)
     shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
     known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
     albedo = srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING)

@@ -260,6 +260,10 @@ def test_a_part_in_front_of_another_shows_no_floor_at_its_outline():
     assert inside.sum() > 300 and rod.sum() > 50
     assert with_rod.coverage[inside].min() == 1.0  # before grazing rays went on: 40 pixels at 0.73-1
     assert ((with_rod.coverage > 0.0) & (with_rod.coverage < 1.0) & rod).sum() > 0
+    # Photo delighting asks for the rod's outline to stay partly covered: there a photo pixel mixes rod and wall.
+    for_photo = shade_grid(scene_grid(both, spec, FLOOR, 10.0), np.array([0.0, 2.0, 1.0]), 10.0, FLOOR, 128,
+                           cover_behind=False)
+    assert ((for_photo.coverage < 1.0) & inside).sum() > 10
 
 
 @pytest.mark.parametrize("grid_size", [GRID_SIZE, 2 * GRID_SIZE])

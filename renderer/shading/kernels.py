@@ -85,7 +85,8 @@ def _gap(fields, level, thin, x, y, z):
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def trace_surface(fields, level, thin, probe, full, origin, pixel_to_ray, pixels, hits, points, deepest, cores, behind):
+def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_to_ray, pixels, hits, points, deepest, cores,
+                  behind):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
     nearest occupied voxel, fields[..., 0]) falls to the surface level: `level`, or `thin` above the part's core where that
     is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
@@ -93,7 +94,7 @@ def trace_surface(fields, level, thin, probe, full, origin, pixel_to_ray, pixels
     points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
     far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
     the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one).
-    behind[i] = whether a ray that only grazes the part it hit (its coverage, (surface level - deepest) /
+    behind[i] (if `look_behind`, else False) = whether a ray that only grazes the part it hit (its coverage, (surface level - deepest) /
     ((surface level - core) * `full`), under 1) leaves it by EXIT_GAP and goes on to reach a surface behind it:
     that ray is covered by the object, not by the floor (else a bright floor fringe outlines a part in front of
     another)."""
@@ -137,7 +138,7 @@ def trace_surface(fields, level, thin, probe, full, origin, pixel_to_ray, pixels
                     least = min(least, sample_pair(fields, origin[0] + s * dx, origin[1] + s * dy, origin[2] + s * dz)[0])
                 deepest[i] = least
                 surface = max(level, cores[i] + thin)
-                behind[i] = (surface - least < (surface - cores[i]) * full
+                behind[i] = (look_behind and surface - least < (surface - cores[i]) * full
                              and _reaches_again(fields, level, thin, origin, dx, dy, dz, t + probe, t_end))
                 break
             previous = t

@@ -222,8 +222,10 @@ def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarra
 # --- stage 2 ----------------------------------------------------------------------------------
 
 
-def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
-    """The object points and floor points a `size`^2 render camera sees, with their occlusion."""
+def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = True) -> VisibleSurface:
+    """The object points and floor points a `size`^2 render camera sees, with their occlusion. `cover_behind`: a ray
+    that grazes a part and goes on to a part behind it covers its pixel (no floor shows through at a part drawn over
+    another); False counts it as partly covered, for photo delighting, where such a pixel mixes two parts."""
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     world_to_grid = np.linalg.inv(geometry.grid_to_world)
     origin = world_to_grid[:3, :3] @ camera.position + world_to_grid[:3, 3] - geometry.offset
@@ -232,7 +234,8 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
     points_crop = np.zeros((0, 3), dtype=np.float64)
     if not geometry.empty:
         rows, cols = _pixel_window(geometry, camera)
-        centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_grid, origin, rows, cols)
+        centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_grid, origin, rows, cols,
+                                                             cover_behind)
         hit = centre_t < kernels.FAR
         edge = (hit ^ ndimage.binary_erosion(hit, border_value=0)) | (ndimage.binary_dilation(hit) & ~hit)
         edge |= hit & (centre_cover < 1.0)
@@ -243,7 +246,7 @@ def visible_surface(geometry: ObjectGeometry, size: int) -> VisibleSurface:
             offsets = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
             sub_v = rows[er][:, None, None] + offsets[None, :, None]  # (edges, SUBPIXELS, 1)
             sub_u = cols[ec][:, None, None] + offsets[None, None, :]  # (edges, 1, SUBPIXELS): _trace broadcasts
-            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_grid, origin, sub_v, sub_u)
+            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_grid, origin, sub_v, sub_u, cover_behind)
             sub_t, sub_p = sub_t.reshape(len(er), -1), sub_p.reshape(len(er), -1, 3)
             sub_hit = sub_t < kernels.FAR
             cover[er, ec] = sub_cover.reshape(len(er), -1).mean(axis=1)
@@ -355,13 +358,14 @@ def _crop_corners(geometry: ObjectGeometry) -> np.ndarray:
 
 
 def _trace_candidates(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
-                      rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      rows: np.ndarray, cols: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`_trace` through the centres of the pixel window's pixels, skipping those whose ray cannot reach the surface
     (about two in three of a chair's window): they miss (FAR, a zero point, no coverage) as `_trace` would find."""
     shape = (len(rows), len(cols))
     t, points, cover = np.full(shape, kernels.FAR, dtype=np.float64), np.zeros(shape + (3,)), np.zeros(shape, np.float32)
     r, c = np.nonzero(_ray_candidates(geometry, camera, rows, cols))
-    t[r, c], points[r, c], cover[r, c] = _trace(geometry, camera, world_to_grid, origin, rows[r] + 0.5, cols[c] + 0.5)
+    t[r, c], points[r, c], cover[r, c] = _trace(geometry, camera, world_to_grid, origin, rows[r] + 0.5, cols[c] + 0.5,
+                                                cover_behind)
     return t, points, cover
 
 
@@ -380,8 +384,9 @@ def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, 
 
 
 def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
-           v: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v)."""
+           v: np.ndarray, u: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v)
+    (`cover_behind`: see visible_surface)."""
     u, v = np.broadcast_arrays(u, v)
     count = u.size
     # The camera-space ray through (u, v) is ((u - cx) / f, -(v - cy) / f, -1): affine in (u, v, 1).
@@ -393,7 +398,8 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, 
     deepest = np.empty(count)
     cores = np.zeros(count)
     behind = np.zeros(count, dtype=bool)
-    kernels.trace_surface(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, COVERAGE_FULL, origin,
+    kernels.trace_surface(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, COVERAGE_FULL,
+                          cover_behind, origin,
                           pixel_to_ray, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points,
                           deepest, cores, behind)
     level = np.maximum(SURFACE_LEVEL, cores + THIN_LEVEL)  # the surface level where each ray stopped
@@ -605,20 +611,22 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
 
 
 def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_color, size: int = 256,
-               start: tuple[int, int, int] = (0, 0, 0), grid_size: int | None = None) -> ShadedImage:
+               start: tuple[int, int, int] = (0, 0, 0), grid_size: int | None = None,
+               cover_behind: bool = True) -> ShadedImage:
     """All three stages at once: the shaded image of a camera-aligned grid (or of the window of a `grid_size`^3
-    grid from `start` that holds the object, as object_geometry takes it)."""
+    grid from `start` that holds the object, as object_geometry takes it; `cover_behind`: see visible_surface)."""
     geometry = object_geometry(grid, elevation_deg, start, grid_size)
-    return shade(geometry, visible_surface(geometry, size), light_position, floor_color)
+    return shade(geometry, visible_surface(geometry, size, cover_behind), light_position, floor_color)
 
 
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
-                grid_size: int = GRID_SIZE) -> ShadedImage:
+                grid_size: int = GRID_SIZE, cover_behind: bool = True) -> ShadedImage:
     """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's),
-    from the object's window of its `grid_size`^3 scene grid (renderer.grid.shader_window)."""
+    from the object's window of its `grid_size`^3 scene grid (renderer.grid.shader_window; `cover_behind`: see
+    visible_surface)."""
     resolution, elevation = object_rgba.shape[0], scene.camera.elevation_deg
     factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
     start, window = shader_window(*pool_object(object_rgba, factors), resolution, factors, scene.object, elevation,
                                   grid_size)
     return shade_grid(window, scene.light.position, elevation, floor_color, scene.image_size if size is None else size,
-                      start, grid_size)
+                      start, grid_size, cover_behind)
