@@ -60,9 +60,8 @@ def lit_floor_terms(camera: Camera, light_position, floor_color) -> tuple[np.nda
     what the area light gives (diffuse and glossy), what the ambient light gives, and the floor mask (H, W).
     Both are zero off the floor."""
     geometry = _coarse_geometry(camera)
-    from_light, from_ambient = (_upsample(term, geometry) for term in _coarse_radiance(geometry, light_position, floor_color))
-    for term in (from_light, from_ambient):
-        term *= geometry.floor[..., None]
+    from_light, from_ambient = (_upsample(term, geometry, on_floor=True)
+                                for term in _coarse_radiance(geometry, light_position, floor_color))
     return from_light, from_ambient, geometry.floor
 
 
@@ -194,23 +193,28 @@ def _linear_weights(samples: np.ndarray, size: int) -> tuple[np.ndarray, np.ndar
     return left, right, weight.astype(np.float32)
 
 
-def _upsample(coarse: np.ndarray, geometry: _Geometry) -> np.ndarray:
-    """Bilinear interpolation of (h, w, c) coarse float32 values to the full image."""
+def _upsample(coarse: np.ndarray, geometry: _Geometry, on_floor: bool = False) -> np.ndarray:
+    """Bilinear interpolation of (h, w, c) coarse float32 values to the full image (`on_floor`: 0 off the floor)."""
     top, bottom, down = geometry.row_weights
     left, right, across = geometry.col_weights
     out = np.empty((len(top), len(left), coarse.shape[2]), dtype=np.float32)
-    _bilinear(np.ascontiguousarray(coarse, dtype=np.float32), top, bottom, down, left, right, across, out)
+    _bilinear(np.ascontiguousarray(coarse, dtype=np.float32), top, bottom, down, left, right, across,
+              geometry.floor, on_floor, out)
     return out
 
 
 @njit(cache=True, parallel=True)
-def _bilinear(coarse, top, bottom, down, left, right, across, out):
-    """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c]: compiled,
-    one pass over the image (numpy's gathers took 1 ms a light edit; its BLAS fought the network's threads)."""
+def _bilinear(coarse, top, bottom, down, left, right, across, floor, on_floor, out):
+    """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c] (0 where
+    `on_floor` and not floor[r, c]): compiled, one pass over the image (numpy's gathers took 1 ms a light edit; its
+    BLAS fought the network's threads)."""
     for r in prange(out.shape[0]):
         t, b, wd = top[r], bottom[r], down[r]
         for c in range(out.shape[1]):
             lc, rc, wa = left[c], right[c], across[c]
+            if on_floor and not floor[r, c]:
+                out[r, c, :] = 0.0
+                continue
             for k in range(out.shape[2]):
                 upper = coarse[t, lc, k] * (1.0 - wa) + coarse[t, rc, k] * wa
                 lower = coarse[b, lc, k] * (1.0 - wa) + coarse[b, rc, k] * wa
