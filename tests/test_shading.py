@@ -146,6 +146,16 @@ def test_trilinear_sample_matches_scipy():
     np.testing.assert_allclose(got, expected, atol=1e-5)
 
 
+@pytest.mark.parametrize("shape", [(7, 9), (1, 5), (4, 1)])
+def test_grid_interpolation_matches_scipy_beyond_the_edges_too(shape):
+    rng = np.random.default_rng(1)
+    values = rng.random(shape)
+    a, b = rng.uniform(-2.0, shape[0] + 1.0, 300), rng.uniform(-2.0, shape[1] + 1.0, 300)
+    got = np.empty(300)
+    kernels.interpolate_grid(values, a, b, got)
+    np.testing.assert_allclose(got, ndimage.map_coordinates(values, [a, b], order=1, mode="nearest"), atol=1e-12)
+
+
 def test_shadow_maps_block_what_lies_between():
     # One occluder at height 1 straight below a light point at height 3: a receiver on the floor under it
     # is in shadow, one a metre aside is lit, and with no occluders everything is lit.

@@ -44,6 +44,20 @@ def sample(field, x, y, z):
     return (c00 * (1 - fy) + c01 * fy) * (1 - fx) + (c10 * (1 - fy) + c11 * fy) * fx
 
 
+@njit(cache=True, parallel=True)
+def interpolate_grid(values, a, b, out):
+    """out[i] = the 2D grid `values` interpolated linearly at index coordinates (a[i], b[i]), clamped to its edges
+    (scipy.ndimage.map_coordinates with order 1 and mode "nearest", which took 1 ms of a light edit)."""
+    n0, n1 = values.shape
+    for i in prange(a.shape[0]):
+        x, y = min(max(a[i], 0.0), n0 - 1.0), min(max(b[i], 0.0), n1 - 1.0)
+        i0, j0 = int(math.floor(x)), int(math.floor(y))
+        i1, j1 = min(i0 + 1, n0 - 1), min(j0 + 1, n1 - 1)
+        fx, fy = x - i0, y - j0
+        out[i] = ((values[i0, j0] * (1.0 - fy) + values[i0, j1] * fy) * (1.0 - fx)
+                  + (values[i1, j0] * (1.0 - fy) + values[i1, j1] * fy) * fx)
+
+
 @njit(cache=True, inline="always")
 def _box_interval(ox, oy, oz, dx, dy, dz, n0, n1, n2):
     """Ray parameters [t0, t1] inside the box [0, n0] x [0, n1] x [0, n2] (t0 > t1: the ray misses it)."""

@@ -554,9 +554,10 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
     on_grid = np.empty(len(samples))
     kernels.light_visibility(samples, bias, lights, maps, bounds, nearest, LIGHT_SIZE / LIGHT_POINTS, on_grid)
-    seen[near] = ndimage.map_coordinates(on_grid.reshape(gx.shape), [(x[near] - x0) / FLOOR_SHADOW_STEP,
-                                                                      (z[near] - z0) / FLOOR_SHADOW_STEP],
-                                         order=1, mode="nearest")
+    interpolated = np.empty(int(near.sum()))
+    kernels.interpolate_grid(on_grid.reshape(gx.shape), (x[near] - x0) / FLOOR_SHADOW_STEP,
+                             (z[near] - z0) / FLOOR_SHADOW_STEP, interpolated)
+    seen[near] = interpolated
     return seen
 
 
