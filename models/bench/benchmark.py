@@ -44,9 +44,9 @@ from models.engine.render_engine import RenderEngine, resolve_precision
 from models.evaluation.evaluate import ASSET_MODELS, SHIPPED_MODELS
 from models.evaluation.metrics import ImageMetrics
 from models.networks.checkpoint import check_weights_file, load_model
-from models.networks.config import CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
+from models.networks.config import IMAGE_CHANNELS, CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
 from models.networks.inference import prepare_for_inference
-from models.networks.nvr import build_model, reads_floor_light
+from models.networks.nvr import SHADING_CHANNELS, build_model, reads_floor_light, reads_shading
 from renderer.errors import InputError
 from renderer.io import save_json
 from renderer.pathtrace.path_tracer import PathTracer
@@ -310,7 +310,7 @@ def alternating_ms(engine: RenderEngine | _PaintedShader, pair: tuple[Scene, Sce
 
 def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
     """Per configuration and architecture: GFLOP of a full-grid frame and of a light edit, and their times."""
-    configs: list[NVRConfig] = [CompactConfig()] + ([PaperConfig()] if settings.paper else [])
+    configs: list[NVRConfig] = [ShaderRefinerConfig(), CompactConfig()] + ([PaperConfig()] if settings.paper else [])
     out = []
     for config in configs:
         for architecture in ("nvr_plus", "nvr"):
@@ -318,7 +318,7 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
             model = build_model(architecture, config).eval()
             counted = network_calls(prepare_for_inference(model), config)  # FlopCounterMode knows these convolutions
             timed = network_calls(RenderEngine(model, precision="fp32").model, config)  # the engine's copy, fp32 like the peak
-            repeats = settings.repeats if config.name == "compact" else 2
+            repeats = settings.repeats if config.name != "paper" else 2
             with torch.inference_mode():
                 out.append({
                     "config": config.name, "architecture": FAMILY[architecture],
@@ -330,8 +330,8 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
 
 
 def network_calls(model, config: NVRConfig) -> tuple[Callable[[], Any], Callable[[], Any]]:
-    """A full forward pass on a 10%-occupied grid and the light edit after it (render_from_latent, and
-    the splat branch again if it reads the lit floor, which depends on the light)."""
+    """A full forward pass on a 10%-occupied grid and the light edit after it (render_from_latent, and the splat
+    branch again if it reads the lit floor or the shader's buffers, which depend on the light)."""
     g, s = config.grid_size, config.output_size
     generator = torch.Generator().manual_seed(0)
     voxels = (torch.rand(g, g, g, 4, generator=generator) < 0.1).float().permute(3, 0, 1, 2)[None]
@@ -339,15 +339,20 @@ def network_calls(model, config: NVRConfig) -> tuple[Callable[[], Any], Callable
     plus = model.architecture == "nvr_plus"
     splat = torch.rand(1, 3, s, s, generator=generator) if plus else None
     floor_light = torch.rand(1, 3, s, s, generator=generator) if reads_floor_light(model.architecture, config) else None
+    shading = (torch.rand(1, SHADING_CHANNELS, s, s, generator=generator) if reads_shading(model.architecture, config)
+               else None)
+    shaded = None if shading is None else shading[:, :IMAGE_CHANNELS].contiguous()
+    branch = {} if shading is None else {"shading": shading}
     with torch.inference_mode():
         latent = model.encode_voxels(voxels)
-        features = model.encode_splat(splat, floor_light) if plus else None
+        features = model.encode_splat(splat, floor_light, **branch) if plus else None
+    light_dependent = floor_light is not None or shading is not None
 
     def light_edit():
-        splat_features = model.encode_splat(splat, floor_light) if floor_light is not None else features
-        return model.render_from_latent(latent, light, splat_features)
+        splat_features = model.encode_splat(splat, floor_light, **branch) if light_dependent else features
+        return model.render_from_latent(latent, light, splat_features, **({} if shaded is None else {"shaded": shaded}))
 
-    return (lambda: model(voxels, light, splat, floor_light)), light_edit
+    return (lambda: model(voxels, light, splat, floor_light, **branch)), light_edit
 
 
 def _gflop(call: Callable[[], Any]) -> float:
