@@ -313,7 +313,8 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
     configs: list[NVRConfig] = [ShaderRefinerConfig(), CompactConfig()] + ([PaperConfig()] if settings.paper else [])
     out = []
     for config in configs:
-        for architecture in ("nvr_plus", "nvr"):
+        # The shader refiner's configuration differs from the compact one only in NVR+'s splat branch.
+        for architecture in ("nvr_plus",) if config.shading_input else ("nvr_plus", "nvr"):
             torch.manual_seed(0)
             model = build_model(architecture, config).eval()
             counted = network_calls(prepare_for_inference(model), config)  # FlopCounterMode knows these convolutions
