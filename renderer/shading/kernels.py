@@ -17,7 +17,7 @@ from numba import njit, prange
 FAR = np.float32(3.0e38)
 SOFT_SHADOW_TAPS = 4  # per side: samples of a light point's square of the shadow map (light_visibility)
 HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
-STEP_MIN = 0.3
+STEP_MIN = 0.3  # voxels: the least step a sphere-traced ray takes (near a surface its gap is tiny)
 EXIT_GAP = 0.5  # voxels outside the surface a ray must get past a grazed part before a part behind it counts
 EMPTY_DISTANCE2 = np.float32(1e20)  # squared distance from a line with nothing occupied (any transform stays below)
 
@@ -108,8 +108,9 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
     points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
     far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
     the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one).
-    behind[i] (if `look_behind`, else False) = whether a ray that only grazes the part it hit (its coverage, (surface level - deepest) /
-    ((surface level - core) * `full`), under 1) leaves it by EXIT_GAP and goes on to reach a surface behind it:
+    behind[i] (if `look_behind`, else False) = whether a ray that only grazes the part it hit (its coverage,
+    (surface level - deepest) / ((surface level - core) * `full`), under 1) leaves it by EXIT_GAP and goes on to
+    reach a surface behind it:
     that ray is covered by the object, not by the floor (else a bright floor fringe outlines a part in front of
     another)."""
     n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
@@ -156,7 +157,7 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
                              and _reaches_again(fields, level, thin, origin, dx, dy, dz, t + probe, t_end))
                 break
             previous = t
-            t += max(gap, 0.3)
+            t += max(gap, STEP_MIN)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
