@@ -298,9 +298,10 @@ def supersampled_object_window(pooled: np.ndarray, within: tuple | None, resolut
         pooled_shape = tuple(-(-resolution // f) for f in factors)
         first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T
         cell = _merged_cell_map(resolution, factors, object_spec, elevation_deg, fine)
+        occupied = pooled[..., 3] >= 0.5
         _vote_merged_voxels(cell, *(np.arange(a, b) + 0.5 for a, b in zip(lo, hi)), np.asarray(first, dtype=np.float64),
                             np.asarray(stop, dtype=np.float64), np.asarray(pooled_shape, dtype=np.int64),
-                            dilate_cube(pooled[..., 3] >= 0.5).reshape(-1), (pooled[..., 3] >= 0.5).reshape(-1),
+                            dilate_cube(occupied).reshape(-1), occupied.reshape(-1),
                             np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4), out)
     return tuple(int(v) for v in lo // 2), out
 
