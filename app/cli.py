@@ -505,9 +505,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", required=True, nargs="+", help="data folders made by `nvr data generate`")
     p.add_argument("--out", required=True, help="run folder")
     p.add_argument("--model", choices=["nvr+", "nvr"], default="nvr+")
-    p.add_argument("--config", choices=["compact", "paper", "shader_refiner"], default="compact",
+    p.add_argument("--config", choices=["compact", "paper", "shader_refiner", "half_res_refiner"], default="compact",
                    help="network widths and inputs: compact (live on a CPU), paper (the published widths), "
-                        "shader_refiner (compact, correcting the voxel shader's image)")
+                        "shader_refiner (compact, correcting the voxel shader's image), half_res_refiner (the same, "
+                        "its correction computed at half the image's side)")
     p.add_argument("--steps", type=int, default=10000)
     p.add_argument("--batch", type=int, default=10, help="global batch size (paper: 10)")
     p.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (paper: 1e-4)")

@@ -1,6 +1,6 @@
 """Forward time of the networks on this CPU: full frame and light edit (everything after the light merge).
 
-Usage: python benchmarks/bench_networks.py [--config compact|paper|shader_refiner] [--arch nvr|nvr_plus]
+Usage: python benchmarks/bench_networks.py [--config compact|paper|shader_refiner|half_res_refiner] [--arch nvr|nvr_plus]
        [--set FIELD=JSON ...] [--repeats N] [--no-prepare]
 fp32, eval mode, batch 1, on the inference copy (models/networks/inference.py: BatchNorm folded,
 channels-last) unless --no-prepare. Two measurements, because other processes share the CPU:
@@ -27,11 +27,9 @@ import torch  # noqa: E402
 from torch.utils.flop_counter import FlopCounterMode  # noqa: E402
 
 from models.bench.benchmark import network_calls  # noqa: E402
-from models.networks.config import CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig  # noqa: E402
+from models.networks.config import CONFIGS, NVRConfig  # noqa: E402
 from models.networks.inference import prepare_for_inference  # noqa: E402
 from models.networks.nvr import build_model  # noqa: E402
-
-CONFIGS = {"paper": PaperConfig, "compact": CompactConfig, "shader_refiner": ShaderRefinerConfig}
 
 
 def gflop(fn: Callable[[], object]) -> float:

@@ -433,16 +433,21 @@ TINY_REFINER = ShaderRefinerConfig(grid_size=64, output_size=64, voxel_channels=
                                    light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
 
 
-def refiner(seed: int = 0, trained: bool = True):
+# The same at half the image's side: its correction is computed at 32^2 and upsampled onto the 64^2 shaded image.
+TINY_HALF_REFINER = replace(TINY_REFINER, decoder_channels=(8,), correction_downsampling=2)
+REFINERS = {"full": TINY_REFINER, "half": TINY_HALF_REFINER}
+
+
+def refiner(seed: int = 0, trained: bool = True, config: ShaderRefinerConfig = TINY_REFINER):
     """A random refiner; `trained`: its correction layer is random too (a fresh one starts at zero)."""
-    model = random_model(TINY_REFINER, seed=seed)
+    model = random_model(config, seed=seed)
     if trained:
         torch.manual_seed(seed + 1)
         for parameter in model.rerender.to_rgb.parameters():
             parameter.data.normal_(0.0, 0.05)
     else:
         torch.manual_seed(seed)
-        model = build_model("nvr_plus", TINY_REFINER).eval()
+        model = build_model("nvr_plus", config).eval()
     return model
 
 
@@ -476,9 +481,10 @@ def test_refiner_drag_preview_shades_the_network_grid(scene):
     assert live.last_report.stages_run == ()
 
 
+@pytest.mark.parametrize("resolution", REFINERS)
 @pytest.mark.parametrize("edit", EDITS)
-def test_refiner_cached_render_equals_uncached(scene, edit):
-    model = refiner()
+def test_refiner_cached_render_equals_uncached(scene, edit, resolution):
+    model = refiner(config=REFINERS[resolution])
     edited = EDITS[edit][0](scene)
     live = engine(model)
     live.render(scene)
@@ -495,9 +501,10 @@ def test_refiner_cached_render_equals_uncached(scene, edit):
     assert np.abs(image - live.render(scene)).max() > 1e-4
 
 
-def test_a_saved_refiner_renders_the_same_after_loading(scene, tmp_path):
-    model = refiner()
-    save_model(tmp_path / "refiner.safetensors", model, TINY_REFINER)
+@pytest.mark.parametrize("resolution", REFINERS)
+def test_a_saved_refiner_renders_the_same_after_loading(scene, tmp_path, resolution):
+    model = refiner(config=REFINERS[resolution])
+    save_model(tmp_path / "refiner.safetensors", model, REFINERS[resolution])
     loaded = RenderEngine.load(tmp_path / "refiner.safetensors", threads=1, precision="fp32")
     np.testing.assert_array_equal(loaded.render(scene), engine(model).render(scene))
     # The preview while dragging is the shaded image the full render corrects.

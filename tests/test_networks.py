@@ -8,7 +8,13 @@ import numpy as np
 import pytest
 import torch
 
-from models.networks.config import CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
+from models.networks.config import (
+    CompactConfig,
+    HalfResolutionRefinerConfig,
+    NVRConfig,
+    PaperConfig,
+    ShaderRefinerConfig,
+)
 from models.networks.inference import prepare_for_inference
 from models.networks.layers import cat_channels
 from models.networks.nvr import LIGHT_SCALE, NVR, SHADING_CHANNELS, NVRPlus, build_model, light_to_network
@@ -203,7 +209,7 @@ def test_lit_floor_input_changes_the_output() -> None:
 
 
 def test_config_round_trip_and_validation() -> None:
-    for config in (PaperConfig(), CompactConfig(), TINY_PAPER):
+    for config in (PaperConfig(), CompactConfig(), TINY_PAPER, ShaderRefinerConfig(), HalfResolutionRefinerConfig()):
         data = config.to_dict()
         again = NVRConfig.from_dict(data)
         assert again == config and type(again) is type(config)
@@ -216,6 +222,13 @@ def test_config_round_trip_and_validation() -> None:
         NVRConfig.from_dict({k: v for k, v in CompactConfig().to_dict().items() if k != "latent_channels"})
     with pytest.raises(ValueError, match="non-negative integer"):
         CompactConfig(latent_channels=-1)
+    assert HalfResolutionRefinerConfig().network_size == 128 and HalfResolutionRefinerConfig().output_size == 256
+    with pytest.raises(ValueError, match="needs shading_input"):
+        CompactConfig(decoder_channels=(32, 16), correction_downsampling=2)
+    with pytest.raises(ValueError, match="correction_downsampling must be"):
+        ShaderRefinerConfig(correction_downsampling=3)
+    with pytest.raises(ValueError, match="output_size"):
+        ShaderRefinerConfig(correction_downsampling=2)  # the decoder would reach 256, the network works at 128
 
 
 def test_cat_channels_keeps_channels_last_and_the_values() -> None:
@@ -247,4 +260,50 @@ def test_shader_refiner_corrects_the_shaded_image_the_same_in_either_layout() ->
     expected = shading[:, :3] * torch.exp(last[:, :3]) + last[:, 3:]
     torch.testing.assert_close(image, expected, rtol=0, atol=1e-6)
     torch.testing.assert_close(image_last, image, rtol=0, atol=1e-6)
+    assert (image - shading[:, :3]).abs().max() > 1e-3  # the correction is not zero
+
+
+def _bilinear_double(image: np.ndarray) -> np.ndarray:
+    """(C, H, W) -> (C, 2H, 2W): each output pixel centre mapped back onto the input, weights from the distance
+    to its two nearest input pixels, clamped at the border (half-pixel centres, as image resizers do)."""
+    def axis_weights(n: int) -> np.ndarray:
+        x = np.clip((np.arange(2 * n) + 0.5) / 2.0 - 0.5, 0.0, n - 1)
+        low = np.floor(x).astype(int)
+        high = np.minimum(low + 1, n - 1)
+        w = np.zeros((2 * n, n))
+        w[np.arange(2 * n), low] += 1.0 - (x - low)
+        w[np.arange(2 * n), high] += x - low
+        return w
+    rows, cols = axis_weights(image.shape[1]), axis_weights(image.shape[2])
+    return np.einsum("ri,cij,sj->crs", rows, image, cols)
+
+
+def test_a_half_resolution_refiner_applies_its_coarse_correction_to_the_full_resolution_shaded_image() -> None:
+    config = HalfResolutionRefinerConfig(grid_size=16, output_size=32)
+    assert config.network_size == 16
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", config).eval()
+    voxels, light, splat = make_inputs(config, batch=1)
+    gen = torch.Generator().manual_seed(1)
+    shading = torch.rand(1, SHADING_CHANNELS, 32, 32, generator=gen)
+    with torch.no_grad():  # untrained: the correction layer is zero, so the image is the shaded one, pixel for pixel
+        torch.testing.assert_close(model(voxels, light, splat, shading=shading), shading[:, :3], rtol=0, atol=0)
+    for parameter in model.rerender.to_rgb.parameters():
+        torch.nn.init.normal_(parameter, std=0.05)
+    # A pattern that sums to zero over every 2x2 block: the network reads block means, so only the shaded image's
+    # own detail may change the output.
+    checker = torch.tensor([[1.0, -1.0], [-1.0, 1.0]]).repeat(16, 16) * 0.01
+    with torch.no_grad():
+        image = model(voxels, light, splat, shading=shading)
+        coarse = model.rerender(model.to_features(model._features(model.encode_voxels(voxels), light))
+                                + model.splat_encoder(torch.cat([torch.nn.functional.avg_pool2d(t, 2)
+                                                                 for t in (splat, shading)], dim=1)))
+        detailed = shading.clone()
+        detailed[:, 3:] += checker  # the buffers' detail, not the shaded image's
+        same = model(voxels, light, splat + checker, shading=detailed)
+    assert coarse.shape == (1, 6, 16, 16)
+    correction = _bilinear_double(coarse[0].numpy().astype(np.float64))
+    expected = shading[0, :3].numpy() * np.exp(correction[:3]) + correction[3:]
+    np.testing.assert_allclose(image[0].numpy(), expected, rtol=0, atol=1e-5)
+    torch.testing.assert_close(same, image, rtol=0, atol=1e-5)
     assert (image - shading[:, :3]).abs().max() > 1e-3  # the correction is not zero

@@ -310,6 +310,34 @@ def test_a_shader_refiner_started_from_a_compact_nvr_plus_still_renders_the_shad
         torch.testing.assert_close(model(voxels, light, splat, None, shading), shading[:, :3])
 
 
+def test_a_half_resolution_refiner_starts_from_a_full_resolution_one(tmp_path):
+    from models.networks.checkpoint import save_model
+    from models.networks.config import HalfResolutionRefinerConfig, ShaderRefinerConfig
+    from models.networks.nvr import build_model
+    from models.training.train import initialize_from
+
+    torch.manual_seed(0)
+    source = build_model("nvr_plus", ShaderRefinerConfig(grid_size=16, output_size=32)).eval()
+    for parameter in source.parameters():  # trained-looking: no layer left at its initial value
+        torch.nn.init.normal_(parameter, std=0.1)
+    save_model(tmp_path / "full.safetensors", source, source.config)
+    model = build_model("nvr_plus", HalfResolutionRefinerConfig(grid_size=16, output_size=32)).eval()
+    initialize_from(model, tmp_path / "full.safetensors")
+    old, new = source.state_dict(), model.state_dict()
+    shared = [k for k in new if not k.startswith("to_features.0.")]
+    assert all(torch.equal(new[k], old[k]) for k in shared)
+    assert len(old) - len(new) == sum(k.startswith(("light_decoder.decoder.4.", "light_decoder.decoder.5."))
+                                      for k in old) > 0  # the decoder's last doubling is left out
+    assert new["to_features.0.weight"].shape[1] == 16 and not new["to_features.0.weight"].any()
+    # So at step 0 it corrects from the splat branch alone: neither the voxels nor the light change its image.
+    splat, shading = torch.rand(1, 3, 32, 32), torch.rand(1, 13, 32, 32)
+    with torch.no_grad():
+        a = model(torch.rand(1, 4, 16, 16, 16), torch.rand(1, 3), splat, None, shading)
+        b = model(torch.rand(1, 4, 16, 16, 16), torch.rand(1, 3), splat, None, shading)
+    torch.testing.assert_close(a, b, rtol=0, atol=0)
+    assert (a - shading[:, :3]).abs().max() > 1e-3
+
+
 @pytest.mark.parametrize("option, value, named", [
     ("--lr", "inf", "--lr"), ("--lr", "1e30", "--lr"), ("--lr", "nan", "--lr"), ("--lr", "0", "--lr"),
     ("--steps", "-1", "--steps"), ("--batch", "-3", "--batch"), ("--threads", "-1", "--threads"),

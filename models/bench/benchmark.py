@@ -44,7 +44,14 @@ from models.engine.render_engine import RenderEngine, resolve_precision
 from models.evaluation.evaluate import ASSET_MODELS, SHIPPED_MODELS
 from models.evaluation.metrics import ImageMetrics
 from models.networks.checkpoint import check_weights_file, load_model
-from models.networks.config import IMAGE_CHANNELS, CompactConfig, NVRConfig, PaperConfig, ShaderRefinerConfig
+from models.networks.config import (
+    IMAGE_CHANNELS,
+    CompactConfig,
+    HalfResolutionRefinerConfig,
+    NVRConfig,
+    PaperConfig,
+    ShaderRefinerConfig,
+)
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import SHADING_CHANNELS, build_model, reads_floor_light, reads_shading
 from renderer.errors import InputError
@@ -310,7 +317,8 @@ def alternating_ms(engine: RenderEngine | _PaintedShader, pair: tuple[Scene, Sce
 
 def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
     """Per configuration and architecture: GFLOP of a full-grid frame and of a light edit, and their times."""
-    configs: list[NVRConfig] = [ShaderRefinerConfig(), CompactConfig()] + ([PaperConfig()] if settings.paper else [])
+    configs: list[NVRConfig] = ([ShaderRefinerConfig(), HalfResolutionRefinerConfig(), CompactConfig()]
+                                + ([PaperConfig()] if settings.paper else []))
     out = []
     for config in configs:
         # The shader refiner's configuration differs from the compact one only in NVR+'s splat branch.

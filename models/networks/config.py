@@ -64,6 +64,10 @@ class NVRConfig:
     # grid voxel per object voxel, where the network's grid merges two, so thin parts, silhouettes and texture keep
     # the object voxels' detail).
     shading_grid_factor: int = 1
+    # With shading_input: the network works at 1/this of the image's side (its inputs area-averaged, its decoder one
+    # doubling shorter per halving) and its correction is upsampled bilinearly and applied to the full-resolution
+    # shaded image, which holds the detail: the shipped refiner's correction loses little at half size (docs/results.md).
+    correction_downsampling: int = 1
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -88,6 +92,11 @@ class NVRConfig:
         return self.grid_size * self.shading_grid_factor
 
     @property
+    def network_size(self) -> int:
+        """Side of the images the network's 2D layers work on (output_size / correction_downsampling)."""
+        return self.output_size // self.correction_downsampling
+
+    @property
     def latent_size(self) -> int:
         """Side of the 2D latent (the voxel grid's side after the strided 3D stages)."""
         return self.grid_size // self.voxel_downsampling
@@ -109,13 +118,18 @@ class NVRConfig:
             raise ValueError("voxel_strides must be 1 or 2")
         if self.grid_size % self.voxel_downsampling:
             raise ValueError(f"grid_size {self.grid_size} is not divisible by the voxel downsampling {self.voxel_downsampling}")
-        expected = self.latent_size * 2 ** len(self.decoder_channels)
+        if self.correction_downsampling not in (1, 2, 4):
+            raise ValueError(f"correction_downsampling must be 1, 2 or 4, got {self.correction_downsampling!r}")
+        if self.correction_downsampling > 1 and not self.shading_input:
+            raise ValueError("correction_downsampling above 1 needs shading_input (it upsamples a correction of the shaded image)")
+        expected = self.latent_size * 2 ** len(self.decoder_channels) * self.correction_downsampling
         if self.output_size != expected:
-            raise ValueError(f"output_size must be latent size x 2^(decoder stages) = {expected}, got {self.output_size}")
+            raise ValueError(f"output_size must be latent size x 2^(decoder stages) x correction_downsampling = {expected}, "
+                             f"got {self.output_size}")
         if min(self.unet_channels) < 2:
             raise ValueError("unet_channels must be at least 2 (each level upsamples to half its width)")
-        if self.output_size % 2 ** len(self.unet_channels):
-            raise ValueError("output_size must be divisible by 2^(U-Net levels)")
+        if self.network_size % 2 ** len(self.unet_channels):
+            raise ValueError("output_size / correction_downsampling must be divisible by 2^(U-Net levels)")
         for key in ("grid_size", "latent_channels", "light_channels", "merge_kernel",
                     "decoder_kernel", "splat_channels", "splat_kernel", "unet_kernel"):
             if getattr(self, key) < 1:
@@ -139,12 +153,12 @@ class NVRConfig:
     @staticmethod
     def from_dict(data: dict[str, Any]) -> NVRConfig:
         """Rebuild a configuration from `to_dict` output; unknown names or fields raise ValueError."""
-        classes = {cls.name: cls for cls in (PaperConfig, CompactConfig, ShaderRefinerConfig)}
-        if not isinstance(data, dict) or data.get("name") not in classes:
+        if not isinstance(data, dict) or data.get("name") not in CONFIGS:
             raise ValueError(f"unknown configuration name {data.get('name') if isinstance(data, dict) else data!r}")
-        cls = classes[data["name"]]
+        cls = CONFIGS[data["name"]]
         # Files written before these fields existed had no such inputs (and shaded the network's own grid).
-        data = {"floor_light_input": False, "shading_input": False, "shading_grid_factor": 1, **data}
+        data = {"floor_light_input": False, "shading_input": False, "shading_grid_factor": 1, "correction_downsampling": 1,
+                **data}
         fields = {f.name for f in dataclasses.fields(cls)}
         given = set(data) - {"name"}
         if given != fields:
@@ -245,3 +259,20 @@ class ShaderRefinerConfig(CompactConfig):
     floor_light_input: bool = False
     shading_input: bool = True
     shading_grid_factor: int = 2
+
+
+@dataclass(frozen=True)
+class HalfResolutionRefinerConfig(ShaderRefinerConfig):
+    """The shader refiner at half the image's side: its splat branch and U-Net work at 128^2 on the area-averaged
+    256^2 inputs, its decoder stops at 128^2, and its correction is upsampled bilinearly onto the full-resolution
+    shaded image. The full-resolution layers of the shader refiner are thin (8 channels) and run far below the
+    CPU's peak; at half size a light edit costs about a quarter of their time (docs/results.md)."""
+
+    name: ClassVar[str] = "half_res_refiner"
+
+    decoder_channels: tuple[int, ...] = (32, 16)
+    correction_downsampling: int = 2
+
+
+CONFIGS: dict[str, type[NVRConfig]] = {cls.name: cls for cls in (CompactConfig, PaperConfig, ShaderRefinerConfig,
+                                                                   HalfResolutionRefinerConfig)}

@@ -18,7 +18,9 @@ Input/output convention (the one place it is written down):
   pixel keeps a gradient). With shading_input: the shaded image corrected, shaded * exp(gain) +
   offset, gain and offset per pixel and channel from the network (not squashed: clamp for display);
   their layer starts at zero, so an untrained network renders the shaded image exactly, and a
-  multiplicative correction keeps the texture the shaded image already has.
+  multiplicative correction keeps the texture the shaded image already has. With
+  config.correction_downsampling above 1 the network's 2D layers work on its inputs area-averaged to
+  config.network_size, and gain and offset are upsampled bilinearly to S before they are applied.
 
 Stages, so a live engine can cache what an edit does not change:
 `encode_voxels(voxels) -> latent` does not depend on the light, nor does
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from models.networks.config import IMAGE_CHANNELS, LIGHT_DIMS, VOXEL_CHANNELS_IN, NVRConfig
@@ -236,6 +239,9 @@ class NVRPlus(_VoxelRenderer):
                 raise ValueError(f"this network reads the {label} too (config.{name}_input): pass {name}")
             _check_shape(name, tensor, (channels, s, s))
             inputs.append(tensor)
+        factor = self.config.correction_downsampling
+        if factor > 1:
+            inputs = [F.avg_pool2d(tensor, factor) for tensor in inputs]
         return self.splat_encoder(cat_channels(inputs))
 
     def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
@@ -250,6 +256,8 @@ class NVRPlus(_VoxelRenderer):
             return torch.sigmoid(out)
         if shaded is None:
             raise ValueError("this network corrects the shaded image (config.shading_input): pass shaded")
+        if self.config.correction_downsampling > 1:
+            out = F.interpolate(out, scale_factor=self.config.correction_downsampling, mode="bilinear", align_corners=False)
         gain, offset = out[:, :IMAGE_CHANNELS], out[:, IMAGE_CHANNELS:]
         # exp of a dense copy (clone keeps the layout): on a strided channel slice it is not vectorised, 10x slower
         return torch.addcmul(offset, shaded, gain.clone().exp())

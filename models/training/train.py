@@ -168,9 +168,8 @@ class Distributed:
 
 def network_config(train: TrainConfig):
     """The network config a run trains (a named configuration, with any overrides)."""
-    from models.networks.config import CompactConfig, PaperConfig, ShaderRefinerConfig
+    from models.networks.config import CONFIGS as classes
 
-    classes = {c.name: c for c in (CompactConfig, PaperConfig, ShaderRefinerConfig)}
     if train.config not in classes:
         raise InputError(f"unknown network config {train.config!r} (choose from {', '.join(classes)})")
     from models.networks.checkpoint import network_shapes
@@ -369,13 +368,24 @@ def initialize_from(model: nn.Module, path: Path) -> None:
     voxel encoder and light decoder, come over, and NVR's own output layer keeps its fresh weights.
     An NVR+ that corrects the shaded image (config.shading_input) may start from one that does not:
     everything but its correction layer comes over, so it starts out rendering the shaded image.
+    A refiner working at another resolution (config.correction_downsampling) may start from one that does not:
+    the decoder stages it shares come over and the ones it lacks are left out; `to_features`, which then reads a
+    wider decoder stage, starts at zero, so the network starts out correcting from the splat branch alone.
     """
     from models.networks.checkpoint import load_model
     from models.networks.nvr import SHARED_BRANCHES
 
     source, _, _ = load_model(path)
     old, new = source.state_dict(), model.state_dict()
-    if source.architecture == model.architecture:
+    rescaled = (source.architecture == model.architecture == "nvr_plus" and source.config.shading_input
+                and model.config.shading_input
+                and source.config.correction_downsampling != model.config.correction_downsampling)
+    if rescaled:
+        keys = [key for key in new if key in old]
+        for key in set(new) - set(old):
+            if not key.startswith("light_decoder.decoder."):
+                raise InputError(f"has no layer {key}; --init needs the same layers", path)
+    elif source.architecture == model.architecture:
         if set(old) != set(new):
             raise InputError("its layers differ from this network's; --init needs the same layers", path)
         keys = list(new)
@@ -389,7 +399,9 @@ def initialize_from(model: nn.Module, path: Path) -> None:
         keys = [key for key in keys if not key.startswith("rerender.to_rgb.")]
     for key in keys:
         value, target = old[key], new[key]
-        if value.shape == target.shape:
+        if rescaled and key.startswith("to_features.") and value.shape != target.shape:
+            target.zero_()
+        elif value.shape == target.shape:
             target.copy_(value)
         elif (value.ndim == target.ndim >= 2 and value.shape[0] == target.shape[0] and value.shape[2:] == target.shape[2:]
               and value.shape[1] < target.shape[1]):
