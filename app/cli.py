@@ -317,7 +317,7 @@ def cmd_train(args: argparse.Namespace) -> None:
         lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, precision=precision,
         threads=args.threads, loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes,
         perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop, mse_weight=args.mse_weight,
-        color_permutation=args.color_permutation,
+        color_permutation=args.color_permutation, freeze_voxel_branch=args.freeze_voxel_branch,
         config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
     )
     print(f"wrote {train(args.out, config, resume=args.resume)}")
@@ -530,6 +530,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="add GAMMA x the mean squared error to the loss (0: the paper's L1 + perceptual)")
     p.add_argument("--color-permutation", action="store_true",
                    help="reorder each sample's RGB channels at random (light and sky are white: still a true render)")
+    p.add_argument("--freeze-voxel-branch", action="store_true",
+                   help="keep the voxel branch as it starts (from --init); a step then skips its backward pass")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                    help="override a network config field, e.g. --set grid_size=64 (repeatable)")
     p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")

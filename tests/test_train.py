@@ -267,14 +267,15 @@ def test_the_training_loop_uses_the_decayed_rate(data, tmp_path):
     assert not all(torch.equal(weights(moved)[k], b[k]) for k in parameters)
 
 
-def test_a_shader_refiner_trains_from_the_shaded_image(data, tmp_path):
+@pytest.mark.parametrize("name", ["shader_refiner", "half_res_refiner"])
+def test_a_shader_refiner_trains_from_the_shaded_image(data, tmp_path, name):
     # Its first loss is the shaded image's own error; training lowers it (the fake targets are no
     # physical images, so the correction has much to learn).
-    train(tmp_path / "run", config(data, config="shader_refiner", steps=20, batch=4, lr=3e-3), progress=False)
+    train(tmp_path / "run", config(data, config=name, steps=20, batch=4, lr=3e-3), progress=False)
     losses = [float(line.split(",")[1]) for line in (tmp_path / "run" / "log.csv").read_text().splitlines()[1:]]
     assert sum(losses[-5:]) / 5 < 0.9 * sum(losses[:5]) / 5
     model, net_config, _ = load_model(tmp_path / "run" / "model.safetensors")
-    assert net_config.shading_input and net_config.name == "shader_refiner"
+    assert net_config.shading_input and net_config.name == name
 
 
 @pytest.mark.parametrize("factor", [1, 2])
@@ -336,6 +337,26 @@ def test_a_half_resolution_refiner_starts_from_a_full_resolution_one(tmp_path):
         b = model(torch.rand(1, 4, 16, 16, 16), torch.rand(1, 3), splat, None, shading)
     torch.testing.assert_close(a, b, rtol=0, atol=0)
     assert (a - shading[:, :3]).abs().max() > 1e-3
+
+
+def test_a_frozen_voxel_branch_keeps_its_weights_and_statistics(data, tmp_path):
+    from models.networks.checkpoint import save_model
+    from models.networks.config import CompactConfig
+    from models.networks.nvr import build_model
+
+    torch.manual_seed(0)
+    start = build_model("nvr_plus", CompactConfig(grid_size=16, output_size=32))
+    save_model(tmp_path / "start.safetensors", start, start.config)
+    final = train(tmp_path / "run", config(data, steps=3, init=str(tmp_path / "start.safetensors"),
+                                           freeze_voxel_branch=True), progress=False)
+    before, after = start.state_dict(), weights(final)
+    voxel = [k for k in before if k.startswith("voxel_encoder.") and not k.endswith("num_batches_tracked")]
+    assert any(k.endswith("running_mean") for k in voxel)  # BatchNorm statistics are among what stays
+    assert all(torch.equal(after[k], before[k]) for k in voxel)
+    assert not torch.equal(after["light_decoder.merge.0.weight"], before["light_decoder.merge.0.weight"])
+    with pytest.raises(InputError, match="freeze-voxel-branch"):  # its Adam state has no moments for the branch
+        train(tmp_path / "run", config(data, steps=4), resume=True, progress=False)
+    train(tmp_path / "run", config(data, steps=4, freeze_voxel_branch=True), resume=True, progress=False)
 
 
 @pytest.mark.parametrize("option, value, named", [

@@ -71,6 +71,9 @@ class TrainConfig:
     color_permutation: bool = False  # reorder each sample's RGB channels at random (models/training/data.py)
     config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
     init: str | None = None  # weights file to start from (models/networks/checkpoint.py format); see `initialize_from`
+    # The voxel branch's weights and BatchNorm statistics stay as they start (from --init): it runs in eval mode
+    # without gradients, so a step skips its backward pass, the costliest part of a compact network's step.
+    freeze_voxel_branch: bool = False
 
     def __post_init__(self) -> None:
         self.check()
@@ -106,6 +109,8 @@ class TrainConfig:
         need(whole(self.perceptual_crop, 0, MAX_CROP) and self.perceptual_crop not in range(1, MIN_CROP),
              f"--perceptual-crop must be 0 (the whole image) or from {MIN_CROP} to {MAX_CROP}, got {self.perceptual_crop!r}")
         need(isinstance(self.color_permutation, bool), f"color_permutation must be true or false, got {self.color_permutation!r}")
+        need(isinstance(self.freeze_voxel_branch, bool),
+             f"freeze_voxel_branch must be true or false, got {self.freeze_voxel_branch!r}")
         need(finite(self.mse_weight) and 0.0 <= self.mse_weight <= MAX_MSE_WEIGHT,
              f"--mse-weight must be a number from 0 to {MAX_MSE_WEIGHT}, got {self.mse_weight!r}")
 
@@ -242,6 +247,9 @@ def _prepare_run(out: Path, train: TrainConfig, resume: bool, net_config) -> dic
         stored = load_json(run_file)
         if stored.get("network") != record["network"] or stored.get("train", {}).get("architecture") != train.architecture:
             raise InputError("holds a run of another network; choose another --out", out)
+        if stored.get("train", {}).get("freeze_voxel_branch", False) != train.freeze_voxel_branch:
+            raise InputError("holds a run whose voxel branch was " + ("" if train.freeze_voxel_branch else "not ")
+                             + "trained; resume it with the same --freeze-voxel-branch choice", out)
         started_from = stored.get("started_from", _init_record(stored.get("train", {}).get("init")))
         save_json(run_file, {**stored, "train": train.to_dict(), "started_from": started_from})  # steps may change
         return started_from
@@ -288,13 +296,15 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     if config.init and not resume:
         initialize_from(model, Path(config.init))
     model = model.to(device)
+    if config.freeze_voxel_branch:
+        model.voxel_encoder.requires_grad_(False)
     if dist_info.world > 1:
         from models.training.distributed import convert_batchnorm
 
         model = convert_batchnorm(model, device)  # statistics over the global batch, as in one process
     loss_fn = RenderLoss(net_config.perceptual_weight, weights_path=config.perceptual_weights,
                          mse_weight=config.mse_weight).to(device)
-    optimizer = torch.optim.Adam(model.parameters(), lr=config.lr)
+    optimizer = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=config.lr)
     start_step = 0
     if resume and (out / CHECKPOINT).exists():
         start_step = load_training_state(out / CHECKPOINT, model, optimizer)
@@ -314,6 +324,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     bar = tqdm(total=config.steps, initial=start_step, disable=not (progress and dist_info.is_main), unit="step")
     started = last_save = time.monotonic()
     model.train()
+    if config.freeze_voxel_branch:
+        model.voxel_encoder.eval()  # its BatchNorms keep their statistics
     batches = iter(step_batches(dataset, config, start_step, dist_info))
     for step in range(start_step, config.steps):
         batch = {key: value.to(device) for key, value in next(batches).items()}
