@@ -268,7 +268,8 @@ class HalfResolutionRefinerConfig(ShaderRefinerConfig):
     256^2 inputs, its decoder stops at 128^2, and its correction is upsampled bilinearly onto the full-resolution
     shaded image. The full-resolution layers of the shader refiner are thin (8 channels) and run far below the
     CPU's peak: on the AVX2 CPU a light edit of this network took 36 ms of one thread's time against 65 for the
-    full-resolution one (1.36 against 2.42 GFLOP; benchmarks/bench_networks.py, random weights)."""
+    full-resolution one (1.36 against 2.42 GFLOP; benchmarks/bench_networks.py, random weights, CPU time measured
+    while data generation shared the cores)."""
 
     name: ClassVar[str] = "half_res_refiner"
 

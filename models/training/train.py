@@ -381,8 +381,9 @@ def initialize_from(model: nn.Module, path: Path) -> None:
     An NVR+ that corrects the shaded image (config.shading_input) may start from one that does not:
     everything but its correction layer comes over, so it starts out rendering the shaded image.
     A refiner working at another resolution (config.correction_downsampling) may start from one that does not:
-    the decoder stages it shares come over and the ones it lacks are left out; `to_features`, which then reads a
-    wider decoder stage, starts at zero, so the network starts out correcting from the splat branch alone.
+    the decoder stages both have come over, the source's extra ones are left out and this network's extra ones keep
+    their fresh weights; `to_features`, which then reads a decoder stage of another width, starts at zero, so the
+    network starts out correcting from the splat branch alone.
     """
     from models.networks.checkpoint import load_model
     from models.networks.nvr import SHARED_BRANCHES
