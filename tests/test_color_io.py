@@ -24,6 +24,8 @@ def test_conversion_never_returns_nan():
     for dtype in (np.float64, np.float32):
         out = linear_to_srgb(np.array([np.nan, np.inf, -np.inf, -1.0, 2.0], dtype=dtype))
         assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
+        # The voxel shader relies on it: no rounding pushes a value just under or at 1 above 1.
+        assert linear_to_srgb(np.linspace(0.999, 1.0, 1001, dtype=dtype)).max() <= 1.0
     assert list(to_uint8(np.array([0.0, 0.5, 1.0, np.nan]))) == [0, 128, 255, 0]
 
 

@@ -524,7 +524,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                       np.full(3, AMBIENT_RADIANCE, dtype=np.float32), r, c, radiance, surface.coverage[r, c], image)
     visibility[r, c] = seen  # the floor's visibility lit the floor behind partly covered pixels; now the object's
     images = surface.images
-    return ShadedImage(image=np.clip(linear_to_srgb(image), 0.0, 1.0), coverage=surface.coverage,
+    return ShadedImage(image=linear_to_srgb(image), coverage=surface.coverage,  # in [0, 1], NaN as 0: no clip needed
                        albedo=images.albedo, albedo_srgb=images.albedo_srgb, normal=images.normal, depth=images.depth,
                        visibility=visibility, occlusion=images.occlusion)
 
