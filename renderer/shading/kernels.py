@@ -410,6 +410,21 @@ def light_visibility(receivers, bias, lights, depth, bounds, nearest, spread, ou
         out[i] = seen / count
 
 
+@njit(cache=True)
+def shadow_receivers(points, normals, facing, light, normal_offset, grazing_offset, out):
+    """out[j]: where the point facing[j] reads the shadow maps, moved along its normal by `normal_offset` plus
+    `grazing_offset` times the sine of the angle between its normal and the direction to `light` (world lengths;
+    in one pass: numpy's masked copies and row norms took 1.7 ms for a chair's 4,800 visible points)."""
+    for j in range(facing.shape[0]):  # a few thousand points: one thread is quicker than starting two
+        i = facing[j]
+        tx, ty, tz = light[0] - points[i, 0], light[1] - points[i, 1], light[2] - points[i, 2]
+        length = max(math.sqrt(tx * tx + ty * ty + tz * tz), 1e-12)
+        cosine = min(max((normals[i, 0] * tx + normals[i, 1] * ty + normals[i, 2] * tz) / length, 0.0), 1.0)
+        offset = normal_offset + grazing_offset * math.sqrt(1.0 - cosine * cosine)
+        for k in range(3):
+            out[j, k] = points[i, k] + normals[i, k] * offset
+
+
 @njit(cache=True, parallel=True)
 def light_form_factors(points, normals, lights, area, surface, below):
     """Per point, summed over the light's points (each of `area`, facing down): surface[i] = the cosine at

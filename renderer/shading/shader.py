@@ -570,16 +570,14 @@ def _object_radiance(surface: VisibleSurface, light_position, lights: np.ndarray
     kernels.light_form_factors(points, normals, lights, LIGHT_SIZE**2 / len(lights), form, form_below)
     # Shadows matter only where the light reaches the surface at all (points facing away see none of it).
     seen = np.zeros(len(points))
-    facing = form > 0.0
-    seen_facing = np.empty(int(facing.sum()))
+    facing = np.flatnonzero(form > 0.0)
+    seen_facing = np.empty(len(facing))
     # Each point is read off the shadow maps a little way out along its normal, further where the light grazes it
     # (there the depth the maps hold changes fastest across a texel).
-    to_light = np.asarray(light_position, dtype=np.float64) - points[facing]
-    cosine = np.clip(np.sum(normals[facing] * to_light, axis=1) / np.maximum(np.linalg.norm(to_light, axis=1), 1e-12),
-                     0.0, 1.0)
-    offset = voxel * (SHADOW_NORMAL_OFFSET + SHADOW_GRAZING_OFFSET * np.sqrt(1.0 - cosine**2))
-    kernels.light_visibility(points[facing] + normals[facing] * offset[:, None], SHADOW_BIAS * voxel, lights, maps,
-                             bounds, nearest, 0.0, seen_facing)
+    receivers = np.empty((len(facing), 3))
+    kernels.shadow_receivers(points, normals, facing, np.asarray(light_position, dtype=np.float64),
+                             voxel * SHADOW_NORMAL_OFFSET, voxel * SHADOW_GRAZING_OFFSET, receivers)
+    kernels.light_visibility(receivers, SHADOW_BIAS * voxel, lights, maps, bounds, nearest, 0.0, seen_facing)
     seen[facing] = seen_facing
     direct = LIGHT_RADIANCE * seen * form
     # Ambient from the sky above the horizon, and light the floor below sends back up (the floor there
