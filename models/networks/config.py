@@ -66,8 +66,8 @@ class NVRConfig:
     shading_grid_factor: int = 1
     # With shading_input: the network works at 1/this of the image's side (its inputs area-averaged, its decoder one
     # doubling shorter per halving) and its correction is upsampled bilinearly and applied to the full-resolution
-    # shaded image, which holds the detail (the shipped refiner's own correction, averaged to 128^2 and upsampled, moved
-    # the test sets' MSE by 0.1-1.4).
+    # shaded image, which holds the detail (the full-resolution refiner's own correction, averaged to 128^2 and
+    # upsampled, moved the test sets' MSE by 0.1-1.4).
     correction_downsampling: int = 1
 
     def __post_init__(self) -> None:
