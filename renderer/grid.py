@@ -24,6 +24,7 @@ Caching: scene_grid is four pure stages, so an engine can keep each result until
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -275,10 +276,15 @@ def shader_window(pooled: np.ndarray, within: tuple | None, resolution: int, fac
     """The object's window of the `grid_size`^3 grid that the voxel shader draws from (pool_object's result for
     shader_pool_factors): the network's own voxels on its grid, supersampled on a finer one (measured on every third
     test image, the shader's MSE on a 256^3 grid fell from 33.0 to 25.9 on default chairs and from 137 to 98 on
-    lattices: docs/results.md)."""
+    lattices: docs/results.md).
+
+    The object stands at the floor's origin here, its translation left out: the shader moves the geometry it makes
+    from the window (renderer.shading.shader.moved), so a move along the floor redoes no voxel work, and the voxels
+    do not shimmer as the object slides across the grid's cells."""
+    at_origin = replace(object_spec, translation=(0.0, 0.0))
     if grid_size > GRID_SIZE:
-        return supersampled_object_window(pooled, within, resolution, factors, object_spec, elevation_deg, grid_size)
-    return object_window_voxels(pooled, within, resolution, factors, object_spec, elevation_deg, grid_size)
+        return supersampled_object_window(pooled, within, resolution, factors, at_origin, elevation_deg, grid_size)
+    return object_window_voxels(pooled, within, resolution, factors, at_origin, elevation_deg, grid_size)
 
 
 def supersampled_object_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],

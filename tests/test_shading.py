@@ -11,7 +11,7 @@ from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
 from renderer.grid import scene_grid
-from renderer.scene import GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
+from renderer.scene import GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
 from renderer.shading import kernels, repaint_surface, shade, shade_grid, shade_scene, visible_surface
 from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates, object_geometry
 from renderer.shading.staged import StagedShader
@@ -43,6 +43,25 @@ def shaded(rgba, spec: ObjectSpec, light, elevation=30.0, size=SIZE):
 def pixel_of(point, elevation=30.0, size=SIZE) -> tuple[int, int]:
     u, v, _ = Camera(elevation, width=size, height=size).project(np.asarray(point, dtype=np.float64))
     return int(v), int(u)
+
+
+@pytest.mark.parametrize("columns", [5, -12])
+def test_a_geometry_moved_along_the_floor_is_the_geometry_of_the_moved_grid(columns):
+    """The grid's columns run along world x, one voxel (GRID_EXTENT / GRID_SIZE) apart, and the ground is the same in
+    every column: so the grid of an object moved by whole columns is the grid rolled by them, and shading the
+    unmoved grid with its geometry moved (how the shader keeps its voxel work while an object slides) must give
+    that grid's image, shadow and all."""
+    spec = ObjectSpec(voxels="v.npz", rotation_deg=25.0, scale=(0.5, 0.6, 0.4))
+    grid = scene_grid(ball(24, color=(0.7, 0.3, 0.2)), spec, FLOOR, 30.0)
+    step = GRID_EXTENT / GRID_SIZE
+    light = (0.6, 2.7, 0.4)
+    moved_grid = shade_grid(np.roll(grid, columns, axis=2), light, 30.0, FLOOR, SIZE)
+    moved_geometry = shade_grid(grid, light, 30.0, FLOOR, SIZE, translation=(columns * step, 0.0))
+    unmoved = shade_grid(grid, light, 30.0, FLOOR, SIZE)
+    for part in ("image", "coverage", "normal", "visibility", "occlusion"):
+        np.testing.assert_allclose(getattr(moved_geometry, part), getattr(moved_grid, part), rtol=0, atol=1e-4,
+                                   err_msg=part)
+    assert np.abs(moved_geometry.coverage - unmoved.coverage).max() == 1.0  # the object did move
 
 
 @pytest.mark.parametrize("light_x", [1.2, -1.2])
@@ -279,7 +298,7 @@ def test_a_part_in_front_of_another_shows_no_floor_at_its_outline():
 @pytest.mark.parametrize("grid_size", [GRID_SIZE, 2 * GRID_SIZE])
 def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_size):
     """Cached stages (and the object's window of the grid instead of the whole grid) give the very image the
-    uncached shader gives the whole grid, after a move, a light move, a camera tilt, a floor color and a paint;
+    uncached shader gives the whole grid, after a move and turn, a move along the floor, a light move, a camera tilt, a floor color and a paint;
     for the network's grid and for the finer one a shader refiner reads."""
     rgba = ball(24, color=(0.7, 0.3, 0.2))
     painted = rgba.copy()
@@ -288,12 +307,15 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
                   image_size=SIZE)
     moved = scene.with_changes(object=ObjectSpec(voxels="v.npz", translation=(0.3, -0.2), rotation_deg=40.0,
                                                  scale=(0.7, 0.7, 0.7)))
-    lit = moved.with_changes(light=LightSpec((-0.9, 2.6, 0.2)))
+    slid = moved.with_changes(object=ObjectSpec(voxels="v.npz", translation=(-0.25, 0.1), rotation_deg=40.0,
+                                                scale=(0.7, 0.7, 0.7)))
+    lit = slid.with_changes(light=LightSpec((-0.9, 2.6, 0.2)))
     tilted = lit.with_changes(camera=CameraSpec(elevation_deg=55.0))
     green = (0.3, 0.5, 0.3)
     edits = [  # each from the one before
         ("start", scene, rgba, FLOOR),
         ("move", moved, rgba, FLOOR),
+        ("slide", slid, rgba, FLOOR),
         ("light", lit, rgba, FLOOR),
         ("camera", tilted, rgba, FLOOR),
         ("floor", tilted, rgba, green),
@@ -310,6 +332,7 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
     assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
     assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels and the lit floor stay
+    assert reran["slide"] == {"surface", "shade"}  # along the floor: the window holds the object at the origin
     assert reran["paint"] == {"pool", "window", "geometry", "surface", "shade"}
 
 

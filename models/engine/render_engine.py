@@ -22,23 +22,26 @@ when those change:
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
                                                                           it, and previews)
     shade_pool      paint, merge factors of the finer grid                the voxel shader (networks that read it:
-    shade_window    paint, placement (not the floor color)                renderer/shading/): the finer grid's merged
-    shade_geometry  placement (paint keeps occupancy)                     voxels (config.shading_grid_factor > 1), the
-    shade_surface   as shade_geometry                                     object's window of the grid, its geometry,
-    shade_colors    as shade_window                                       the surface the camera sees, that surface's
-    shade_floor     as floor_light                                        colors, the empty floor's lighting, the
-    shade           as shade_window, floor color, light position          shaded image and buffers
-    preview_*       as shade_window ... shade                             the shader of the network's own grid: the drag
-                                                                          preview when the shader's grid is finer
+    shade_window    paint, placement but the translation (the window      renderer/shading/): the finer grid's merged
+                    holds the object at the floor's origin)               voxels (config.shading_grid_factor > 1), the
+    shade_geometry  placement but the translation (paint keeps            object's window of the grid, its geometry
+                    occupancy)                                            (moved to where the object stands), the
+    shade_surface   placement                                             surface the camera sees, that surface's
+    shade_colors    paint, placement                                      colors, the empty floor's lighting, the
+    shade_floor     as floor_light                                        shaded image and buffers
+    shade           paint, placement, floor color, light position
+    preview_*       as shade_window ... shade, but the window and         the shader of the network's own grid: the drag
+                    geometry on the whole placement                       preview when the shader's grid is finer
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
                   reads them)
     light         all of the above and the light position                 image (render_from_latent)
 
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
 runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
-networks that read the shader, like the shipped NVR+: shade_window and shade_colors after an edit below that reruns
-paint or placement, shade_geometry and shade_surface only after one that reruns placement, shade_floor after one that
-reruns floor_light, and shade after all of these; for the others a light move reruns the light stage alone):
+networks that read the shader, like the shipped NVR+: shade_window after paint or a placement edit other than a
+move along the floor, shade_geometry after such a placement edit alone, shade_surface after any placement edit,
+shade_colors after paint or placement, shade_floor after an edit that reruns floor_light, and shade after all of
+these; for the others a light move reruns the light stage alone):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -107,7 +110,15 @@ from renderer.grid import (
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
 from renderer.scene import Scene
-from renderer.shading import ShadedImage, network_buffers, object_geometry, repaint_surface, shade, visible_surface
+from renderer.shading import (
+    ShadedImage,
+    moved,
+    network_buffers,
+    object_geometry,
+    repaint_surface,
+    shade,
+    visible_surface,
+)
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
@@ -156,6 +167,8 @@ class _Keys(NamedTuple):
     painted: tuple  # the painted object and its placement (the shader's window of it)
     shade: tuple
     splat_branch: tuple
+    shape: tuple  # the placement without the translation (the shader's finer window holds the object at the origin)
+    painted_shape: tuple
 
 
 @dataclass
@@ -286,6 +299,7 @@ class RenderEngine:
         factors = pool_factors(n, o.scale, self.config.grid_size)
         # Placement reads which object rows are empty, and layout the occupancy: neither changes with paint.
         placement = (paint_key[0], n, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        shape = (paint_key[0], n, o.rotation_deg, o.scale, elevation)  # the placement but where on the floor
         layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
         splat = (paint_key, layout, floor)
         floor_light = (elevation, floor, scene.light.position)
@@ -294,7 +308,8 @@ class RenderEngine:
         shade = (painted_placed, floor, scene.light.position)
         splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
         return _Keys(pool=(paint_key, factors), placement=placement, grid=grid, layout=layout, splat=splat,
-                     floor_light=floor_light, painted=painted_placed, shade=shade, splat_branch=splat_branch)
+                     floor_light=floor_light, painted=painted_placed, shade=shade, splat_branch=splat_branch,
+                     shape=shape, painted_shape=(paint_key, shape))
 
     def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
@@ -375,9 +390,14 @@ class RenderEngine:
             return tuple(s.start for s in box), gather(voxel_table(pooled, (0.0, 0.0, 0.0)), placement.indices[box])
 
         grid_size = self.config.shading_grid_size if fine else self.config.grid_size
-        start, voxels = self._stage(stage["window"], keys.painted, window)
-        shape = self._stage(stage["geometry"], keys.placement, lambda: object_geometry(voxels, elevation, start, grid_size))
+        # The finer grid's window holds the object at the floor's origin (shader_window), so it and its geometry are
+        # kept while the object moves along the floor; the network's grid has it where it stands.
+        window_key, geometry_key = (keys.painted_shape, keys.shape) if fine else (keys.painted, keys.placement)
+        start, voxels = self._stage(stage["window"], window_key, window)
+        shape = self._stage(stage["geometry"], geometry_key, lambda: object_geometry(voxels, elevation, start, grid_size))
         geometry = replace(shape, rgb=voxels[..., :3])  # this paint's colors (kept geometry: an earlier paint's window)
+        if fine:
+            geometry = moved(geometry, scene.object.translation)
         traced = self._stage(stage["surface"], keys.placement, lambda: visible_surface(geometry, self.output_size))
         surface = self._stage(stage["colors"], keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(

@@ -171,15 +171,17 @@ class VoxelRenderSet(Dataset):
         factors = shader_pool_factors(object_rgba.shape[0], scene.object.scale, size)
         start, window = shader_window(*pool_object(object_rgba, factors), object_rgba.shape[0], factors, scene.object,
                                       scene.camera.elevation_deg, size)
-        return ShadingGrid(window, start, size)
+        return ShadingGrid(window, start, size, scene.object.translation)
 
 
 class ShadingGrid(NamedTuple):
-    """A scene grid (D, H, W, 4), or the window of a `size`^3 one from grid index `start`, for the voxel shader."""
+    """A scene grid (D, H, W, 4), or the window of a `size`^3 one from grid index `start` that holds the object at
+    the floor's origin and the `translation` that moves it to where it stands, for the voxel shader."""
 
     voxels: np.ndarray
     start: tuple[int, int, int] = (0, 0, 0)
     size: int | None = None
+    translation: tuple[float, float] = (0.0, 0.0)
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
@@ -196,7 +198,7 @@ def shaded_sample(grid: ShadingGrid, scene: Scene, size: int):
     from renderer.shading import shade_grid
 
     return shade_grid(grid.voxels, scene.light.position, scene.camera.elevation_deg, scene.floor.color, size,
-                      grid.start, grid.size)
+                      grid.start, grid.size, translation=grid.translation)
 
 
 def shading_tensor(grid: ShadingGrid, scene: Scene, size: int) -> torch.Tensor:

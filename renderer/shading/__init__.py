@@ -5,6 +5,7 @@ from renderer.shading.shader import (
     ObjectGeometry,
     ShadedImage,
     VisibleSurface,
+    moved,
     network_buffers,
     object_geometry,
     repaint_surface,
@@ -14,5 +15,5 @@ from renderer.shading.shader import (
     visible_surface,
 )
 
-__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "object_geometry", "repaint_surface", "shade", "network_buffers", "shade_grid", "shade_scene",
+__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "moved", "object_geometry", "repaint_surface", "shade", "network_buffers", "shade_grid", "shade_scene",
            "visible_surface"]

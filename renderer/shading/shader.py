@@ -6,7 +6,9 @@ path tracer would, approximately. The grid is the network's 128^3 one or the obj
 one, each of whose voxels is voted from 2^3 samples (renderer.grid.shader_window: at 256^3 and scale 1 a
 grid voxel is an object voxel, which the 128^3 grid merges in pairs); lengths below in voxels are the grid's voxels.
 
-1. object_geometry (depends on the grid: the object, its placement, the camera): the object's
+1. object_geometry (depends on the grid: the object, its rotation and scale, the camera; a window from
+   renderer.grid.shader_window holds the object at the floor's origin, and `moved` puts the result where it stands,
+   so a move along the floor keeps this stage): the object's
    voxels without the ground, cropped to their box (from the whole grid or from the window of it
    that can hold the object, which is all a live caller samples); the distance to the nearest occupied voxel
    (the surface is where it equals SURFACE_LEVEL, a little inside the voxel hull, which is fatter
@@ -22,7 +24,7 @@ grid voxel is an object voxel, which the 128^3 grid merges in pairs); lengths be
    light bounced up from the floor, the lit floor (renderer/floor_light.py, which a caller may keep
    while the object moves) times the object's shadow; composited over the background, in sRGB.
 
-A light move reruns only `shade`, an object move all three. Known gaps (a network's job): the
+A light move reruns only `shade`, an object move along the floor stages 2 and 3, a rotation all three. Known gaps (a network's job): the
 floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
 and whatever shading stays in photo-colored voxels (renderer/photo.py divides the photo's light out
 when it is known, with this shader's own light, so its errors stay in the colors).
@@ -207,6 +209,19 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
         distance_and_core=np.stack([distance, core], axis=-1), smooth=smooth, broad=_broad(solid),
         grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=np.stack([occluders.min(axis=0), occluders.max(axis=0)]) if len(occluders) else np.zeros((2, 3)))
+
+
+def moved(geometry: ObjectGeometry, translation: tuple[float, float]) -> ObjectGeometry:
+    """`geometry` moved by `translation` (world x and z) along the floor: only its frame and its occluders' world
+    positions change, so a caller keeps the voxel work of a window made at the floor's origin (shader_window)."""
+    shift = np.array([float(translation[0]), 0.0, float(translation[1])])
+    if not shift.any():
+        return geometry
+    grid_to_world = geometry.grid_to_world.copy()
+    grid_to_world[:3, 3] += shift
+    occluders = geometry.occluders + shift
+    box = geometry.occluder_box + shift if len(occluders) else geometry.occluder_box
+    return replace(geometry, grid_to_world=grid_to_world, occluders=occluders, occluder_box=box)
 
 
 def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -611,10 +626,11 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
 
 def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_color, size: int = 256,
                start: tuple[int, int, int] = (0, 0, 0), grid_size: int | None = None,
-               cover_behind: bool = True) -> ShadedImage:
+               cover_behind: bool = True, translation: tuple[float, float] = (0.0, 0.0)) -> ShadedImage:
     """All three stages at once: the shaded image of a camera-aligned grid (or of the window of a `grid_size`^3
-    grid from `start` that holds the object, as object_geometry takes it; `cover_behind`: see visible_surface)."""
-    geometry = object_geometry(grid, elevation_deg, start, grid_size)
+    grid from `start` that holds the object, as object_geometry takes it; `cover_behind`: see visible_surface),
+    its object moved by `translation` along the floor (a window from shader_window holds it at the origin)."""
+    geometry = moved(object_geometry(grid, elevation_deg, start, grid_size), translation)
     return shade(geometry, visible_surface(geometry, size, cover_behind), light_position, floor_color)
 
 
@@ -622,10 +638,10 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
                 grid_size: int = GRID_SIZE, cover_behind: bool = True) -> ShadedImage:
     """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's),
     from the object's window of its `grid_size`^3 scene grid (renderer.grid.shader_window; `cover_behind`: see
-    visible_surface)."""
+    visible_surface), the object's voxels at the floor's origin, the geometry moved to where it stands."""
     resolution, elevation = object_rgba.shape[0], scene.camera.elevation_deg
     factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
     start, window = shader_window(*pool_object(object_rgba, factors), resolution, factors, scene.object, elevation,
                                   grid_size)
     return shade_grid(window, scene.light.position, elevation, floor_color, scene.image_size if size is None else size,
-                      start, grid_size, cover_behind)
+                      start, grid_size, cover_behind, scene.object.translation)

@@ -2,13 +2,15 @@
 
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
-    window     pool, placement, elevation (not the floor color)            paint, object move, camera
+    window     pool, rotation, scale, elevation (not the translation)      paint, object rotation or scale, camera
     geometry   window                                                      the same
-    surface    geometry, image size                                        the same
+    surface    geometry, translation, image size                           the same, an object move
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
     shade      surface, floor                                              any of the above
 
-So a light move or a floor color reruns only `floor` and `shade`, and an object move all but `floor`.
+So a light move or a floor color reruns only `floor` and `shade`, an object move along the floor `surface` and
+`shade` (the window holds the object at the floor's origin: renderer.grid.shader_window), and a rotation all but
+`floor`.
 The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
 compares voxel arrays.
 """
@@ -25,7 +27,7 @@ from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import pool_object, shader_pool_factors, shader_window
 from renderer.scene import GRID_SIZE, Scene
-from renderer.shading.shader import ShadedImage, object_geometry, shade, visible_surface
+from renderer.shading.shader import ShadedImage, moved, object_geometry, shade, visible_surface
 
 
 class StagedShader:
@@ -43,11 +45,13 @@ class StagedShader:
         n = object_rgba.shape[0]
         factors = shader_pool_factors(n, o.scale, self.grid_size)
         pooled, within = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
-        grid_key = (voxels_key, o.translation, o.rotation_deg, o.scale, elevation)  # not the floor: the object alone
+        grid_key = (voxels_key, o.rotation_deg, o.scale, elevation)  # not the floor, nor where on it: the object alone
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
         start, window = self._stage("window", grid_key, lambda: shader_window(
             pooled, within, n, factors, o, elevation, self.grid_size))
-        geometry = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
+        shape = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
+        geometry = moved(shape, o.translation)
+        grid_key = (grid_key, o.translation)
         surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
