@@ -31,7 +31,7 @@ from models.bench.system import machine_description  # noqa: E402
 from models.engine.render_engine import RenderEngine  # noqa: E402
 from renderer.io import atomic_path  # noqa: E402
 
-EDITS = ("light", "paint", "floor color", "object transform", "camera")
+EDITS = ("light", "paint", "floor color", "object move", "object turn", "camera")
 
 
 def compare(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:

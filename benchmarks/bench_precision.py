@@ -3,7 +3,7 @@
 Usage: python benchmarks/bench_precision.py [--data DIR ...] [--scenes N] [--repeats R]
 For each shipped network (assets/models) both precisions render the first view of up to N objects
 of the test folders; prints the largest pixel difference and the MSE between them (0-255), and the
-median ms of a full render after an object transform and of a light edit in each precision.
+median ms of a full render after an object move and of a light edit in each precision.
 models/engine/render_engine.py's BF16_BOUND is the bound the tests hold bf16 to.
 """
 
@@ -19,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from models.bench.benchmark import alternating_ms, transform_pair  # noqa: E402 - models.bench.benchmark imports models.engine.render_engine before torch
+from models.bench.benchmark import alternating_ms, move_pair  # noqa: E402 - models.bench.benchmark imports models.engine.render_engine before torch
 from models.bench.scenes import data_scenes  # noqa: E402
 from models.engine.render_engine import BF16_BOUND, RenderEngine, cpu_can_run_bfloat16  # noqa: E402
 from models.evaluation.evaluate import shipped_model  # noqa: E402
@@ -46,7 +46,7 @@ def main() -> None:
             x, y, z = bench.scene.light.position
             moved_light = replace(bench.scene, light=replace(bench.scene.light, position=(-x, y, z)))
             for p, engine in engines.items():
-                times[p]["frame"] += alternating_ms(engine, transform_pair(bench.scene), args.repeats)
+                times[p]["frame"] += alternating_ms(engine, move_pair(bench.scene), args.repeats)
                 times[p]["light"] += alternating_ms(engine, (bench.scene, moved_light), args.repeats)
         timing = ", ".join(f"{p}: frame {statistics.median(t['frame']):.1f} ms, light edit {statistics.median(t['light']):.1f} ms"
                            for p, t in times.items())

@@ -10,10 +10,10 @@ distance against a raw path-traced reference of the same scene (1024 spp; --quic
 Also: the engine's latency per edit type with the object crop and with the full grid, the FLOPs
 per frame of each network configuration, and the share of a measured fp32 matmul peak they imply.
 
-A network's time per frame is a re-render after an object transform (resampling, voxel branch,
-splat and shading; the mesh is voxelised once per scene); path tracing's is sampling plus
-denoising with the Mitsuba scene already built; splatting's is the splat of painted voxels; the
-shader's, like a network's, a re-render after an object transform.
+A network's time per frame is a re-render after an object move along the floor (resampling, voxel
+branch, splat and shading; the mesh is voxelised once per scene): what a drag in the editor costs per
+step. Path tracing's is sampling plus denoising with the Mitsuba scene already built; splatting's is
+the splat of painted voxels; the shader's, like a network's, a re-render after an object move.
 """
 
 from __future__ import annotations
@@ -154,7 +154,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
     rival = next(r for r in rows if r.family == "path tracing" and r.setting == "1 spp + OIDN")
     return {
         "nvrplus_light_edit_ms": edits["light"]["ms"],
-        "nvrplus_frame_ms": edits["object transform"]["ms"],
+        "nvrplus_frame_ms": edits["object move"]["ms"],
         "pathtrace_1spp_oidn_ms": rival.ms,
         "shader_frame_ms": shader_row.ms,
         "shader_light_edit_ms": statistics.median(shader_light_ms),
@@ -214,13 +214,13 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
 def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
                   score: Callable[[list[np.ndarray]], dict], grid_size: int = GRID_SIZE) -> tuple[Row, list[float]]:
     """The voxel shader of a `grid_size`^3 grid with its stages cached as in the editor: a frame after an object
-    transform and, separately, a light edit (the light stage alone); the voxels are painted once per scene."""
+    move and, separately, a light edit (the light stage alone); the voxels are painted once per scene."""
     memory.start()
     times, light_times, images = [], [], []
     for bench in scenes:
         shader = _PaintedShader(bench, grid_size)
         images.append(shader.render(bench.scene))
-        times += alternating_ms(shader, transform_pair(bench.scene), settings.repeats)
+        times += alternating_ms(shader, move_pair(bench.scene), settings.repeats)
         light = bench.scene.light.position
         moved = bench.scene.with_changes(light=LightSpec((light[0] + 0.1, light[1], light[2] + 0.05)))
         light_times += alternating_ms(shader, (bench.scene, moved), settings.repeats)
@@ -241,13 +241,13 @@ class _PaintedShader:
 
 def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
                   score: Callable[[list[np.ndarray]], dict] | None) -> Row:
-    """Frame time = re-render after an object transform; errors of each scene's render if `score` is given."""
+    """Frame time = re-render after an object move; errors of each scene's render if `score` is given."""
     memory.start()
     times, images = [], []
     repeats = settings.repeats if engine.config.name == "compact" else 2
     for bench in scenes:
         images.append(engine.render(bench.scene))
-        times += alternating_ms(engine, transform_pair(bench.scene), repeats)
+        times += alternating_ms(engine, move_pair(bench.scene), repeats)
     errors = score(images) if score is not None else {}
     setting = (f"{engine.model_name}, {engine.precision}" if score is not None
                else f"{engine.config.name}, {engine.precision} (random weights: timing only)")
@@ -288,16 +288,21 @@ def _edit_pairs(scene: Scene, paint_seed: tuple[int, int, int]) -> dict[str, tup
         "paint": tuple(scene.with_changes(paint=(*scene.paint, PaintOp("region", color, seed=paint_seed)))
                        for color in ((0.9, 0.2, 0.2), (0.2, 0.2, 0.9))),
         "floor color": (scene, scene.with_changes(floor=FloorSpec((0.8, 0.7, 0.3)))),
-        "object transform": transform_pair(scene),
+        "object move": move_pair(scene),
+        "object turn": turn_pair(scene),
         "camera": (scene, scene.with_changes(camera=CameraSpec(scene.camera.elevation_deg + 5.0))),
     }
 
 
-def transform_pair(scene: Scene) -> tuple[Scene, Scene]:
-    """The scene and the scene with its object moved by (0.15, -0.1) and turned by 20 degrees."""
+def move_pair(scene: Scene) -> tuple[Scene, Scene]:
+    """The scene and the scene with its object moved along the floor by (0.15, -0.1): a drag in the editor."""
     o = scene.object
-    moved = replace(o, translation=(o.translation[0] + 0.15, o.translation[1] - 0.1), rotation_deg=o.rotation_deg + 20.0)
-    return scene, scene.with_changes(object=moved)
+    return scene, scene.with_changes(object=replace(o, translation=(o.translation[0] + 0.15, o.translation[1] - 0.1)))
+
+
+def turn_pair(scene: Scene) -> tuple[Scene, Scene]:
+    """The scene and the scene with its object turned by 20 degrees about the vertical."""
+    return scene, scene.with_changes(object=replace(scene.object, rotation_deg=scene.object.rotation_deg + 20.0))
 
 
 def alternating_ms(engine: RenderEngine | _PaintedShader, pair: tuple[Scene, Scene], repeats: int) -> list[float]:

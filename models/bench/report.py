@@ -8,6 +8,7 @@ from typing import Any
 from renderer.io import atomic_path
 
 LIGHT_TARGET_MS = 33.0  # 30 frames a second
+MOVE_TARGET_MS = 80.0  # a full NVR+ frame while the object is dragged
 EDIT_TARGET_MS = 100.0  # the paper's NVR+ time on a desktop GPU
 SHADER_LIGHT_TARGET_MS = 10.0  # the shader's light-dependent part: it runs before the network's light stage
 SHADER_FRAME_TARGET_MS = 30.0  # a whole shaded frame after an object move: the editor's drag preview
@@ -68,10 +69,12 @@ def _renderers(r: dict[str, Any]) -> list[str]:
 def _targets(r: dict[str, Any]) -> list[str]:
     edits = {k: v for k, v in r["edits"].items() if isinstance(v, dict)}
     light = edits["light"]["ms"]
-    slowest = max((k for k in edits if k != "light"), key=lambda k: edits[k]["ms"])
+    move = edits["object move"]["ms"]
+    slowest = max((k for k in edits if k not in ("light", "object move")), key=lambda k: edits[k]["ms"])
     rival = next(row for row in r["renderers"] if row["label"] == "path tracing 1 spp + OIDN")
     lines = ["## Targets", "",
              f"- Light edit: {light:.1f} ms (target {LIGHT_TARGET_MS:.0f} ms): {'met' if light < LIGHT_TARGET_MS else 'missed'}.",
+             f"- Object move: {move:.1f} ms (target {MOVE_TARGET_MS:.0f} ms): {'met' if move < MOVE_TARGET_MS else 'missed'}.",
              f"- Other edits: slowest is {slowest}, {edits[slowest]['ms']:.1f} ms (target {EDIT_TARGET_MS:.0f} ms): "
              f"{'met' if edits[slowest]['ms'] < EDIT_TARGET_MS else 'missed'}."]
     if "shader_frame_ms" in r:
@@ -129,8 +132,8 @@ def _method(r: dict[str, Any]) -> list[str]:
         "## How these were measured", "",
         "- Time per frame: median and interquartile range over all scenes and repeats, wall clock. Path tracing: "
         "sampling plus OIDN with the Mitsuba scene built once per scene (kernels compiled before timing). "
-        "Splatting: the splat of already painted voxels. Voxel shader: the scene grid and the three shading stages "
-        "after an object transform (its light edit: the light stage alone). NVR / NVR+: a re-render after an object transform "
+        "Splatting: the splat of already painted voxels. Voxel shader: its stages after an object move along the floor "
+        "(its light edit: the light stage alone). NVR / NVR+: a re-render after an object move along the floor "
         "through the live engine (resampling, voxel branch on the object's crop, splat, shading); the mesh is "
         "voxelised once per scene. Networks run in the precision named in their row: bf16 (bfloat16, the "
         "engine's default where the CPU computes it natively) or fp32.",
