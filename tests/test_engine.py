@@ -475,16 +475,21 @@ def test_an_untrained_refiner_renders_the_shaded_image(scene, factor, engine_fac
 
 
 def test_refiner_drag_preview_shades_the_network_grid(scene):
-    """While the object moves, the preview is the shader's image of the network's own (coarser, faster) grid; the
-    settled render then shades the finer grid, and a second preview of the same scene reuses its stages."""
+    """While the object turns, the preview is the shader's image of the network's own (coarser, faster) grid; the
+    settled render then shades the finer grid, and a second preview of the same scene reuses its stages. While it
+    slides along the floor, the preview shades the finer grid, whose voxel work a slide keeps."""
     live = engine(refiner(trained=False))
     live.render(scene)
-    moved = replace(scene, object=replace(scene.object, translation=(0.1, -0.05)))
-    np.testing.assert_allclose(live.preview(moved), _shaded_image(moved, 64), rtol=0, atol=1e-6)
+    turned = replace(scene, object=replace(scene.object, rotation_deg=scene.object.rotation_deg + 25.0))
+    np.testing.assert_allclose(live.preview(turned), _shaded_image(turned, 64), rtol=0, atol=1e-6)
     assert "shade_geometry" not in live.last_report.stages_run
-    np.testing.assert_allclose(live.render(moved), _shaded_image(moved, 128, from_origin=True), rtol=0, atol=1e-6)
-    live.preview(moved)
+    np.testing.assert_allclose(live.render(turned), _shaded_image(turned, 128), rtol=0, atol=1e-6)
+    live.preview(turned)
     assert live.last_report.stages_run == ()
+    slid = replace(turned, object=replace(turned.object, translation=(0.1, -0.05)))
+    np.testing.assert_allclose(live.preview(slid), _shaded_image(slid, 128, from_origin=True), rtol=0, atol=1e-6)
+    assert {"shade_surface", "shade"} <= set(live.last_report.stages_run)
+    assert not {"shade_geometry", "preview_geometry", "preview_surface"} & set(live.last_report.stages_run)
 
 
 @pytest.mark.parametrize("resolution", REFINERS)

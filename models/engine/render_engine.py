@@ -239,8 +239,10 @@ class RenderEngine:
         return image.copy()
 
     def preview(self, scene: Scene) -> np.ndarray:
-        """A fast image while the user drags: the full render when only the light changed (that is cheap),
-        else the splatted object over the lit empty floor, from stages the full render then reuses."""
+        """A fast image while the user drags: the full render when only the light changed (that is cheap), else for a
+        network that reads the shader the shaded image (of the finer grid when the object only slid along the floor,
+        which keeps its voxel work; else of the network's own, coarser grid), else the splatted object over the lit
+        empty floor; from stages the full render then reuses."""
         start = self._begin()
         with torch.inference_mode():
             painted, floor, paint_key = self._painted(scene)
@@ -249,7 +251,8 @@ class RenderEngine:
             if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             elif self._reads_shading:  # the shaded image, which the full render then corrects
-                image = np.clip(self._shaded(scene, painted, floor, keys, fine=False).image, 0.0, 1.0)
+                slid = self._cached("shade_geometry", keys.shape)
+                image = np.clip(self._shaded(scene, painted, floor, keys, fine=slid).image, 0.0, 1.0)
             else:
                 splat = self._splat(scene, painted, floor, keys)
                 on_object = self._splat_layout(scene, painted, keys).voxel >= 0

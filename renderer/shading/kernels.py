@@ -202,43 +202,51 @@ def _cell_bounds(fields):
 
 
 @njit(cache=True, parallel=True)
-def mark_surface_pixels(fields, level, thin, slack, projection, row0, col0, mask):
-    """mask[r, c] = True (image pixel row0 + r, col0 + c) where the centre ray may stop in `trace_surface`.
+def near_surface_cell_mask(fields, level, thin, slack):
+    """(n0 - 1, n1 - 1, n2 - 1) bool: the cells (voxel centres i..i+1, j..j+1, k..k+1) where a ray of
+    `trace_surface` may stop. A ray stops only at a sample whose gap is below HIT_GAP; a sample in a cell
+    interpolates its eight corners, so its distance is at least their least and its core at most their most: its
+    gap is at least least - max(level, most + thin). Marked where that bound is under HIT_GAP + `slack`. It reads
+    the geometry alone, so the shader finds these once per object shape, not per placement or camera ray."""
+    least_of, most_of = _cell_bounds(fields)  # valid for i < n0 - 1 and j < n1 - 1
+    mask = np.empty((fields.shape[0] - 1, fields.shape[1] - 1, fields.shape[2] - 1), dtype=np.bool_)
+    for i in prange(mask.shape[0]):
+        for j in range(mask.shape[1]):
+            for k in range(mask.shape[2]):
+                mask[i, j, k] = least_of[i, j, k] - max(level, most_of[i, j, k] + thin) < HIT_GAP + slack
+    return mask
 
-    A ray stops only at a sample whose gap is below HIT_GAP. A sample between voxel centres i..i+1, j..j+1,
-    k..k+1 (a cell) interpolates those eight, so its distance is at least their least and its core at most
-    their most: its gap is at least least - max(level, most + thin). Each cell where that bound is under
-    HIT_GAP + `slack` marks the pixels whose centres fall in the image rectangle of the cell's box (the cells
-    at the crop's faces reach to its faces, where samples are clamped). `projection`: 3x4, crop point ->
-    (u * depth, v * depth, depth)."""
-    n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
+
+@njit(cache=True, parallel=True)
+def mark_surface_pixels(cells, shape, projection, row0, col0, mask):
+    """mask[r, c] = True (image pixel row0 + r, col0 + c) where the pixel's centre falls in the image rectangle of
+    one of `cells` (near_surface_cell_mask's, (K, 3) indices into a crop of `shape` voxels; the cells at the crop's
+    faces reach to its faces, where samples are clamped): the pixels whose centre ray may stop in `trace_surface`.
+    `projection`: 3x4, crop point -> (u * depth, v * depth, depth)."""
+    n0, n1, n2 = shape[0], shape[1], shape[2]
     rows, cols = mask.shape
-    least_of, most_of = _cell_bounds(fields)
-    for i in prange(n0 - 1):
-        for j in range(n1 - 1):
-            for k in range(n2 - 1):
-                if least_of[i, j, k] - max(level, most_of[i, j, k] + thin) >= HIT_GAP + slack:
-                    continue
-                u0, u1, v0, v1 = 1e30, -1e30, 1e30, -1e30
-                for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
-                    for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
-                        for z in (0.0 if k == 0 else k + 0.5, n2 if k == n2 - 2 else k + 1.5):
-                            pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
-                            pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]
-                            pd = projection[2, 0] * x + projection[2, 1] * y + projection[2, 2] * z + projection[2, 3]
-                            if pd <= 1e-9:  # behind the camera: keep every pixel
-                                u0, u1, v0, v1 = -1e30, 1e30, -1e30, 1e30
-                            else:
-                                u0, u1 = min(u0, pu / pd), max(u1, pu / pd)
-                                v0, v1 = min(v0, pv / pd), max(v1, pv / pd)
-                # Pixel centres (c + 0.5, r + 0.5) inside [u0, u1] x [v0, v1], with a hundredth of a pixel to spare.
-                c0 = max(int(math.ceil(max(u0, -1e9) - 0.51)) - col0, 0)
-                c1 = min(int(math.floor(min(u1, 1e9) - 0.49)) - col0, cols - 1)
-                r0 = max(int(math.ceil(max(v0, -1e9) - 0.51)) - row0, 0)
-                r1 = min(int(math.floor(min(v1, 1e9) - 0.49)) - row0, rows - 1)
-                for r in range(r0, r1 + 1):
-                    for c in range(c0, c1 + 1):
-                        mask[r, c] = True
+    for q in prange(cells.shape[0]):
+        i, j, k = cells[q, 0], cells[q, 1], cells[q, 2]
+        u0, u1, v0, v1 = 1e30, -1e30, 1e30, -1e30
+        for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
+            for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
+                for z in (0.0 if k == 0 else k + 0.5, n2 if k == n2 - 2 else k + 1.5):
+                    pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
+                    pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]
+                    pd = projection[2, 0] * x + projection[2, 1] * y + projection[2, 2] * z + projection[2, 3]
+                    if pd <= 1e-9:  # behind the camera: keep every pixel
+                        u0, u1, v0, v1 = -1e30, 1e30, -1e30, 1e30
+                    else:
+                        u0, u1 = min(u0, pu / pd), max(u1, pu / pd)
+                        v0, v1 = min(v0, pv / pd), max(v1, pv / pd)
+        # Pixel centres (c + 0.5, r + 0.5) inside [u0, u1] x [v0, v1], with a hundredth of a pixel to spare.
+        c0 = max(int(math.ceil(max(u0, -1e9) - 0.51)) - col0, 0)
+        c1 = min(int(math.floor(min(u1, 1e9) - 0.49)) - col0, cols - 1)
+        r0 = max(int(math.ceil(max(v0, -1e9) - 0.51)) - row0, 0)
+        r1 = min(int(math.floor(min(v1, 1e9) - 0.49)) - row0, rows - 1)
+        for r in range(r0, r1 + 1):
+            for c in range(c0, c1 + 1):
+                mask[r, c] = True
 
 
 @njit(cache=True, parallel=True)

@@ -95,6 +95,7 @@ COVERAGE_PROBE = 4.0
 # that no empty pixel touches, at most SPECK_PIXELS at 256^2 (in proportion to the image's area), is covered fully;
 # openings a ray passes through keep their empty pixels and stay open.
 SPECK_PIXELS = 40
+CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still mark its pixels as ray candidates
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,7 @@ class ObjectGeometry:
     grid_to_world: np.ndarray  # 4x4, continuous grid index -> world
     occluders: np.ndarray  # (M, 3) float64 world centres of the occupied voxels
     occluder_box: np.ndarray  # (2, 3) their least and greatest world coordinates (0s if none): kept for every light
+    surface_cells: np.ndarray  # (K, 3) int: the crop's cells where a camera ray may meet the surface (any camera)
 
     @property
     def empty(self) -> bool:
@@ -202,13 +204,24 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
     extra = math.sqrt(max(NORMAL_SIGMA**2 - DISTANCE_SIGMA**2, 0.0))
     smooth = filters.gaussian_blur(distance, extra, BLUR_TRUNCATE) if extra > 0.0 else distance
     core = filters.minimum_filter(distance, CORE_SIZE)
+    distance_and_core = np.stack([distance, core], axis=-1)
     centres = found + 0.5
     occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(
         elevation_deg=float(elevation_deg), offset=lo, occupied=occupied, rgb=grid[..., :3], rgb_offset=lo - start,
-        distance_and_core=np.stack([distance, core], axis=-1), smooth=smooth, broad=_broad(solid),
+        distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core), smooth=smooth,
+        broad=_broad(solid),
         grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=np.stack([occluders.min(axis=0), occluders.max(axis=0)]) if len(occluders) else np.zeros((2, 3)))
+
+
+def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
+    """The cells of the crop where a traced ray may stop (kernels.near_surface_cell_mask; none in a crop thinner
+    than two voxels, where every pixel is a candidate instead)."""
+    if min(distance_and_core.shape[:3]) < 2:
+        return np.zeros((0, 3), dtype=np.int64)
+    return filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
+                                                                   CANDIDATE_SLACK))
 
 
 def moved(geometry: ObjectGeometry, translation: tuple[float, float]) -> ObjectGeometry:
@@ -393,7 +406,7 @@ def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, 
     grid_to_camera = camera.world_to_camera()[:3] @ geometry.grid_to_world
     crop_to_camera = grid_to_camera + np.column_stack([np.zeros((3, 3)), grid_to_camera[:, :3] @ geometry.offset])
     image = camera.intrinsics() @ np.diag([1.0, -1.0, -1.0])  # camera point -> (u, v, 1) * depth
-    kernels.mark_surface_pixels(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, 0.01, image @ crop_to_camera,
+    kernels.mark_surface_pixels(geometry.surface_cells, np.asarray(geometry.occupied.shape), image @ crop_to_camera,
                                 int(rows[0]), int(cols[0]), mask)
     return mask
 
