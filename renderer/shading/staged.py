@@ -45,18 +45,18 @@ class StagedShader:
         n = object_rgba.shape[0]
         factors = shader_pool_factors(n, o.scale, self.grid_size)
         pooled, within = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
-        grid_key = (voxels_key, o.rotation_deg, o.scale, elevation)  # not the floor, nor where on it: the object alone
+        shape_key = (voxels_key, o.rotation_deg, o.scale, elevation)  # not the floor, nor where on it: the object alone
         # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
-        start, window = self._stage("window", grid_key, lambda: shader_window(
+        start, window = self._stage("window", shape_key, lambda: shader_window(
             pooled, within, n, factors, o, elevation, self.grid_size))
-        shape = self._stage("geometry", grid_key, lambda: object_geometry(window, elevation, start, self.grid_size))
+        shape = self._stage("geometry", shape_key, lambda: object_geometry(window, elevation, start, self.grid_size))
         geometry = moved(shape, o.translation)
-        grid_key = (grid_key, o.translation)
-        surface = self._stage("surface", (grid_key, size), lambda: visible_surface(geometry, size))
+        placed_key = (shape_key, o.translation)
+        surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
             Camera(elevation, width=size, height=size), light, floor))
-        return self._stage("shade", (grid_key, size, light, floor), lambda: shade(geometry, surface, light, floor,
+        return self._stage("shade", (placed_key, size, light, floor), lambda: shade(geometry, surface, light, floor,
                                                                                  floor_terms))
 
     def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
