@@ -30,8 +30,8 @@ when those change:
     shade_colors    paint, placement                                      colors, the empty floor's lighting, the
     shade_floor     as floor_light                                        shaded image and buffers
     shade           paint, placement, floor color, light position
-    preview_*       as shade_window ... shade, but the window and         the shader of the network's own grid: the drag
-                    geometry on the whole placement                       preview when the shader's grid is finer
+    preview_*       as shade_window ... shade                             the shader of the network's own grid: the drag
+                                                                          preview when the shader's grid is finer
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
                   reads them)
     light         all of the above and the light position                 image (render_from_latent)
@@ -373,34 +373,32 @@ class RenderEngine:
         network's shader input is drawn from (config.shading_grid_size); else from the network's own grid, the fast
         drag preview. The two are one set of stages when the grids are the same.
 
-        The object's geometry and the surface the camera sees are kept on its placement alone (a paint stroke keeps
-        every voxel's occupancy); after a paint edit only the window's voxels and the surface's colors are redone."""
-        elevation, finer = scene.camera.elevation_deg, self.config.shading_grid_factor > 1
-        fine = fine and finer
-        stage = {name: (f"preview_{name}" if finer and not fine else f"shade_{name}")
+        The object's geometry is kept on its shape alone (a paint stroke keeps every voxel's occupancy, a move along the
+        floor only shifts it) and the surface the camera sees on its placement; after a paint edit only the window's
+        voxels and the surface's colors are redone."""
+        elevation = scene.camera.elevation_deg
+        preview = not fine and self.config.shading_grid_factor > 1
+        stage = {name: f"preview_{name}" if preview else f"shade_{name}"
                  for name in ("window", "geometry", "surface", "colors")}
-        stage["shade"] = "preview_shade" if finer and not fine else "shade"
+        stage["shade"] = "preview_shade" if preview else "shade"
+        grid_size = self.config.grid_size if preview else self.config.shading_grid_size
 
         def window() -> tuple[tuple[int, int, int], np.ndarray]:  # the shader reads only the grid's window of the object
-            if fine:  # the finer grid's own merged voxels (kept while the object moves) and window
-                n, size = painted.shape[0], self.config.shading_grid_size
-                factors = shader_pool_factors(n, scene.object.scale, size)
+            n = painted.shape[0]
+            factors = shader_pool_factors(n, scene.object.scale, grid_size)
+            if grid_size > self.config.grid_size:  # the finer grid's own merged voxels (kept while the object moves)
                 pooled = self._stage("shade_pool", (keys.pool[0], factors),
                                      lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
-                return shader_window(pooled.voxels, pooled.within, n, factors, scene.object, elevation, size)
-            pooled, placement = self._placed(scene, painted, keys)
-            box = tuple(slice(lo, max(lo, hi)) for lo, hi in placement.window)
-            return tuple(s.start for s in box), gather(voxel_table(pooled, (0.0, 0.0, 0.0)), placement.indices[box])
+            else:  # the network's
+                pooled = self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], factors))
+            return shader_window(pooled.voxels, pooled.within, n, factors, scene.object, elevation, grid_size)
 
-        grid_size = self.config.shading_grid_size if fine else self.config.grid_size
-        # The finer grid's window holds the object at the floor's origin (shader_window), so it and its geometry are
-        # kept while the object moves along the floor; the network's grid has it where it stands.
-        window_key, geometry_key = (keys.painted_shape, keys.shape) if fine else (keys.painted, keys.placement)
-        start, voxels = self._stage(stage["window"], window_key, window)
-        shape = self._stage(stage["geometry"], geometry_key, lambda: object_geometry(voxels, elevation, start, grid_size))
-        geometry = replace(shape, rgb=voxels[..., :3])  # this paint's colors (kept geometry: an earlier paint's window)
-        if fine:
-            geometry = moved(geometry, scene.object.translation)
+        # The window holds the object at the floor's origin (shader_window), so it and its geometry are kept while the
+        # object moves along the floor, and `moved` puts the geometry where the object stands.
+        start, voxels = self._stage(stage["window"], keys.painted_shape, window)
+        shape = self._stage(stage["geometry"], keys.shape, lambda: object_geometry(voxels, elevation, start, grid_size))
+        # This paint's colors (kept geometry may hold an earlier paint's window), where the object stands.
+        geometry = moved(replace(shape, rgb=voxels[..., :3]), scene.object.translation)
         traced = self._stage(stage["surface"], keys.placement, lambda: visible_surface(geometry, self.output_size))
         surface = self._stage(stage["colors"], keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(

@@ -124,7 +124,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     def predict(sample: dict, index: int) -> torch.Tensor:
         if renderer == "shaded":
             scene = dataset.scene(index)
-            grid = dataset.shading_grid(sample["voxels"], scene, dataset.object_voxels(index))
+            grid = dataset.shading_grid(scene, dataset.object_voxels(index))
             return _shaded(grid, scene, sample["target"].shape[-1])
         if model is None:
             return sample["splat"][None]

@@ -157,14 +157,12 @@ class VoxelRenderSet(Dataset):
         if self.floor_light:
             item["floor_light"] = floor_light_tensor(scene, scene.floor.color, splat.shape[-1])
         if self.shading:
-            item["shading"] = shading_tensor(self.shading_grid(voxels, scene, rgba), scene, splat.shape[-1])
+            item["shading"] = shading_tensor(self.shading_grid(scene, rgba), scene, splat.shape[-1])
         return item
 
-    def shading_grid(self, voxels: torch.Tensor, scene: Scene, object_rgba: np.ndarray) -> ShadingGrid:
-        """The grid the shader draws from: the network's own (a view of `voxels`), or the window of a finer one
-        that holds the object (all the shader reads of it)."""
-        if self.shading_grid_size == self.grid_size:
-            return ShadingGrid(voxels.numpy().transpose(1, 2, 3, 0))
+    def shading_grid(self, scene: Scene, object_rgba: np.ndarray) -> ShadingGrid:
+        """The window of the shader's grid (the network's own, or a finer one) that holds the object at the floor's
+        origin: all the shader reads of it (renderer.grid.shader_window)."""
         from renderer.grid import pool_object, shader_pool_factors, shader_window
 
         size = self.shading_grid_size
@@ -175,13 +173,13 @@ class VoxelRenderSet(Dataset):
 
 
 class ShadingGrid(NamedTuple):
-    """A scene grid (D, H, W, 4), or the window of a `size`^3 one from grid index `start` that holds the object at
-    the floor's origin and the `translation` that moves it to where it stands, for the voxel shader."""
+    """The window of a `size`^3 scene grid (D, H, W, 4) from grid index `start` that holds the object at the floor's
+    origin, and the `translation` that moves it to where it stands, for the voxel shader."""
 
     voxels: np.ndarray
-    start: tuple[int, int, int] = (0, 0, 0)
-    size: int | None = None
-    translation: tuple[float, float] = (0.0, 0.0)
+    start: tuple[int, int, int]
+    size: int
+    translation: tuple[float, float]
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
