@@ -469,8 +469,12 @@ def test_an_untrained_refiner_renders_the_shaded_image(scene, factor, engine_fac
     model = build_model("nvr_plus", replace(TINY_REFINER, shading_grid_factor=factor)).eval()
     live = RenderEngine(model, threads=1, precision="fp32", shading_grid_factor=engine_factor)
     scene = replace(scene, object=replace(scene.object, translation=(0.1, -0.05)))
-    np.testing.assert_allclose(live.render(scene), _shaded_image(scene, shaded_grid),
-                               rtol=0, atol=1e-6)
+    np.testing.assert_allclose(live.render(scene), _shaded_image(scene, shaded_grid), rtol=0, atol=1e-6)
+    # A slide along the floor keeps the window and its geometry, on either grid.
+    slid = replace(scene, object=replace(scene.object, translation=(-0.12, 0.07)))
+    np.testing.assert_allclose(live.render(slid), _shaded_image(slid, shaded_grid), rtol=0, atol=1e-6)
+    assert not {"shade_window", "shade_geometry"} & set(live.last_report.stages_run)
+    assert "shade_surface" in live.last_report.stages_run
 
 
 def test_refiner_drag_preview_shades_the_network_grid(scene):
