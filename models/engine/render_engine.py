@@ -183,8 +183,8 @@ class RenderEngine:
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
                  precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None):
         """`shading_grid_factor`: shade a grid this many times finer than the network's instead of the one the model's
-        configuration names (1: the network's own grid, about 2.5x faster after an object move in nvr bench, less
-        accurate)."""
+        configuration names (1: the network's own grid, less voxel work after a turn, scale or camera tilt and less
+        accurate; nvr bench times both)."""
         set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
