@@ -317,8 +317,12 @@ class RenderEngine:
     def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
         n, factors = keys.placement[1:3]
-        pooled = self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], factors))
+        pooled = self._network_pool(painted, keys)
         return pooled.voxels, self._stage("placement", keys.placement, lambda: self._place(n, factors, scene, pooled))
+
+    def _network_pool(self, painted: np.ndarray, keys: _Keys) -> _Pooled:
+        """The object voxels merged for the network's grid (keys.pool: the paint and the merge factors)."""
+        return self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], keys.pool[1]))
 
     def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
         pooled, placement = self._placed(scene, painted, keys)
@@ -389,8 +393,8 @@ class RenderEngine:
             if grid_size > self.config.grid_size:  # the finer grid's own merged voxels (kept while the object moves)
                 pooled = self._stage("shade_pool", (keys.pool[0], factors),
                                      lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
-            else:  # the network's
-                pooled = self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], factors))
+            else:  # the network's (shader_pool_factors are its merge factors on its own grid)
+                pooled = self._network_pool(painted, keys)
             return shader_window(pooled.voxels, pooled.within, n, factors, scene.object, elevation, grid_size)
 
         # The window holds the object at the floor's origin (shader_window), so it and its geometry are kept while the
