@@ -52,22 +52,23 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", nargs="+", default=["data/test_single", "data/test_default", "data/test_textured"])
     parser.add_argument("--every", type=int, default=1, help="use every N-th sample")
+    parser.add_argument("--shading-grid", type=int, default=256,
+                        help="shade the object voxels merged as for this grid (renderer.grid.shader_pool_factors)")
     args = parser.parse_args()
     dataset = VoxelRenderSet(args.data)
-    samples = [(dataset[i], dataset.scene(i), dataset.settings[i]) for i in range(0, len(dataset), args.every)]
-    settings = sorted({s for _, _, s in samples})
+    samples = [(dataset[i]["target"], dataset.scene(i), dataset.object_voxels(i), dataset.settings[i])
+               for i in range(0, len(dataset), args.every)]
+    settings = sorted({s for *_, s in samples})
     print(f"{len(samples)} test images; MSE (0-255) / DSSIM per setting\n")
     print("| shader | " + " | ".join(settings) + " |")
     print("|---|" + "---:|" * len(settings))
     for name, (module, values) in ABLATIONS.items():
         scores = defaultdict(list)
         with patched(module, **values):
-            for item, scene, setting in samples:
-                grid = item["voxels"].numpy().transpose(1, 2, 3, 0)
-                image = shader.shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color,
-                                          item["target"].shape[-1]).image
+            for target, scene, rgba, setting in samples:
+                image = shader.shade_scene(scene, rgba, scene.floor.color, target.shape[-1], args.shading_grid).image
                 prediction = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
-                target = item["target"][None]
+                target = target[None]
                 scores[setting].append((float(mse_255(prediction, target)[0]), float(dssim(prediction, target)[0])))
         cells = [f"{np.mean([m for m, _ in scores[s]]):.1f} / {np.mean([d for _, d in scores[s]]):.4f}" for s in settings]
         print(f"| {name} | " + " | ".join(cells) + " |", flush=True)

@@ -24,7 +24,6 @@ Caching: scene_grid is four pure stages, so an engine can keep each result until
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -163,20 +162,6 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     return indices
 
 
-def object_window_indices(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec,
-                          elevation_deg: float, grid_size: int = GRID_SIZE,
-                          within: tuple[tuple[int, int], ...] | None = None) -> tuple[tuple[int, int, int], np.ndarray]:
-    """The object alone, sampled only where it can be: the first grid index of object_window and the table rows
-    (d, h, w) int32 of its voxels as sample_indices gives them (`within` as there), but the empty row P for the
-    ground too. Work in proportion to the object's box, not the grid (the voxel shader needs nothing else)."""
-    n_rows = int(np.prod([-(-resolution // f) for f in factors]))
-    ranges, rows = _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within, fill=n_rows)
-    start = tuple(lo for lo, _ in ranges)
-    if rows is None:
-        return start, np.full([max(hi - lo, 0) for lo, hi in ranges], n_rows, dtype=np.int32)
-    return start, rows
-
-
 def pool_object(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple[np.ndarray, tuple | None]:
     """The merged voxels, and the box of those that are not all zero (None if none is): only it need be sampled.
     Depends on the voxels and the merge factors alone, so a caller keeps it while the object moves."""
@@ -184,55 +169,19 @@ def pool_object(object_rgba: np.ndarray, factors: tuple[int, int, int]) -> tuple
     return pooled, occupied_spans(non_empty_voxels(pooled))
 
 
-def object_window_voxels(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
-                         object_spec: ObjectSpec, elevation_deg: float, grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
-    """The first grid index and the voxels (d, h, w, 4) of the scene grid's window that holds the object, without
-    the ground, from pool_object's result: what scene_grid gives there, at a cost in proportion to the object's box."""
-    start, rows = object_window_indices(resolution, factors, object_spec, elevation_deg, grid_size, within=within)
-    voxels = np.empty((*rows.shape, 4), dtype=np.float32)
-    _gather_merged(np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4), rows, voxels)
-    return start, voxels
-
-
-@njit(cache=True, parallel=True)
-def _gather_merged(merged, rows, out):
-    """out[i, j, k] = merged[rows[i, j, k]], all zero where the row is past the merged voxels (gather's empty row,
-    without copying every merged voxel into a table first)."""
-    for i in prange(rows.shape[0]):
-        for j in range(rows.shape[1]):
-            for k in range(rows.shape[2]):
-                row = rows[i, j, k]
-                for channel in range(4):
-                    out[i, j, k, channel] = merged[row, channel] if row < merged.shape[0] else np.float32(0.0)
-
-
-def object_window_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, elevation_deg: float,
-                       grid_size: int = GRID_SIZE) -> tuple[tuple[int, int, int], np.ndarray]:
-    """pool_object and object_window_voxels at once: the object's window of the `grid_size`^3 scene grid."""
-    resolution = object_rgba.shape[0]
-    factors = pool_factors(resolution, object_spec.scale, grid_size)
-    pooled, within = pool_object(object_rgba, factors)
-    return object_window_voxels(pooled, within, resolution, factors, object_spec, elevation_deg, grid_size)
-
-
 def _sample_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
-                   grid_size: int, within: tuple[tuple[int, int], ...] | None, out: np.ndarray | None = None,
-                   fill: int = -1) -> tuple[list[tuple[int, int]], np.ndarray | None]:
-    """The object_window ranges, and over them the merged voxel (flat row index) each grid voxel centre falls in:
-    written into `out` (the ranges' shape, or a new int32 array) where it falls in one, elsewhere `fill` (-1: left
-    as it is); (ranges, None) when the window is empty."""
+                   grid_size: int, within: tuple[tuple[int, int], ...] | None, out: np.ndarray) -> None:
+    """Over the object_window ranges (`out` has their shape), the merged voxel (flat row index) each grid voxel centre
+    falls in, written into `out` where it falls in one (elsewhere left as it is)."""
     pooled_shape = tuple(-(-resolution // f) for f in factors)
     first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
     ranges = object_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
     if any(lo >= hi for lo, hi in ranges):
-        return ranges, None
+        return
     cell = _merged_cell_map(resolution, factors, object_spec, elevation_deg, grid_size)
-    if out is None:
-        out = np.empty([hi - lo for lo, hi in ranges], dtype=np.int32)
     centres = [np.arange(lo, hi) + 0.5 for lo, hi in ranges]
     _merged_voxel_rows(cell, *centres, np.asarray(first, dtype=np.float64), np.asarray(stop, dtype=np.float64),
-                       np.asarray(pooled_shape, dtype=np.int64), fill, out)
-    return ranges, out
+                       np.asarray(pooled_shape, dtype=np.int64), out)
 
 
 def _merged_cell_map(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
@@ -246,10 +195,10 @@ def _merged_cell_map(resolution: int, factors: tuple[int, int, int], object_spec
 
 
 @njit(cache=True, parallel=True)
-def _merged_voxel_rows(cell, d, r, c, first, stop, shape, fill, out):
+def _merged_voxel_rows(cell, d, r, c, first, stop, shape, out):
     """out[i, j, k] = flat index of the merged voxel holding grid voxel centre (d[i], r[j], c[k]), whose cell along
     object axis a is floor(cell[a] . (d, r, c, 1)) (summed as depth + (row + constant), then column), if every cell
-    lies in [first, stop); else `fill`, or left as it is when `fill` is -1. One pass, no (D, H, W) temporaries."""
+    lies in [first, stop); else left as it is. One pass, no (D, H, W) temporaries."""
     for i in prange(d.shape[0]):
         for j in range(r.shape[0]):
             p0 = cell[0, 0] * d[i] + (cell[0, 1] * r[j] + cell[0, 3])
@@ -261,102 +210,13 @@ def _merged_voxel_rows(cell, d, r, c, first, stop, shape, fill, out):
                 e = math.floor(p2 + cell[2, 2] * c[k])
                 if first[0] <= a < stop[0] and first[1] <= b < stop[1] and first[2] <= e < stop[2]:
                     out[i, j, k] = (int(a) * shape[1] + int(b)) * shape[2] + int(e)
-                elif fill != -1:
-                    out[i, j, k] = fill
 
 
 def shader_pool_factors(resolution: int, scale: tuple[float, float, float], grid_size: int) -> tuple[int, int, int]:
-    """pool_factors for shader_window on a `grid_size`^3 grid: for a grid finer than the network's, those of the grid
-    twice as fine that it is supersampled from."""
+    """How the voxel shader merges an N^3 object's voxels when it stands in for a `grid_size`^3 grid: as pool_factors
+    for the network's grid (in pairs at scale 1), and for a finer one as for a grid twice as fine again, which merges
+    none at scales above a half (the shader draws the object's own voxels: renderer.shading.shader.object_geometry)."""
     return pool_factors(resolution, scale, 2 * grid_size if grid_size > GRID_SIZE else grid_size)
-
-
-def shader_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
-                  object_spec: ObjectSpec, elevation_deg: float, grid_size: int) -> tuple[tuple[int, int, int], np.ndarray]:
-    """The object's window of the `grid_size`^3 grid that the voxel shader draws from (pool_object's result for
-    shader_pool_factors): the network's own voxels on its grid, supersampled on a finer one (measured on every third
-    test image, the shader's MSE on a 256^3 grid fell from 33.0 to 25.9 on default chairs and from 137 to 98 on
-    lattices: docs/results.md).
-
-    The object stands at the floor's origin here, its translation left out: the shader moves the geometry it makes
-    from the window (renderer.shading.shader.moved), so a move along the floor redoes no voxel work, and the voxels
-    do not shimmer as the object slides across the grid's cells."""
-    at_origin = replace(object_spec, translation=(0.0, 0.0))
-    if grid_size > GRID_SIZE:
-        return supersampled_object_window(pooled, within, resolution, factors, at_origin, elevation_deg, grid_size)
-    return object_window_voxels(pooled, within, resolution, factors, at_origin, elevation_deg, grid_size)
-
-
-def supersampled_object_window(pooled: np.ndarray, within: tuple | None, resolution: int, factors: tuple[int, int, int],
-                                object_spec: ObjectSpec, elevation_deg: float,
-                                grid_size: int) -> tuple[tuple[int, int, int], np.ndarray]:
-    """object_window_voxels of the `grid_size`^3 grid, each voxel from the 2 x 2 x 2 centres of the grid twice as fine
-    that it holds (`pooled`, `within` and `factors` are pool_object's for that finer grid): occupied where half of
-    them or more fall in occupied merged voxels, colored with the mean of those. One sample per voxel skips and
-    doubles object voxels wherever the grid is turned against them (thin bars waver, smooth surfaces step).
-    For the voxel shader, which reads no ground."""
-    fine = 2 * grid_size
-    ranges = object_window(resolution, factors, object_spec, elevation_deg, fine, within)
-    lo = np.array([a - a % 2 for a, _ in ranges])
-    hi = np.maximum(np.array([b + b % 2 for _, b in ranges]), lo)
-    out = np.zeros((*((hi - lo) // 2), 4), dtype=np.float32)
-    if out.size:
-        pooled_shape = tuple(-(-resolution // f) for f in factors)
-        first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T
-        cell = _merged_cell_map(resolution, factors, object_spec, elevation_deg, fine)
-        occupied = pooled[..., 3] >= 0.5
-        _vote_merged_voxels(cell, *(np.arange(a, b) + 0.5 for a, b in zip(lo, hi)), np.asarray(first, dtype=np.float64),
-                            np.asarray(stop, dtype=np.float64), np.asarray(pooled_shape, dtype=np.int64),
-                            dilate_cube(occupied).reshape(-1), occupied.reshape(-1),
-                            np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4), out)
-    return tuple(int(v) for v in lo // 2), out
-
-
-@njit(cache=True, parallel=True)
-def _vote_merged_voxels(cell, d, r, c, first, stop, shape, near, occupied, merged, out):
-    """out[i, j, k] = the occupied merged voxels' mean color and occupancy 1 if at least 4 of the 8 fine centres
-    (d[2i + a], r[2j + b], c[2k + e]) fall in occupied merged voxels (cells as in _merged_voxel_rows), else zeros.
-    `occupied` (bool, one per merged voxel) is what most lookups read: a sixteenth of `merged`, it stays in cache.
-    A voxel whose centre's merged voxel has no occupied one next to it (`near` false) is skipped: its 8 centres lie
-    within a merged voxel of its own in every axis (a fine voxel is never smaller than half a merged one)."""
-    for i in prange(out.shape[0]):
-        for j in range(out.shape[1]):
-            for k in range(out.shape[2]):
-                x = math.floor(cell[0, 0] * (d[2 * i] + 0.5) + cell[0, 1] * (r[2 * j] + 0.5) + cell[0, 2] * (c[2 * k] + 0.5)
-                               + cell[0, 3])
-                y = math.floor(cell[1, 0] * (d[2 * i] + 0.5) + cell[1, 1] * (r[2 * j] + 0.5) + cell[1, 2] * (c[2 * k] + 0.5)
-                               + cell[1, 3])
-                z = math.floor(cell[2, 0] * (d[2 * i] + 0.5) + cell[2, 1] * (r[2 * j] + 0.5) + cell[2, 2] * (c[2 * k] + 0.5)
-                               + cell[2, 3])
-                if not (first[0] - 1 <= x < stop[0] + 1 and first[1] - 1 <= y < stop[1] + 1
-                        and first[2] - 1 <= z < stop[2] + 1):
-                    continue
-                xi, yi, zi = min(max(int(x), 0), shape[0] - 1), min(max(int(y), 0), shape[1] - 1), min(max(int(z), 0), shape[2] - 1)
-                if not near[(xi * shape[1] + yi) * shape[2] + zi]:
-                    continue
-                count = 0
-                red = green = blue = 0.0
-                for a in range(2):
-                    for b in range(2):
-                        p0 = cell[0, 0] * d[2 * i + a] + (cell[0, 1] * r[2 * j + b] + cell[0, 3])
-                        p1 = cell[1, 0] * d[2 * i + a] + (cell[1, 1] * r[2 * j + b] + cell[1, 3])
-                        p2 = cell[2, 0] * d[2 * i + a] + (cell[2, 1] * r[2 * j + b] + cell[2, 3])
-                        for e in range(2):
-                            x = math.floor(p0 + cell[0, 2] * c[2 * k + e])
-                            y = math.floor(p1 + cell[1, 2] * c[2 * k + e])
-                            z = math.floor(p2 + cell[2, 2] * c[2 * k + e])
-                            if first[0] <= x < stop[0] and first[1] <= y < stop[1] and first[2] <= z < stop[2]:
-                                row = (int(x) * shape[1] + int(y)) * shape[2] + int(z)
-                                if occupied[row]:
-                                    count += 1
-                                    red += merged[row, 0]
-                                    green += merged[row, 1]
-                                    blue += merged[row, 2]
-                if count >= 4:
-                    out[i, j, k, 0] = red / count
-                    out[i, j, k, 1] = green / count
-                    out[i, j, k, 2] = blue / count
-                    out[i, j, k, 3] = 1.0
 
 
 def dilate_cube(mask: np.ndarray) -> np.ndarray:
@@ -429,27 +289,16 @@ def ground_mask(elevation_deg: float, grid_size: int = GRID_SIZE, columns: int |
     return mask
 
 
-def _floor_mask(grid_to_world: np.ndarray, grid_size: int, columns: int | None = None,
-                start: tuple[int, int, int] = (0, 0, 0), shape: tuple[int, int, int] | None = None) -> np.ndarray:
+def _floor_mask(grid_to_world: np.ndarray, grid_size: int, columns: int | None = None) -> np.ndarray:
     """Grid voxels whose centre lies in the ground slab: world y in [-FLOOR_VOXELS voxels, 0); over the grid's
-    first `columns` columns, or over the window of `shape` from index `start`. (D, H, 1) to broadcast when the
-    ground does not change along the columns.
+    first `columns` columns. (D, H, 1) to broadcast when the ground does not change along the columns.
 
     float32 is ample for a slab several voxels thick and four times faster on the full grid.
     """
-    shape = (grid_size, grid_size, grid_size if columns is None else min(columns, grid_size)) if shape is None else shape
-    d, r, c = (np.arange(a, a + n, dtype=np.float64) + 0.5 for a, n in zip(start, shape))
+    shape = (grid_size, grid_size, grid_size if columns is None else min(columns, grid_size))
+    d, r, c = (np.arange(n, dtype=np.float64) + 0.5 for n in shape)
     y = _affine_over_grid(*grid_to_world[1], d, r, c, dtype=np.float32)
     return (y >= np.float32(-FLOOR_VOXELS * GRID_EXTENT / grid_size)) & (y < 0.0)
-
-
-def ground_mask_window(elevation_deg: float, grid_size: int, start: tuple[int, int, int],
-                       shape: tuple[int, int, int]) -> np.ndarray:
-    """ground_mask(elevation_deg, grid_size) over the window of `shape` from grid index `start` alone, the same
-    values, (d, h, 1) to broadcast where the ground is the same in every column: at 256^3 the whole grid's mask
-    is 16.7 MB, made and cached anew for each elevation the camera tilts to (2-3 ms in the engine, up to 34 ms
-    where the memory is fresh); the window's is a plane of a few thousand values."""
-    return _floor_mask(grid_index_to_world(elevation_deg, grid_size), grid_size, start=start, shape=shape)
 
 
 def _grid_ranges_covering(grid_to_object: np.ndarray, lo: np.ndarray, hi: np.ndarray, grid_size: int) -> list[tuple[int, int]]:

@@ -31,7 +31,7 @@ from renderer.floor_light import lit_floor_image
 from renderer.grid import occupied_spans, scene_grid
 from renderer.objects.demo import DEMO_DIR
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, load_scene
-from renderer.shading import shade_grid
+from renderer.shading import shade_scene
 from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
@@ -452,48 +452,44 @@ def refiner(seed: int = 0, trained: bool = True, config: ShaderRefinerConfig = T
 
 
 def _shaded_image(scene, grid_size: int) -> np.ndarray:
-    """The voxel shader's image of `scene` from its grid of `grid_size`^3, computed without the engine: the grid holds
-    the object at the floor's origin, and the shader moves it to where it stands."""
-    rgba = load_voxels(scene.voxels_path())
-    at_origin = replace(scene.object, translation=(0.0, 0.0))
-    grid = scene_grid(rgba, at_origin, scene.floor.color, scene.camera.elevation_deg, grid_size=grid_size)
-    return shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, 64,
-                      translation=scene.object.translation).image
+    """The voxel shader's image of `scene`, its object voxels merged as for a grid of `grid_size`^3, computed without
+    the engine."""
+    return shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, 64, grid_size).image
 
 
 @pytest.mark.parametrize("factor, engine_factor, shaded_grid", [(1, None, 64), (2, None, 128), (2, 1, 64)])
 def test_an_untrained_refiner_renders_the_shaded_image(scene, factor, engine_factor, shaded_grid):
-    """The network's grid is 64^3; the shader's is the configuration's `factor` times finer, unless the engine is
-    told another factor. Either grid holds the object at the floor's origin, and the shader moves it."""
+    """The network's grid is 64^3; the shader merges the object voxels as for the configuration's `factor` times finer
+    grid, unless the engine is told another factor. A slide and a turn keep the shader's geometry."""
     torch.manual_seed(0)
     model = build_model("nvr_plus", replace(TINY_REFINER, shading_grid_factor=factor)).eval()
     live = RenderEngine(model, threads=1, precision="fp32", shading_grid_factor=engine_factor)
     scene = replace(scene, object=replace(scene.object, translation=(0.1, -0.05)))
     np.testing.assert_allclose(live.render(scene), _shaded_image(scene, shaded_grid), rtol=0, atol=1e-6)
-    # A slide along the floor keeps the window and its geometry, on either grid.
     slid = replace(scene, object=replace(scene.object, translation=(-0.12, 0.07)))
-    np.testing.assert_allclose(live.render(slid), _shaded_image(slid, shaded_grid), rtol=0, atol=1e-6)
-    assert not {"shade_window", "shade_geometry"} & set(live.last_report.stages_run)
-    assert "shade_surface" in live.last_report.stages_run
+    turned = replace(slid, object=replace(slid.object, rotation_deg=slid.object.rotation_deg + 25.0))
+    for edited in (slid, turned):
+        np.testing.assert_allclose(live.render(edited), _shaded_image(edited, shaded_grid), rtol=0, atol=1e-6)
+        assert "shade_geometry" not in live.last_report.stages_run
+        assert "shade_surface" in live.last_report.stages_run
 
 
-def test_refiner_drag_preview_shades_the_network_grid(scene):
-    """While the object turns, the preview is the shader's image of the network's own (coarser, faster) grid; the
-    settled render then shades the finer grid, and a second preview of the same scene reuses its stages. While it
-    slides along the floor, the preview shades the finer grid, whose voxel work a slide keeps."""
+def test_refiner_drag_preview_is_the_shaded_image(scene):
+    """While the object turns or slides, the preview is the shader's image, its geometry kept from the render before;
+    the settled render then reuses the preview's stages, and a second preview of the same scene reruns nothing."""
     live = engine(refiner(trained=False))
     scene = replace(scene, object=replace(scene.object, translation=(-0.08, 0.06)))
     live.render(scene)
     turned = replace(scene, object=replace(scene.object, rotation_deg=scene.object.rotation_deg + 25.0))
-    np.testing.assert_allclose(live.preview(turned), _shaded_image(turned, 64), rtol=0, atol=1e-6)
-    assert "shade_geometry" not in live.last_report.stages_run
-    np.testing.assert_allclose(live.render(turned), _shaded_image(turned, 128), rtol=0, atol=1e-6)
-    live.preview(turned)
-    assert live.last_report.stages_run == ()
     slid = replace(turned, object=replace(turned.object, translation=(0.1, -0.05)))
-    np.testing.assert_allclose(live.preview(slid), _shaded_image(slid, 128), rtol=0, atol=1e-6)
-    assert {"shade_surface", "shade"} <= set(live.last_report.stages_run)
-    assert not {"shade_geometry", "preview_geometry", "preview_surface"} & set(live.last_report.stages_run)
+    for edited in (turned, slid):
+        np.testing.assert_allclose(live.preview(edited), _shaded_image(edited, 128), rtol=0, atol=1e-6)
+        assert {"shade_surface", "shade"} <= set(live.last_report.stages_run)
+        assert "shade_geometry" not in live.last_report.stages_run
+        np.testing.assert_allclose(live.render(edited), _shaded_image(edited, 128), rtol=0, atol=1e-6)
+        assert not {"shade_surface", "shade"} & set(live.last_report.stages_run)
+        live.preview(edited)
+        assert live.last_report.stages_run == ()
 
 
 @pytest.mark.parametrize("resolution", REFINERS)
@@ -508,9 +504,9 @@ def test_refiner_cached_render_equals_uncached(scene, edit, resolution):
         assert list(live.last_report.stages_run) == ["shade_floor", "shade", "splat_branch", "light"]
     if edit in ("paint stroke", "object color"):  # paint keeps occupancy: the surface stays, its colors are redone
         assert not {"shade_geometry", "shade_surface"} & set(live.last_report.stages_run)
-        assert {"shade_window", "shade_colors", "shade"} <= set(live.last_report.stages_run)
+        assert {"shade_colors", "shade"} <= set(live.last_report.stages_run)
     if edit in ("floor color", "floor paint"):  # the shader's object stages do not read the floor
-        assert not {"shade_window", "shade_geometry", "shade_surface", "shade_colors"} & set(live.last_report.stages_run)
+        assert not {"shade_geometry", "shade_surface", "shade_colors"} & set(live.last_report.stages_run)
         assert {"shade_floor", "shade"} <= set(live.last_report.stages_run)
     np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
     assert np.abs(image - live.render(scene)).max() > 1e-4

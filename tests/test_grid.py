@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 import trimesh
@@ -14,19 +12,13 @@ from renderer.grid import (
     gather,
     grid_index_to_world,
     ground_mask,
-    ground_mask_window,
     object_window,
-    object_window_grid,
-    object_window_indices,
     occupied_spans,
     pool_factors,
-    pool_object,
     pool_voxels,
     repool_voxels,
     sample_indices,
     scene_grid,
-    shader_pool_factors,
-    shader_window,
     voxel_table,
 )
 from renderer.mesh import normalise_mesh
@@ -202,93 +194,21 @@ def test_tiny_scale_gives_at_most_a_few_voxels():
 
 @pytest.mark.parametrize("elevation, rotation, translation, scale", [
     (30.0, 25.0, (0.2, -0.3), (1.0, 1.0, 1.0)),
-    (0.0, -140.0, (-0.9, 0.6), (0.5, 1.7, 1.2)),  # merged voxels (factors > 1) and the grid's side
-    (80.0, 90.0, (0.0, 0.0), (1.4, 0.6, 0.8)),
-])
-def test_sampling_within_the_non_empty_box_gives_the_same_grid(elevation, rotation, translation, scale):
-    """Two blobs inside a 20^3 object: sampling only their box leaves the object's empty voxels to the empty row."""
-    rgba = np.zeros((20, 20, 20, 4), dtype=np.float32)
-    rgba[4:7, 2:5, 11:15] = [0.9, 0.1, 0.2, 1.0]
-    rgba[9, 8:12, 12] = [0.1, 0.8, 0.3, 1.0]
-    spec = ObjectSpec(translation=translation, rotation_deg=rotation, scale=scale)
-    factors = pool_factors(20, scale)
-    pooled = pool_voxels(rgba, factors)
-    occupied = np.argwhere(pooled[..., 3] > 0)
-    within = tuple(zip(occupied.min(axis=0).tolist(), (occupied.max(axis=0) + 1).tolist()))
-    table = voxel_table(pooled, FLOOR)
-    full = sample_indices(20, factors, spec, elevation)
-    boxed = sample_indices(20, factors, spec, elevation, within=within)
-    assert np.any(boxed != full)  # the empty part of the object's box was not sampled
-    np.testing.assert_array_equal(gather(table, boxed), gather(table, full))
-    np.testing.assert_array_equal(gather(table, boxed), scene_grid(rgba, spec, FLOOR, elevation))
-    for indices, box in ((full, None), (boxed, within)):  # object_window holds every voxel given an object row
-        window = object_window(20, factors, spec, elevation, within=box)
-        taken = np.argwhere(indices < pooled[..., 0].size)
-        assert all(lo <= taken[:, axis].min() and taken[:, axis].max() < hi for axis, (lo, hi) in enumerate(window))
-
-
-@pytest.mark.parametrize("elevation, rotation, translation, scale", [
-    (30.0, 25.0, (0.2, -0.3), (1.0, 1.0, 1.0)),
     (0.0, -140.0, (-0.9, 0.6), (0.5, 1.7, 1.2)),
     (10.0, 0.0, (3.0, 0.0), (1.0, 1.0, 1.0)),  # outside the grid: an empty window
 ])
-def test_the_object_window_alone_samples_what_the_whole_grid_does(elevation, rotation, translation, scale):
-    """The window's rows are the full grid's there, the ground left empty; nothing of the object lies outside it."""
+def test_every_object_voxel_of_the_grid_lies_in_the_object_window(elevation, rotation, translation, scale):
+    """The window the engine samples and crops to holds every grid voxel that takes an object row."""
     rgba = sphere_voxels()
     spec = ObjectSpec(translation=translation, rotation_deg=rotation, scale=scale)
     factors = pool_factors(rgba.shape[0], scale)
     empty_row = pool_voxels(rgba, factors)[..., 0].size
     full = sample_indices(rgba.shape[0], factors, spec, elevation)
-    start, rows = object_window_indices(rgba.shape[0], factors, spec, elevation)
-    box = tuple(slice(a, a + n) for a, n in zip(start, rows.shape))
-    expected = np.where(ground_mask(elevation)[box], empty_row, full[box])
-    np.testing.assert_array_equal(rows, expected)
+    box = tuple(slice(a, b) for a, b in object_window(rgba.shape[0], factors, spec, elevation))
     outside = full.copy()
     outside[box] = empty_row
-    assert np.all(outside >= empty_row)  # every object row of the full grid is inside the window
-
-
-@pytest.mark.parametrize("grid_size", [64, 128])
-def test_object_window_grid_is_the_scene_grids_object_there(grid_size):
-    """At any grid size: the window's voxels are the whole scene grid's with the ground left out, and every object
-    voxel of the whole grid lies inside the window."""
-    rgba = sphere_voxels()
-    spec = ObjectSpec(translation=(0.2, -0.1), rotation_deg=35.0, scale=(1.0, 1.3, 0.8))
-    start, window = object_window_grid(rgba, spec, 20.0, grid_size)
-    whole = scene_grid(rgba, spec, FLOOR, 20.0, grid_size=grid_size)
-    whole[ground_mask(20.0, grid_size)] = 0.0
-    box = tuple(slice(a, a + n) for a, n in zip(start, window.shape[:3]))
-    np.testing.assert_array_equal(window, whole[box])
-    assert whole[..., 3].sum() == window[..., 3].sum() > 0
-
-
-def test_a_finer_shader_window_is_the_twice_finer_grid_voted_down():
-    """Above the network's grid the shader's window is supersampled: each voxel is occupied where at least 4 of the 8
-    voxels of the grid twice as fine that it holds are (the finer grid's own window, merged here by numpy), and
-    takes the mean color of those; at the network's grid it is the scene grid's own window. Either holds the object
-    at the floor's origin, whatever its translation (the shader moves the geometry it makes)."""
-    rgba = sphere_voxels()
-    rgba[..., 0] = np.linspace(0.0, 1.0, rgba.shape[0])[:, None, None] * rgba[..., 3]  # colors that vary
-    spec = ObjectSpec(translation=(0.2, -0.1), rotation_deg=35.0, scale=(1.0, 1.3, 0.8))
-    at_origin = replace(spec, translation=(0.0, 0.0))
-    factors = shader_pool_factors(rgba.shape[0], spec.scale, 2 * GRID_SIZE)
-    start, window = shader_window(*pool_object(rgba, factors), rgba.shape[0], factors, spec, 20.0, 2 * GRID_SIZE)
-    fine_start, fine = object_window_grid(rgba, at_origin, 20.0, 4 * GRID_SIZE)
-    # The fine window placed in a box of whole coarse voxels from the coarse window's start.
-    offset = np.asarray(fine_start) - 2 * np.asarray(start)
-    assert np.all(offset >= 0) and np.all(offset + fine.shape[:3] <= 2 * np.asarray(window.shape[:3]))
-    placed = np.zeros((*(2 * np.asarray(window.shape[:3])), 4), dtype=np.float32)
-    placed[tuple(slice(o, o + n) for o, n in zip(offset, fine.shape[:3]))] = fine
-    blocks = placed.reshape(window.shape[0], 2, window.shape[1], 2, window.shape[2], 2, 4)
-    count = blocks[..., 3].sum(axis=(1, 3, 5))
-    occupied = count >= 4
-    np.testing.assert_array_equal(window[..., 3], occupied.astype(np.float32))
-    mean_red = (blocks[..., 0] * blocks[..., 3]).sum(axis=(1, 3, 5))[occupied] / count[occupied]
-    np.testing.assert_allclose(window[..., 0][occupied], mean_red, atol=1e-6)
-    assert 0 < occupied.sum() < count.astype(bool).sum()  # the vote drops voxels a single sample would keep
-    factors = shader_pool_factors(rgba.shape[0], spec.scale, GRID_SIZE)
-    assert shader_window(*pool_object(rgba, factors), rgba.shape[0], factors, spec, 20.0, GRID_SIZE)[1].tobytes() == \
-        object_window_grid(rgba, at_origin, 20.0, GRID_SIZE)[1].tobytes()
+    assert np.all(outside >= empty_row)
+    assert (full[box] < empty_row).any() == (translation[0] < 2.0)  # the object is in the grid unless moved out
 
 
 def test_occupied_spans_bound_the_true_entries():
@@ -315,9 +235,3 @@ def test_repooling_after_a_change_equals_pooling_from_scratch(factors):
     np.testing.assert_array_equal(repool_voxels(pooled, before, before, factors), pooled)
 
 
-@pytest.mark.parametrize("elevation", [0.0, 20.0, 57.5, 89.0])
-@pytest.mark.parametrize("start, shape", [((0, 0, 0), (64, 64, 64)), ((10, 30, 5), (20, 25, 9)), ((63, 0, 40), (1, 64, 1))])
-def test_the_ground_of_a_window_is_the_whole_grids_ground_there(elevation, start, shape):
-    window = tuple(slice(a, a + n) for a, n in zip(start, shape))
-    mask = np.broadcast_to(ground_mask_window(elevation, 64, start, shape), shape)
-    np.testing.assert_array_equal(mask, ground_mask(elevation, 64)[window])

@@ -16,11 +16,10 @@ from hypothesis import strategies as st
 
 from models.engine.render_engine import RenderEngine
 from models.networks.config import ShaderRefinerConfig
-from renderer.grid import scene_grid
 from renderer.limits import MIN_IMAGE_SIZE
 from renderer.pipeline import painted_voxels
 from renderer.scene import MAX_ABS_POSITION, CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, validate
-from renderer.shading import shade_grid
+from renderer.shading import shade_scene
 from renderer.splat import splat_scene
 from renderer.voxels import save_voxels
 from tests.test_engine import random_model
@@ -85,8 +84,7 @@ def test_random_valid_scenes_render_finite_images_in_the_unit_range(drawn, engin
     painted, floor_color = painted_voxels(scene, rgba if scene.object.color is None else _colored(rgba, scene))
     images = {
         "splat": splat_scene(scene, painted, floor_color),
-        "shaded": shade_grid(scene_grid(painted, scene.object, floor_color, scene.camera.elevation_deg, grid_size=32),
-                             scene.light.position, scene.camera.elevation_deg, floor_color, scene.image_size).image,
+        "shaded": shade_scene(scene, painted, floor_color, grid_size=32).image,
         "nvr+": engine.render(scene),
     }
     for name, image in images.items():

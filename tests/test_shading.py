@@ -10,10 +10,10 @@ from scipy import ndimage
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
-from renderer.grid import scene_grid
-from renderer.scene import GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
-from renderer.shading import kernels, repaint_surface, shade, shade_grid, shade_scene, visible_surface
-from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates, object_geometry
+from renderer.grid import pool_object, shader_pool_factors
+from renderer.scene import GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
+from renderer.shading import kernels, object_geometry, placed, repaint_surface, shade, shade_scene, visible_surface
+from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates
 from renderer.shading.staged import StagedShader
 
 FLOOR = (0.6, 0.6, 0.6)
@@ -35,9 +35,19 @@ def ball(n: int = 40, color=(0.8, 0.8, 0.8)) -> np.ndarray:
     return rgba
 
 
-def shaded(rgba, spec: ObjectSpec, light, elevation=30.0, size=SIZE):
-    grid = scene_grid(rgba, spec, FLOOR, elevation)
-    return shade_grid(grid, light, elevation, FLOOR, size)
+def scene_of(spec: ObjectSpec, light, elevation=30.0, size=SIZE) -> Scene:
+    return Scene(object=spec, light=LightSpec(tuple(float(v) for v in light)), camera=CameraSpec(elevation),
+                 image_size=size)
+
+
+def shaded(rgba, spec: ObjectSpec, light, elevation=30.0, size=SIZE, cover_behind=True, grid_size=GRID_SIZE):
+    return shade_scene(scene_of(spec, light, elevation, size), rgba, FLOOR, size, grid_size, cover_behind)
+
+
+def geometry_of(rgba, spec: ObjectSpec, elevation: float, grid_size: int = GRID_SIZE):
+    """The shader's geometry of `rgba` merged as for a `grid_size`^3 grid, placed by `spec`."""
+    factors = shader_pool_factors(rgba.shape[0], spec.scale, grid_size)
+    return placed(object_geometry(pool_object(rgba, factors)[0], rgba.shape[0], factors), spec, elevation)
 
 
 def pixel_of(point, elevation=30.0, size=SIZE) -> tuple[int, int]:
@@ -45,23 +55,24 @@ def pixel_of(point, elevation=30.0, size=SIZE) -> tuple[int, int]:
     return int(v), int(u)
 
 
-@pytest.mark.parametrize("columns", [5, -12])
-def test_a_geometry_moved_along_the_floor_is_the_geometry_of_the_moved_grid(columns):
-    """The grid's columns run along world x, one voxel (GRID_EXTENT / GRID_SIZE) apart, and the ground is the same in
-    every column: so the grid of an object moved by whole columns is the grid rolled by them, and shading the
-    unmoved grid with its geometry moved (how the shader keeps its voxel work while an object slides) must give
-    that grid's image, shadow and all."""
-    spec = ObjectSpec(voxels="v.npz", rotation_deg=25.0, scale=(0.5, 0.6, 0.4))
-    grid = scene_grid(ball(24, color=(0.7, 0.3, 0.2)), spec, FLOOR, 30.0)
-    step = GRID_EXTENT / GRID_SIZE
+@pytest.mark.parametrize("grid_size", [GRID_SIZE, 2 * GRID_SIZE])
+def test_placing_the_geometry_is_placing_the_voxels(grid_size):
+    """The shader draws the object's voxels in their own frame and places the result (how it keeps its voxel work
+    through every turn and move): an object turned by 90 degrees and moved must shade as its voxels turned by hand
+    (x to -z, z to x about the vertical), moved, and placed unturned."""
+    rgba = ball(24, color=(0.7, 0.3, 0.2))
+    rgba[:6, ..., :3] = (0.1, 0.5, 0.9)  # one side painted, so the turn shows
+    rgba[:, :5] = 0.0  # and cut flat below, so it stands on the floor
+    by_hand = np.ascontiguousarray(np.transpose(rgba, (2, 1, 0, 3))[:, :, ::-1])  # new[k, j, N-1-i] = old[i, j, k]
     light = (0.6, 2.7, 0.4)
-    moved_grid = shade_grid(np.roll(grid, columns, axis=2), light, 30.0, FLOOR, SIZE)
-    moved_geometry = shade_grid(grid, light, 30.0, FLOOR, SIZE, translation=(columns * step, 0.0))
-    unmoved = shade_grid(grid, light, 30.0, FLOOR, SIZE)
-    for part in ("image", "coverage", "normal", "visibility", "occlusion"):
-        np.testing.assert_allclose(getattr(moved_geometry, part), getattr(moved_grid, part), rtol=0, atol=1e-4,
+    turned = shaded(rgba, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), rotation_deg=90.0, scale=(0.5, 0.5, 0.5)),
+                    light)
+    turned_voxels = shaded(by_hand, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), scale=(0.5, 0.5, 0.5)), light)
+    for part in ("image", "coverage", "albedo", "normal", "visibility", "occlusion"):
+        np.testing.assert_allclose(getattr(turned, part), getattr(turned_voxels, part), rtol=0, atol=1e-4,
                                    err_msg=part)
-    assert np.abs(moved_geometry.coverage - unmoved.coverage).max() == 1.0  # the object did move
+    unturned = shaded(rgba, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), scale=(0.5, 0.5, 0.5)), light)
+    assert np.abs(turned.albedo - unturned.albedo).max() > 0.5  # the turn shows
 
 
 @pytest.mark.parametrize("light_x", [1.2, -1.2])
@@ -119,11 +130,11 @@ def test_a_spheres_shading_follows_lambert():
     assert np.corrcoef(direct[lit], radiance[lit])[0, 1] > 0.95
 
 
-def test_an_empty_grid_is_the_lit_floor():
+def test_an_empty_object_is_the_lit_floor():
     light = (0.7, 2.7, -0.4)
     empty = np.zeros((8, 8, 8, 4), dtype=np.float32)
     for elevation in (5.0, 30.0, 60.0):
-        out = shade_grid(scene_grid(empty, ObjectSpec(voxels="v.npz"), FLOOR, elevation), light, elevation, FLOOR, SIZE)
+        out = shaded(empty, ObjectSpec(voxels="v.npz"), light, elevation)
         floor = lit_floor_image(Camera(elevation, width=SIZE, height=SIZE), light, FLOOR)
         # The same shading, interpolated from the same coarse points in linear rather than sRGB values.
         assert np.abs(out.image - floor).max() < 3.0 / 255.0
@@ -290,16 +301,15 @@ def test_a_part_in_front_of_another_shows_no_floor_at_its_outline():
     assert with_rod.coverage[inside].min() == 1.0  # before grazing rays went on: 40 pixels at 0.73-1
     assert ((with_rod.coverage > 0.0) & (with_rod.coverage < 1.0) & rod).sum() > 0
     # Photo delighting asks for the rod's outline to stay partly covered: there a photo pixel mixes rod and wall.
-    for_photo = shade_grid(scene_grid(both, spec, FLOOR, 10.0), np.array([0.0, 2.0, 1.0]), 10.0, FLOOR, 128,
-                           cover_behind=False)
+    for_photo = shaded(both, spec, np.array([0.0, 2.0, 1.0]), elevation=10.0, size=128, cover_behind=False)
     assert ((for_photo.coverage < 1.0) & inside).sum() > 10
 
 
 @pytest.mark.parametrize("grid_size", [GRID_SIZE, 2 * GRID_SIZE])
 def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_size):
-    """Cached stages (and the object's window of the grid instead of the whole grid) give the very image the
-    uncached shader gives the whole grid, after a move and turn, a move along the floor, a light move, a camera tilt, a floor color and a paint;
-    for the network's grid and for the finer one a shader refiner reads."""
+    """Cached stages give the very image the uncached shader gives, after a move and turn, a move along the floor, a
+    light move, a camera tilt, a floor color and a paint; with the object voxels merged as for the network's grid and
+    for the finer one a shader refiner reads. The voxel work (the geometry) reruns only for other voxels."""
     rgba = ball(24, color=(0.7, 0.3, 0.2))
     painted = rgba.copy()
     painted[:12, ..., :3] = (0.1, 0.5, 0.9)
@@ -331,9 +341,9 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
     assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
-    assert reran["move"] == {"window", "geometry", "surface", "shade"}  # the merged voxels and the lit floor stay
-    assert reran["slide"] == {"surface", "shade"}  # along the floor: the window holds the object at the origin
-    assert reran["paint"] == {"pool", "window", "geometry", "surface", "shade"}
+    assert reran["move"] == reran["slide"] == {"surface", "shade"}  # the geometry is placed: turns keep it too
+    assert reran["camera"] == {"surface", "floor", "shade"}
+    assert reran["paint"] == {"pool", "geometry", "surface", "shade"}
 
 
 def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
@@ -354,7 +364,7 @@ def test_skipped_rays_are_rays_that_miss(shape, elevation, translation):
     # The centre pass traces only the pixels whose ray may stop on the surface: tracing every pixel of the window
     # instead must give the same hits, points and coverage, and the skip must leave out most of the window's misses.
     spec = ObjectSpec(voxels="v.npz", translation=translation, scale=(0.6, 0.6, 0.6))
-    geometry = object_geometry(scene_grid(ball() if shape == "ball" else lattice(), spec, FLOOR, elevation), elevation)
+    geometry = geometry_of(ball() if shape == "ball" else lattice(), spec, elevation)
     camera = Camera(elevation, width=128, height=128)
     world_to_grid = np.linalg.inv(geometry.grid_to_world)
     origin = world_to_grid[:3, :3] @ camera.position + world_to_grid[:3, 3] - geometry.offset
@@ -373,7 +383,7 @@ def test_skipped_rays_are_rays_that_miss(shape, elevation, translation):
 def test_a_face_with_nothing_before_it_sees_the_whole_light(light):
     # A low light in front of a cube: its front face (normal +z) sees all of the light, and read off the shadow
     # maps it must not shadow itself (shadow acne: the maps hold depths measured straight down from the light).
-    out = shaded(cube(), ObjectSpec(voxels="v.npz", scale=(0.4, 0.4, 0.4)), np.array(light))
+    out = shaded(cube(32), ObjectSpec(voxels="v.npz", scale=(0.4, 0.4, 0.4)), np.array(light), grid_size=2 * GRID_SIZE)
     face = ndimage.binary_erosion((out.normal[..., 2] > 0.95) & (out.coverage >= 1.0), iterations=2)
     assert face.sum() > 40
     assert out.visibility[face].min() > 0.95
@@ -423,7 +433,7 @@ def test_a_repainted_surface_is_the_surface_of_the_painted_object():
     painted = rgba.copy()
     painted[:12, ..., :3] = (0.1, 0.5, 0.9)
     spec, elevation = ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7), rotation_deg=30.0), 25.0
-    first, second = (object_geometry(scene_grid(v, spec, FLOOR, elevation), elevation) for v in (rgba, painted))
+    first, second = (geometry_of(v, spec, elevation) for v in (rgba, painted))
     fresh = visible_surface(second, SIZE)
     repainted = repaint_surface(visible_surface(first, SIZE), second)
     for part in ("albedo", "color_voxels", "points", "normals", "coverage"):

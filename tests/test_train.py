@@ -280,15 +280,12 @@ def test_a_shader_refiner_trains_from_the_shaded_image(data, tmp_path, name):
 
 @pytest.mark.parametrize("factor", [1, 2])
 def test_a_samples_shader_buffers_come_from_the_grid_the_config_names(data, factor):
-    from renderer.grid import scene_grid
-    from renderer.shading import network_buffers, shade_grid
+    from renderer.shading import network_buffers, shade_scene
     from renderer.voxels import load_voxels
 
     dataset = VoxelRenderSet([data], grid_size=16, shading=True, shading_grid_factor=factor)
     scene = dataset.scene(1)
-    grid = scene_grid(load_voxels(scene.voxels_path()), scene.object, scene.floor.color, scene.camera.elevation_deg,
-                      grid_size=16 * factor)
-    expected = network_buffers(shade_grid(grid, scene.light.position, scene.camera.elevation_deg, scene.floor.color, 32))
+    expected = network_buffers(shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, 32, 16 * factor))
     np.testing.assert_allclose(dataset[1]["shading"].numpy().transpose(1, 2, 0), expected, rtol=0, atol=1e-6)
     assert dataset[1]["voxels"].shape[-1] == 16  # the network's own grid is unchanged
 

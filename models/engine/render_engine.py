@@ -22,25 +22,20 @@ when those change:
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
                                                                           it, and previews)
     shade_pool      paint, merge factors of the finer grid                the voxel shader (networks that read it:
-    shade_window    paint, placement but the translation (the window      renderer/shading/): the finer grid's merged
-                    holds the object at the floor's origin)               voxels (config.shading_grid_factor > 1), the
-    shade_geometry  placement but the translation (paint keeps            object's window of the grid, its geometry
-                    occupancy)                                            (moved to where the object stands), the
-    shade_surface   placement                                             surface the camera sees, that surface's
-    shade_colors    paint, placement                                      colors, the empty floor's lighting, the
-    shade_floor     as floor_light                                        shaded image and buffers
-    shade           paint, placement, floor color, light position
-    preview_*       as shade_window ... shade                             the shader of the network's own grid: the drag
-                                                                          preview when the shader's grid is finer
+    shade_geometry  voxels, the shader's merge factors (paint keeps       renderer/shading/): the object voxels merged
+                    occupancy)                                            for the finer grid (config.shading_grid_factor
+    shade_surface   placement                                             > 1), their geometry in the object's own frame
+    shade_colors    paint, placement                                      (placed where the object stands), the surface
+    shade_floor     as floor_light                                        the camera sees, its colors, the empty floor's
+    shade           paint, placement, floor color, light position         lighting, the shaded image and buffers
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
                   reads them)
     light         all of the above and the light position                 image (render_from_latent)
 
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
 runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
-networks that read the shader, like the shipped NVR+: shade_window after paint or a placement edit other than a
-move along the floor, shade_geometry after such a placement edit alone, shade_surface after any placement edit,
-shade_colors after paint or placement, shade_floor after an edit that reruns floor_light, and shade after all of
+networks that read the shader, like the shipped NVR+: shade_geometry only for another object or a scale across a
+merge threshold, shade_surface after any placement or camera edit, shade_colors after paint, placement or camera, shade_floor after an edit that reruns floor_light, and shade after all of
 these; for the others a light move reruns the light stage alone):
 
     edit                          stages rerun
@@ -104,7 +99,6 @@ from renderer.grid import (
     repool_voxels,
     sample_indices,
     shader_pool_factors,
-    shader_window,
     voxel_table,
 )
 from renderer.paint import apply_paint
@@ -112,9 +106,9 @@ from renderer.pipeline import object_voxels
 from renderer.scene import Scene
 from renderer.shading import (
     ShadedImage,
-    moved,
     network_buffers,
     object_geometry,
+    placed,
     repaint_surface,
     shade,
     visible_surface,
@@ -164,11 +158,9 @@ class _Keys(NamedTuple):
     layout: tuple
     splat: tuple
     floor_light: tuple
-    painted: tuple  # the painted object and its placement (the shader's window of it)
+    painted: tuple  # the painted object and its placement
     shade: tuple
     splat_branch: tuple
-    shape: tuple  # the placement without the translation (the shader's finer window holds the object at the origin)
-    painted_shape: tuple
 
 
 @dataclass
@@ -182,9 +174,9 @@ class RenderEngine:
 
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
                  precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None):
-        """`shading_grid_factor`: shade a grid this many times finer than the network's instead of the one the model's
-        configuration names (1: the network's own grid, less voxel work after a turn, scale or camera tilt and less
-        accurate; nvr bench times both)."""
+        """`shading_grid_factor`: shade the object voxels merged as for a grid this many times finer than the network's
+        instead of the one the model's configuration names (1: as for the network's own grid, in pairs at scale 1:
+        fewer voxels to trace, less accurate; nvr bench times both)."""
         set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
@@ -240,9 +232,8 @@ class RenderEngine:
 
     def preview(self, scene: Scene) -> np.ndarray:
         """A fast image while the user drags: the full render when only the light changed (that is cheap), else for a
-        network that reads the shader the shaded image (of the finer grid when the object only slid along the floor,
-        which keeps its voxel work; else of the network's own, coarser grid), else the splatted object over the lit
-        empty floor; from stages the full render then reuses."""
+        network that reads the shader the shaded image (its geometry kept through every placement and camera edit),
+        else the splatted object over the lit empty floor; from stages the full render then reuses."""
         start = self._begin()
         with torch.inference_mode():
             painted, floor, paint_key = self._painted(scene)
@@ -251,8 +242,7 @@ class RenderEngine:
             if self._cached("voxel_branch", keys.grid) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             elif self._reads_shading:  # the shaded image, which the full render then corrects
-                slid = self._cached("shade_geometry", keys.shape)
-                image = np.clip(self._shaded(scene, painted, floor, keys, fine=slid).image, 0.0, 1.0)
+                image = np.clip(self._shaded(scene, painted, floor, keys).image, 0.0, 1.0)
             else:
                 splat = self._splat(scene, painted, floor, keys)
                 on_object = self._splat_layout(scene, painted, keys).voxel >= 0
@@ -302,7 +292,6 @@ class RenderEngine:
         factors = pool_factors(n, o.scale, self.config.grid_size)
         # Placement reads which object rows are empty, and layout the occupancy: neither changes with paint.
         placement = (paint_key[0], n, factors, o.translation, o.rotation_deg, o.scale, elevation)
-        shape = (paint_key[0], n, o.rotation_deg, o.scale, elevation)  # the placement but where on the floor
         layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
         splat = (paint_key, layout, floor)
         floor_light = (elevation, floor, scene.light.position)
@@ -311,8 +300,7 @@ class RenderEngine:
         shade = (painted_placed, floor, scene.light.position)
         splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
         return _Keys(pool=(paint_key, factors), placement=placement, grid=grid, layout=layout, splat=splat,
-                     floor_light=floor_light, painted=painted_placed, shade=shade, splat_branch=splat_branch,
-                     shape=shape, painted_shape=(paint_key, shape))
+                     floor_light=floor_light, painted=painted_placed, shade=shade, splat_branch=splat_branch)
 
     def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
@@ -372,43 +360,30 @@ class RenderEngine:
         layout = self._splat_layout(scene, painted, keys)
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
 
-    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys, fine: bool = True) -> ShadedImage:
-        """The voxel shader's image of the scene, from its cached stages (renderer/shading/). `fine`: from the grid the
-        network's shader input is drawn from (config.shading_grid_size); else from the network's own grid, the fast
-        drag preview. The two are one set of stages when the grids are the same.
+    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> ShadedImage:
+        """The voxel shader's image of the scene, from its cached stages (renderer/shading/), drawing the object voxels
+        merged as for the grid the network's shader input stands for (config.shading_grid_size).
 
-        The object's geometry is kept on its shape alone (a paint stroke keeps every voxel's occupancy, a move along the
-        floor only shifts it) and the surface the camera sees on its placement; after a paint edit only the window's
-        voxels and the surface's colors are redone."""
-        elevation = scene.camera.elevation_deg
-        preview = not fine and self.config.shading_grid_factor > 1
-        stage = {name: f"preview_{name}" if preview else f"shade_{name}"
-                 for name in ("window", "geometry", "surface", "colors")}
-        stage["shade"] = "preview_shade" if preview else "shade"
-        grid_size = self.config.grid_size if preview else self.config.shading_grid_size
-
-        def window() -> tuple[tuple[int, int, int], np.ndarray]:  # the shader reads only the grid's window of the object
-            n = painted.shape[0]
-            factors = shader_pool_factors(n, scene.object.scale, grid_size)
-            if grid_size > self.config.grid_size:  # the finer grid's own merged voxels (kept while the object moves)
-                pooled = self._stage("shade_pool", (keys.pool[0], factors),
-                                     lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
-            else:  # the network's (shader_pool_factors are its merge factors on its own grid)
-                pooled = self._network_pool(painted, keys)
-            return shader_window(pooled.voxels, pooled.within, n, factors, scene.object, elevation, grid_size)
-
-        # The window holds the object at the floor's origin (shader_window), so it and its geometry are kept while the
-        # object moves along the floor, and `moved` puts the geometry where the object stands.
-        start, voxels = self._stage(stage["window"], keys.painted_shape, window)
-        shape = self._stage(stage["geometry"], keys.shape, lambda: object_geometry(voxels, elevation, start, grid_size))
-        # This paint's colors (kept geometry may hold an earlier paint's window), where the object stands.
-        geometry = moved(replace(shape, rgb=voxels[..., :3]), scene.object.translation)
-        traced = self._stage(stage["surface"], keys.placement, lambda: visible_surface(geometry, self.output_size))
-        surface = self._stage(stage["colors"], keys.painted, lambda: repaint_surface(traced, geometry))
+        The object's geometry is kept on its occupancy and merge factors alone (a paint stroke keeps every voxel's
+        occupancy; `placed` puts the geometry where the scene has the object and sets the camera), the surface the
+        camera sees on the placement; after a paint edit only the merged voxels and the surface's colors are redone."""
+        n = painted.shape[0]
+        factors = shader_pool_factors(n, scene.object.scale, self.config.shading_grid_size)
+        if self.config.shading_grid_factor > 1:  # the finer grid's own merged voxels
+            pooled = self._stage("shade_pool", (keys.pool[0], factors),
+                                 lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
+        else:  # the network's (shader_pool_factors are its merge factors on its own grid)
+            pooled = self._network_pool(painted, keys)
+        shape = self._stage("shade_geometry", (keys.pool[0][0], n, factors),
+                            lambda: object_geometry(pooled.voxels, n, factors))
+        # This paint's colors (kept geometry may hold an earlier paint's), where the scene has the object.
+        geometry = placed(replace(shape, rgb=pooled.voxels[..., :3]), scene.object, scene.camera.elevation_deg)
+        traced = self._stage("shade_surface", keys.placement, lambda: visible_surface(geometry, self.output_size))
+        surface = self._stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
-        return self._stage(stage["shade"], keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
-                                                                     floor_terms))
+        return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
+                                                              floor_terms))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""

@@ -123,9 +123,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
 
     def predict(sample: dict, index: int) -> torch.Tensor:
         if renderer == "shaded":
-            scene = dataset.scene(index)
-            grid = dataset.shading_grid(scene, dataset.object_voxels(index))
-            return _shaded(grid, scene, sample["target"].shape[-1])
+            image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1]).image
+            return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
         if model is None:
             return sample["splat"][None]
         if sample["target"].shape[-1] != config.output_size:
@@ -163,14 +162,6 @@ def _figure_samples(values: list[dict]) -> list[tuple[str, dict]]:
     """A setting's sample of median MSE and its sample of highest MSE, labelled."""
     by_error = sorted(values, key=lambda v: v["mse"])
     return [("typical view (median MSE)", by_error[(len(by_error) - 1) // 2]), ("worst view", by_error[-1])]
-
-
-def _shaded(grid, scene, size: int) -> torch.Tensor:
-    """The voxel shader's image (1, 3, S, S) of a sample's ShadingGrid (models/training/data.py)."""
-    from models.training.data import shaded_sample
-
-    image = shaded_sample(grid, scene, size).image
-    return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
 
 
 def _ground_share(prediction: torch.Tensor, target: torch.Tensor, splat: torch.Tensor, scene) -> float:

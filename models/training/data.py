@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -157,29 +156,15 @@ class VoxelRenderSet(Dataset):
         if self.floor_light:
             item["floor_light"] = floor_light_tensor(scene, scene.floor.color, splat.shape[-1])
         if self.shading:
-            item["shading"] = shading_tensor(self.shading_grid(scene, rgba), scene, splat.shape[-1])
+            item["shading"] = shading_tensor(self.shaded(scene, rgba, splat.shape[-1]))
         return item
 
-    def shading_grid(self, scene: Scene, object_rgba: np.ndarray) -> ShadingGrid:
-        """The window of the shader's grid (the network's own, or a finer one) that holds the object at the floor's
-        origin: all the shader reads of it (renderer.grid.shader_window)."""
-        from renderer.grid import pool_object, shader_pool_factors, shader_window
+    def shaded(self, scene: Scene, object_rgba: np.ndarray, size: int):
+        """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene at `size`^2: its object voxels merged
+        as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors)."""
+        from renderer.shading import shade_scene
 
-        size = self.shading_grid_size
-        factors = shader_pool_factors(object_rgba.shape[0], scene.object.scale, size)
-        start, window = shader_window(*pool_object(object_rgba, factors), object_rgba.shape[0], factors, scene.object,
-                                      scene.camera.elevation_deg, size)
-        return ShadingGrid(window, start, size, scene.object.translation)
-
-
-class ShadingGrid(NamedTuple):
-    """The window of a `size`^3 scene grid (D, H, W, 4) from grid index `start` that holds the object at the floor's
-    origin, and the `translation` that moves it to where it stands, for the voxel shader."""
-
-    voxels: np.ndarray
-    start: tuple[int, int, int]
-    size: int
-    translation: tuple[float, float]
+        return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size)
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
@@ -191,20 +176,11 @@ def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
 
 
-def shaded_sample(grid: ShadingGrid, scene: Scene, size: int):
-    """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene grid."""
-    from renderer.shading import shade_grid
-
-    return shade_grid(grid.voxels, scene.light.position, scene.camera.elevation_deg, scene.floor.color, size,
-                      grid.start, grid.size, translation=grid.translation)
-
-
-def shading_tensor(grid: ShadingGrid, scene: Scene, size: int) -> torch.Tensor:
-    """The voxel shader's image and buffers of a sample's scene grid, as the network's (SHADING_CHANNELS, size, size)
-    input."""
+def shading_tensor(shaded) -> torch.Tensor:
+    """A ShadedImage's image and buffers as the network's (SHADING_CHANNELS, S, S) input."""
     from renderer.shading import network_buffers
 
-    buffers = network_buffers(shaded_sample(grid, scene, size))
+    buffers = network_buffers(shaded)
     return torch.from_numpy(np.ascontiguousarray(buffers.transpose(2, 0, 1)))
 
 

@@ -5,15 +5,14 @@ from renderer.shading.shader import (
     ObjectGeometry,
     ShadedImage,
     VisibleSurface,
-    moved,
     network_buffers,
     object_geometry,
+    placed,
     repaint_surface,
     shade,
-    shade_grid,
     shade_scene,
     visible_surface,
 )
 
-__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "moved", "object_geometry", "repaint_surface", "shade", "network_buffers", "shade_grid", "shade_scene",
-           "visible_surface"]
+__all__ = ["BUFFER_CHANNELS", "ObjectGeometry", "ShadedImage", "VisibleSurface", "network_buffers", "object_geometry",
+           "placed", "repaint_surface", "shade", "shade_scene", "visible_surface"]

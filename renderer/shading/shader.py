@@ -1,16 +1,14 @@
 """The voxel shader: a physically based image of the network's inputs, in three cacheable stages.
 
-From what the network reads (a camera-aligned RGBA scene grid, the light position, the camera
-elevation, the floor color) and the scene's fixed constants (renderer/scene.py), it draws what the
-path tracer would, approximately. The grid is the network's 128^3 one or the object's window of a finer
-one, each of whose voxels is voted from 2^3 samples (renderer.grid.shader_window: at 256^3 and scale 1 a
-grid voxel is an object voxel, which the 128^3 grid merges in pairs); lengths below in voxels are the grid's voxels.
+From the object's voxels, where the scene places them, the light position, the camera elevation and the floor color
+(what the network reads), and the scene's fixed constants (renderer/scene.py), it draws what the path tracer would,
+approximately. It draws the object's own voxels, merged as for the grid it stands in for
+(renderer.grid.shader_pool_factors: none on the 256^3 grid at the data's scales, in pairs on the network's 128^3 one);
+lengths below in voxels are those merged voxels.
 
-1. object_geometry (depends on the grid: the object, its rotation and scale, the camera; a window from
-   renderer.grid.shader_window holds the object at the floor's origin, and `moved` puts the result where it stands,
-   so a move along the floor keeps this stage): the object's
-   voxels without the ground, cropped to their box (from the whole grid or from the window of it
-   that can hold the object, which is all a live caller samples); the distance to the nearest occupied voxel
+1. object_geometry (depends on the voxels' occupancy alone, in the object's own frame; `placed` puts the result where
+   the scene has the object and sets the camera, so paint and every placement and camera edit keep this stage): the
+   object's occupied voxels, cropped to their box; the distance to the nearest occupied voxel
    (the surface is where it equals SURFACE_LEVEL, a little inside the voxel hull, which is fatter
    than the mesh; thin parts stay as tubes); the occupancy smoothed for normals and, more broadly,
    for ambient occlusion; the occupied voxels' world positions, which cast the shadows.
@@ -24,8 +22,8 @@ grid voxel is an object voxel, which the 128^3 grid merges in pairs); lengths be
    light bounced up from the floor, the lit floor (renderer/floor_light.py, which a caller may keep
    while the object moves) times the object's shadow; composited over the background, in sRGB.
 
-A light move reruns only `shade`, an object move along the floor stages 2 and 3, a rotation all three. Known gaps (a network's job): the
-floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
+A light move reruns only `shade`; a placement or camera edit stages 2 and 3; only another object (or a scale across a
+merge threshold) all three. Known gaps (a network's job): the floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
 and whatever shading stays in photo-colored voxels (renderer/photo.py divides the photo's light out
 when it is known, with this shader's own light, so its errors stay in the colors).
 """
@@ -43,18 +41,21 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import (
-    dilate_cube,
-    grid_index_to_world,
-    ground_mask_window,
-    occupied_spans,
-    pool_object,
-    shader_pool_factors,
-    shader_window,
+from renderer.grid import dilate_cube, occupied_spans, pool_object, shader_pool_factors
+from renderer.scene import (
+    AMBIENT_RADIANCE,
+    CAMERA_DISTANCE,
+    GRID_EXTENT,
+    GRID_SIZE,
+    LIGHT_RADIANCE,
+    LIGHT_SIZE,
+    OBJECT_SIZE,
+    ObjectSpec,
+    Scene,
 )
-from renderer.scene import AMBIENT_RADIANCE, CAMERA_DISTANCE, GRID_EXTENT, GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, Scene
 from renderer.shading import filters, kernels
 from renderer.splat import cached_floor_mask
+from renderer.transform import OBJECT_BOX_MIN, object_to_world
 
 THIN_LEVEL = 0.35  # voxels above a thin part's core where its surface is drawn (if more than SURFACE_LEVEL)
 SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
@@ -100,18 +101,18 @@ CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still
 
 @dataclass(frozen=True)
 class ObjectGeometry:
-    """What the shader derives from the grid alone (stage 1)."""
+    """What the shader derives from the object's voxels alone (stage 1), and where `placed` put them."""
 
-    elevation_deg: float
-    offset: np.ndarray  # (3,) grid index of the crop's first voxel
-    occupied: np.ndarray  # (d, r, c) bool: object voxels (the ground left out)
-    rgb: np.ndarray  # (.., .., .., 3) sRGB of the grid (window) it was made from, a view: read at occupied voxels only
+    elevation_deg: float  # the camera's (set by `placed`)
+    offset: np.ndarray  # (3,) voxel index of the crop's first voxel (negative: the crop reaches past the voxels' edge)
+    occupied: np.ndarray  # (d, r, c) bool: occupied voxels
+    rgb: np.ndarray  # (.., .., .., 3) sRGB of the merged voxels it was made from, a view: read at occupied voxels only
     rgb_offset: np.ndarray  # (3,) int: a crop index plus this indexes `rgb`
     distance_and_core: np.ndarray  # (d, r, c, 2) float32: voxels from the nearest occupied voxel centre, and
     # the least of that within CORE_SIZE voxels (side by side: a ray's step reads both with one lookup)
     smooth: np.ndarray  # distance blurred by NORMAL_SIGMA: its gradient is the normal
     broad: np.ndarray  # occupancy blurred by BROAD_SIGMA
-    grid_to_world: np.ndarray  # 4x4, continuous grid index -> world
+    grid_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
     occluders: np.ndarray  # (M, 3) float64 world centres of the occupied voxels
     occluder_box: np.ndarray  # (2, 3) their least and greatest world coordinates (0s if none): kept for every light
     surface_cells: np.ndarray  # (K, 3) int: the crop's cells where a camera ray may meet the surface (any camera)
@@ -169,34 +170,29 @@ class ShadedImage:
 # --- stage 1 ----------------------------------------------------------------------------------
 
 
-def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, int, int] = (0, 0, 0),
-                    grid_size: int | None = None) -> ObjectGeometry:
-    """The object's part of a (D, H, W, 4) camera-aligned grid at `elevation_deg`, ready to shade.
+def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int, int]) -> ObjectGeometry:
+    """The shader's geometry of an object in its own voxels: `merged` (D, H, W, 4) are its N^3 voxels merged by
+    `factors` (renderer.grid.pool_object), and the result stands at the floor's origin, unturned and unscaled, until
+    `placed` puts it in a scene. It depends on the voxels' occupancy alone, so a caller keeps it through paint and every
+    placement and camera edit (the merge factors change only with a scale across a merge threshold).
 
-    `grid` is the whole scene grid, or a window of a `grid_size`^3 one from grid index `start` that holds every
-    object voxel (renderer.grid.object_window_indices): the shader then never touches the rest of the grid.
-    """
-    grid = np.asarray(grid)
-    n = grid.shape[0] if grid_size is None else int(grid_size)
-    start = np.asarray(start, dtype=int)
-    if (grid.ndim != 4 or grid.shape[3] != 4 or start.shape != (3,)
-            or np.any(start < 0) or np.any(start + grid.shape[:3] > n)):
-        raise InputError(f"a scene grid must be (N, N, N, 4) or a window of one, got {grid.shape} from {start.tolist()} "
-                         f"in {n}^3")
-    ground = ground_mask_window(float(elevation_deg), n, tuple(start), grid.shape[:3])
-    occupied_window = (grid[..., 3] > 0.5) & ~ground
-    grid_to_world = grid_index_to_world(float(elevation_deg), n)
-    spans = occupied_spans(occupied_window)  # argwhere over the object's box only, not the whole window
+    The object's own voxels, not a camera-aligned grid resampled from them: nothing is skipped or doubled where a grid
+    would be turned against them (thin bars keep their width and place), and a turn or a camera tilt redoes no voxel
+    work (docs/results.md, "The shader draws the object's own voxels")."""
+    merged = np.asarray(merged)
+    if merged.ndim != 4 or merged.shape[3] != 4:
+        raise InputError(f"merged object voxels must be (D, H, W, 4), got {merged.shape}")
+    occupied_all = merged[..., 3] >= 0.5
+    grid_to_world = object_voxel_to_object(resolution, factors)
+    spans = occupied_spans(occupied_all)  # argwhere over the object's box only
     if spans is None:
         found = np.zeros((0, 3), dtype=int)
-        lo = np.zeros(3, dtype=int)
-        hi = np.ones(3, dtype=int)
-    else:  # the occupied voxels' box is the spans, in the window from `start`
-        first, stop = start + [a for a, _ in spans], start + [b for _, b in spans]
-        found = filters.occupied_indices(occupied_window[tuple(slice(*span) for span in spans)]) + first
-        lo = np.maximum(first - CROP_MARGIN, 0)
-        hi = np.minimum(stop + CROP_MARGIN, n)
-    occupied = _in_box(occupied_window, start, lo, hi)
+        lo, hi = np.zeros(3, dtype=int), np.ones(3, dtype=int)
+    else:  # the crop reaches CROP_MARGIN past the occupied box, past the merged voxels' own edge too (empty there)
+        first, stop = np.array([a for a, _ in spans]), np.array([b for _, b in spans])
+        found = filters.occupied_indices(occupied_all[tuple(slice(*span) for span in spans)]) + first
+        lo, hi = first - CROP_MARGIN, stop + CROP_MARGIN
+    occupied = _in_box(occupied_all, np.zeros(3, dtype=int), lo, hi)
     solid = _solid(occupied)
     raw = (kernels.distance_to_occupied(solid) if found.size else np.full(occupied.shape, 1e3, dtype=np.float32))
     distance = filters.gaussian_blur(raw, DISTANCE_SIGMA, BLUR_TRUNCATE)
@@ -205,14 +201,26 @@ def object_geometry(grid: np.ndarray, elevation_deg: float, start: tuple[int, in
     smooth = filters.gaussian_blur(distance, extra, BLUR_TRUNCATE) if extra > 0.0 else distance
     core = filters.minimum_filter(distance, CORE_SIZE)
     distance_and_core = np.stack([distance, core], axis=-1)
-    centres = found + 0.5
-    occluders = centres @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
+    occluders = (found + 0.5) @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
     return ObjectGeometry(
-        elevation_deg=float(elevation_deg), offset=lo, occupied=occupied, rgb=grid[..., :3], rgb_offset=lo - start,
+        elevation_deg=0.0, offset=lo, occupied=occupied, rgb=merged[..., :3], rgb_offset=lo,
         distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core), smooth=smooth,
-        broad=_broad(solid),
-        grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders),
-        occluder_box=np.stack([occluders.min(axis=0), occluders.max(axis=0)]) if len(occluders) else np.zeros((2, 3)))
+        broad=_broad(solid), grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders),
+        occluder_box=_box(occluders))
+
+
+def object_voxel_to_object(resolution: int, factors: tuple[int, int, int]) -> np.ndarray:
+    """4x4 matrix from continuous indices of an N^3 object's voxels merged by `factors` to object coordinates
+    (renderer/transform.py: merged voxel m spans object voxels m * f to (m + 1) * f along each axis)."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = np.diag(OBJECT_SIZE / resolution * np.asarray(factors, dtype=np.float64))
+    matrix[:3, 3] = OBJECT_BOX_MIN
+    return matrix
+
+
+def _box(points: np.ndarray) -> np.ndarray:
+    """(2, 3): the least and greatest coordinates of `points` (zeros if there are none)."""
+    return np.stack([points.min(axis=0), points.max(axis=0)]) if len(points) else np.zeros((2, 3))
 
 
 def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
@@ -224,17 +232,14 @@ def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
                                                                    CANDIDATE_SLACK))
 
 
-def moved(geometry: ObjectGeometry, translation: tuple[float, float]) -> ObjectGeometry:
-    """`geometry` moved by `translation` (world x and z) along the floor: only its frame and its occluders' world
-    positions change, so a caller keeps the voxel work of a window made at the floor's origin (shader_window)."""
-    shift = np.array([float(translation[0]), 0.0, float(translation[1])])
-    if not shift.any():
-        return geometry
-    grid_to_world = geometry.grid_to_world.copy()
-    grid_to_world[:3, 3] += shift
-    occluders = geometry.occluders + shift
-    box = geometry.occluder_box + shift if len(occluders) else geometry.occluder_box
-    return replace(geometry, grid_to_world=grid_to_world, occluders=occluders, occluder_box=box)
+def placed(geometry: ObjectGeometry, object_spec: ObjectSpec, elevation_deg: float) -> ObjectGeometry:
+    """`geometry` (object_geometry's, at the floor's origin) placed as `object_spec` says (translation, rotation about
+    the vertical, scale) and seen from a camera at `elevation_deg`: only its frame and its occluders' world positions
+    change, so every placement and camera edit keeps the voxel work."""
+    to_world = object_to_world(object_spec)
+    occluders = geometry.occluders @ to_world[:3, :3].T + to_world[:3, 3]
+    return replace(geometry, elevation_deg=float(elevation_deg), grid_to_world=to_world @ geometry.grid_to_world,
+                   occluders=occluders, occluder_box=_box(occluders))
 
 
 def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -297,7 +302,7 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
         occlusion = _surface_occlusion(geometry, points_crop, normals_crop)
     linear = geometry.grid_to_world[:3, :3]
     points_world = (points_crop + geometry.offset) @ linear.T + geometry.grid_to_world[:3, 3]
-    normals_world = normals_crop @ linear.T
+    normals_world = normals_crop @ np.linalg.inv(linear)  # a gradient's transform: the inverse transpose
     normals_world /= np.maximum(np.linalg.norm(normals_world, axis=1, keepdims=True), 1e-12)
     depth = (points_world - camera.position) @ _view_axis(camera)
 
@@ -533,7 +538,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                                       light_position, floor_color)
     from_light, from_ambient, floor = floor_terms
     lights = light_points(light_position)
-    voxel = float(np.linalg.norm(geometry.grid_to_world[:3, 0]))
+    voxel = float(abs(np.linalg.det(geometry.grid_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
     maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
     bounds = np.zeros((len(lights), 3))
     kernels.build_shadow_maps(geometry.occluders, OCCLUDER_RADIUS * voxel, lights, SHADOW_MAP_SIZE, maps, bounds)
@@ -637,24 +642,14 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
 # --- all stages -------------------------------------------------------------------------------
 
 
-def shade_grid(grid: np.ndarray, light_position, elevation_deg: float, floor_color, size: int = 256,
-               start: tuple[int, int, int] = (0, 0, 0), grid_size: int | None = None,
-               cover_behind: bool = True, translation: tuple[float, float] = (0.0, 0.0)) -> ShadedImage:
-    """All three stages at once: the shaded image of a camera-aligned grid (or of the window of a `grid_size`^3
-    grid from `start` that holds the object, as object_geometry takes it; `cover_behind`: see visible_surface),
-    its object moved by `translation` along the floor (a window from shader_window holds it at the origin)."""
-    geometry = moved(object_geometry(grid, elevation_deg, start, grid_size), translation)
-    return shade(geometry, visible_surface(geometry, size, cover_behind), light_position, floor_color)
-
-
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
                 grid_size: int = GRID_SIZE, cover_behind: bool = True) -> ShadedImage:
-    """The shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size` (default the scene's),
-    from the object's window of its `grid_size`^3 scene grid (renderer.grid.shader_window; `cover_behind`: see
-    visible_surface), the object's voxels at the floor's origin, the geometry moved to where it stands."""
-    resolution, elevation = object_rgba.shape[0], scene.camera.elevation_deg
+    """All three stages at once: the shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size`
+    (default the scene's), from the object voxels merged as for a `grid_size`^3 grid (renderer.grid.shader_pool_factors;
+    `cover_behind`: see visible_surface)."""
+    resolution = object_rgba.shape[0]
     factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
-    start, window = shader_window(*pool_object(object_rgba, factors), resolution, factors, scene.object, elevation,
-                                  grid_size)
-    return shade_grid(window, scene.light.position, elevation, floor_color, scene.image_size if size is None else size,
-                      start, grid_size, cover_behind, scene.object.translation)
+    merged, _ = pool_object(object_rgba, factors)
+    geometry = placed(object_geometry(merged, resolution, factors), scene.object, scene.camera.elevation_deg)
+    surface = visible_surface(geometry, scene.image_size if size is None else size, cover_behind)
+    return shade(geometry, surface, scene.light.position, floor_color)

@@ -2,15 +2,14 @@
 
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
-    window     pool, rotation, scale, elevation (not the translation)      paint, object rotation or scale, camera
-    geometry   window                                                      the same
-    surface    geometry, translation, image size                           the same, an object move
+    geometry   pool (the object's own voxels, in its own frame)            the same
+    surface    geometry, placement, elevation, image size                  the same, any placement or camera edit
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
     shade      surface, floor                                              any of the above
 
-So a light move or a floor color reruns only `floor` and `shade`, an object move along the floor `surface` and
-`shade` (the window holds the object at the floor's origin: renderer.grid.shader_window), and a rotation all but
-`floor`.
+So a light move or a floor color reruns only `floor` and `shade`, an object move, turn or scale (within its merge
+factors) `surface` and `shade`, a camera tilt `surface`, `floor` and `shade`: the geometry stands at the floor's
+origin in the object's own frame and `placed` puts it in the scene (renderer.shading.shader).
 The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
 compares voxel arrays.
 """
@@ -25,16 +24,16 @@ import numpy as np
 
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import pool_object, shader_pool_factors, shader_window
+from renderer.grid import pool_object, shader_pool_factors
 from renderer.scene import GRID_SIZE, Scene
-from renderer.shading.shader import ShadedImage, moved, object_geometry, shade, visible_surface
+from renderer.shading.shader import ShadedImage, object_geometry, placed, shade, visible_surface
 
 
 class StagedShader:
     """Shades scenes one after another, rerunning only the stages an edit changed."""
 
     def __init__(self, grid_size: int = GRID_SIZE) -> None:
-        self.grid_size = grid_size  # the grid the shader draws from (finer: slower, more of the object voxels' detail)
+        self.grid_size = grid_size  # the grid whose merge of the object voxels the shader draws (grid.shader_pool_factors)
         self._memo: dict[str, tuple[Hashable, Any]] = {}
         self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
 
@@ -44,14 +43,10 @@ class StagedShader:
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
         factors = shader_pool_factors(n, o.scale, self.grid_size)
-        pooled, within = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
-        shape_key = (voxels_key, o.rotation_deg, o.scale, elevation)  # not the floor, nor where on it: the object alone
-        # Only the grid's window that can hold the object is sampled: the shader reads nothing else.
-        start, window = self._stage("window", shape_key, lambda: shader_window(
-            pooled, within, n, factors, o, elevation, self.grid_size))
-        shape = self._stage("geometry", shape_key, lambda: object_geometry(window, elevation, start, self.grid_size))
-        geometry = moved(shape, o.translation)
-        placed_key = (shape_key, o.translation)
+        merged, _ = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
+        shape = self._stage("geometry", (voxels_key, factors), lambda: object_geometry(merged, n, factors))
+        geometry = placed(shape, o, elevation)
+        placed_key = (voxels_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
         surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
