@@ -61,6 +61,7 @@ SPLITS = ("train", "test")
 TEST_ELEVATION_RANGE = (15.0, 45.0)
 TEST_ROTATION_STEP_DEG = 10.0
 FACING_ROTATION_RANGE = (-90.0, 90.0)  # the half of all rotations that faces the camera
+DELIGHT_SHADERS = ("object voxels", "camera grid")  # DataConfig.delight_shader: today's first
 
 
 @dataclass(frozen=True)
@@ -79,6 +80,9 @@ class DataConfig:
     resolution: int = 100
     delight: bool = True  # photo-colored voxels carry the source photo's colors with its light divided out
     hidden_rule: str = "blend"  # how photo coloring colors voxels the photo does not show (renderer.photo.HIDDEN_RULES)
+    # The voxel shader that divided the light out: its light is what is divided, so a set follows the shader it was
+    # made with. "object voxels": today's; "camera grid": before the shader drew the object's own voxels.
+    delight_shader: str = "object voxels"
 
     def check(self) -> None:
         """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
@@ -97,6 +101,8 @@ class DataConfig:
         from renderer.photo import check_hidden_rule  # not at the top: it adds 0.2-0.3 s to importing this module
 
         check_hidden_rule(self.hidden_rule)
+        if self.delight_shader not in DELIGHT_SHADERS:
+            raise InputError(f"unknown delight shader {self.delight_shader!r} (choose from {', '.join(DELIGHT_SHADERS)})")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -109,6 +115,7 @@ class DataConfig:
         data["categories"] = tuple(data.get("categories", ("chair",)))
         data.setdefault("delight", False)  # data sets made before the light was divided out
         data.setdefault("hidden_rule", "ray")  # and before hidden voxels took a blend of the colors around them
+        data.setdefault("delight_shader", "camera grid")  # and before the shader drew the object's own voxels
         return cls(**data)
 
 
@@ -377,8 +384,8 @@ def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_o
 
 def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True,
                     hidden_rule: str = "blend") -> Path:
-    """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, or
-    another hidden_rule), as generation makes them with `hidden_rule`: photo-colored voxels recolored from their
+    """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, another
+    hidden_rule, or an older shader), as generation makes them with `hidden_rule`: photo-colored voxels recolored from their
     source photos with the light divided out, splats redrawn from them. Targets and source photos are hard links
     where the file system allows (else copies); rerun to resume. Returns the manifest path."""
     from tqdm import tqdm
@@ -390,11 +397,11 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     config = _config_or_none(stored) if isinstance(stored, dict) else None
     if config is None:
         raise InputError("config.json does not describe a data set", source)
-    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule)
+    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=DELIGHT_SHADERS[0])
     recolored.check()
     if recolored == config:
-        raise InputError(f"its photo colors are already made by these rules (light divided out, hidden voxels "
-                         f"{hidden_rule})", source)
+        raise InputError(f"its photo colors are already made by these rules (light divided out by today's shader, "
+                         f"hidden voxels {hidden_rule})", source)
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
     config = recolored

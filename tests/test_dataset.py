@@ -112,7 +112,8 @@ def test_a_set_made_by_older_color_rules_is_copied_as_generation_makes_it_now(re
     old = tmp_path / "old"
     generate_dataset(old, replace(TINY, delight=False, hidden_rule="ray"), progress=False)
     stored = json.loads((old / "config.json").read_text())
-    del stored["config"]["delight"], stored["config"]["hidden_rule"]  # as data sets made before the options hold it
+    for key in ("delight", "hidden_rule", "delight_shader"):  # as data sets made before the options hold it
+        del stored["config"][key]
     (old / "config.json").write_text(json.dumps(stored))
     recolor_dataset(old, tmp_path / "new", progress=False)
     new = tmp_path / "new"
@@ -130,6 +131,11 @@ def test_a_set_made_by_older_color_rules_is_copied_as_generation_makes_it_now(re
         assert np.abs(splat_new - splat_made).max() <= 3
     with pytest.raises(InputError, match="already made by these rules"):
         recolor_dataset(new, tmp_path / "again", progress=False)
+    # A set whose light an older shader divided out (its colors follow that shader's light) is recolored too.
+    stored = json.loads((new / "config.json").read_text())
+    stored["config"]["delight_shader"] = "camera grid"
+    (new / "config.json").write_text(json.dumps(stored))
+    assert manifest_of(recolor_dataset(new, tmp_path / "today", progress=False).parent)["config"] == TINY.to_dict()
     ray = recolor_dataset(new, tmp_path / "ray", progress=False, hidden_rule="ray").parent  # back to the paper's rule
     assert manifest_of(ray)["config"]["hidden_rule"] == "ray"
 
