@@ -366,11 +366,11 @@ def test_skipped_rays_are_rays_that_miss(shape, elevation, translation):
     spec = ObjectSpec(voxels="v.npz", translation=translation, scale=(0.6, 0.6, 0.6))
     geometry = geometry_of(ball() if shape == "ball" else lattice(), spec, elevation)
     camera = Camera(elevation, width=128, height=128)
-    world_to_grid = np.linalg.inv(geometry.grid_to_world)
-    origin = world_to_grid[:3, :3] @ camera.position + world_to_grid[:3, 3] - geometry.offset
+    world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
+    origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
     rows, cols = _pixel_window(geometry, camera)
-    every = _trace(geometry, camera, world_to_grid, origin, rows[:, None] + 0.5, cols[None, :] + 0.5)
-    skipping = _trace_candidates(geometry, camera, world_to_grid, origin, rows, cols)
+    every = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5)
+    skipping = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols)
     for full, fast in zip(every, skipping):
         np.testing.assert_array_equal(fast, full)
     hits = every[0] < kernels.FAR

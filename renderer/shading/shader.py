@@ -112,7 +112,7 @@ class ObjectGeometry:
     # the least of that within CORE_SIZE voxels (side by side: a ray's step reads both with one lookup)
     smooth: np.ndarray  # distance blurred by NORMAL_SIGMA: its gradient is the normal
     broad: np.ndarray  # occupancy blurred by BROAD_SIGMA
-    grid_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
+    voxel_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
     occluders: np.ndarray  # (M, 3) float64 world centres of the occupied voxels
     occluder_box: np.ndarray  # (2, 3) their least and greatest world coordinates (0s if none): kept for every light
     surface_cells: np.ndarray  # (K, 3) int: the crop's cells where a camera ray may meet the surface (any camera)
@@ -183,7 +183,7 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     if merged.ndim != 4 or merged.shape[3] != 4:
         raise InputError(f"merged object voxels must be (D, H, W, 4), got {merged.shape}")
     occupied_all = merged[..., 3] >= 0.5
-    grid_to_world = object_voxel_to_object(resolution, factors)
+    voxel_to_world = object_voxel_to_object(resolution, factors)
     spans = occupied_spans(occupied_all)  # argwhere over the object's box only
     if spans is None:
         found = np.zeros((0, 3), dtype=int)
@@ -201,11 +201,11 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     smooth = filters.gaussian_blur(distance, extra, BLUR_TRUNCATE) if extra > 0.0 else distance
     core = filters.minimum_filter(distance, CORE_SIZE)
     distance_and_core = np.stack([distance, core], axis=-1)
-    occluders = (found + 0.5) @ grid_to_world[:3, :3].T + grid_to_world[:3, 3]
+    occluders = (found + 0.5) @ voxel_to_world[:3, :3].T + voxel_to_world[:3, 3]
     return ObjectGeometry(
         elevation_deg=0.0, offset=lo, occupied=occupied, rgb=merged[..., :3], rgb_offset=lo,
         distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core), smooth=smooth,
-        broad=_broad(solid), grid_to_world=grid_to_world, occluders=np.ascontiguousarray(occluders),
+        broad=_broad(solid), voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=_box(occluders))
 
 
@@ -238,7 +238,7 @@ def placed(geometry: ObjectGeometry, object_spec: ObjectSpec, elevation_deg: flo
     change, so every placement and camera edit keeps the voxel work."""
     to_world = object_to_world(object_spec)
     occluders = geometry.occluders @ to_world[:3, :3].T + to_world[:3, 3]
-    return replace(geometry, elevation_deg=float(elevation_deg), grid_to_world=to_world @ geometry.grid_to_world,
+    return replace(geometry, elevation_deg=float(elevation_deg), voxel_to_world=to_world @ geometry.voxel_to_world,
                    occluders=occluders, occluder_box=_box(occluders))
 
 
@@ -260,14 +260,14 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     that grazes a part and goes on to a part behind it covers its pixel (no floor shows through at a part drawn over
     another); False counts it as partly covered, for photo delighting, where such a pixel mixes two parts."""
     camera = Camera(geometry.elevation_deg, width=size, height=size)
-    world_to_grid = np.linalg.inv(geometry.grid_to_world)
-    origin = world_to_grid[:3, :3] @ camera.position + world_to_grid[:3, 3] - geometry.offset
+    world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
+    origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
     coverage = np.zeros((size, size), dtype=np.float32)
     pixels = np.zeros((0, 2), dtype=np.int64)
     points_crop = np.zeros((0, 3), dtype=np.float64)
     if not geometry.empty:
         rows, cols = _pixel_window(geometry, camera)
-        centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_grid, origin, rows, cols,
+        centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols,
                                                              cover_behind)
         hit = centre_t < kernels.FAR
         edge = (hit ^ ndimage.binary_erosion(hit, border_value=0)) | (ndimage.binary_dilation(hit) & ~hit)
@@ -279,7 +279,7 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
             offsets = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
             sub_v = rows[er][:, None, None] + offsets[None, :, None]  # (edges, SUBPIXELS, 1)
             sub_u = cols[ec][:, None, None] + offsets[None, None, :]  # (edges, 1, SUBPIXELS): _trace broadcasts
-            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_grid, origin, sub_v, sub_u, cover_behind)
+            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_voxel, origin, sub_v, sub_u, cover_behind)
             sub_t, sub_p = sub_t.reshape(len(er), -1), sub_p.reshape(len(er), -1, 3)
             sub_hit = sub_t < kernels.FAR
             cover[er, ec] = sub_cover.reshape(len(er), -1).mean(axis=1)
@@ -300,14 +300,14 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     if len(points_crop):
         kernels.surface_normals_and_voxels(geometry.smooth, geometry.occupied, points_crop, normals_crop, color_voxels)
         occlusion = _surface_occlusion(geometry, points_crop, normals_crop)
-    linear = geometry.grid_to_world[:3, :3]
-    points_world = (points_crop + geometry.offset) @ linear.T + geometry.grid_to_world[:3, 3]
+    linear = geometry.voxel_to_world[:3, :3]
+    points_world = (points_crop + geometry.offset) @ linear.T + geometry.voxel_to_world[:3, 3]
     normals_world = normals_crop @ np.linalg.inv(linear)  # a gradient's transform: the inverse transpose
     normals_world /= np.maximum(np.linalg.norm(normals_world, axis=1, keepdims=True), 1e-12)
     depth = (points_world - camera.position) @ _view_axis(camera)
 
     floor, floor_points = _floor_points(camera)
-    floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_grid)
+    floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_voxel)
     colors, albedo = _surface_colors(geometry, color_voxels)
     images = _surface_images(size, pixels, colors, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
@@ -387,17 +387,17 @@ def _crop_corners(geometry: ObjectGeometry) -> np.ndarray:
     """World positions (8, 3) of the corners of the crop box."""
     shape = geometry.occupied.shape
     corners = np.array([[a, b, c] for a in (0, shape[0]) for b in (0, shape[1]) for c in (0, shape[2])], dtype=np.float64)
-    return (corners + geometry.offset) @ geometry.grid_to_world[:3, :3].T + geometry.grid_to_world[:3, 3]
+    return (corners + geometry.offset) @ geometry.voxel_to_world[:3, :3].T + geometry.voxel_to_world[:3, 3]
 
 
-def _trace_candidates(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
+def _trace_candidates(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray, origin: np.ndarray,
                       rows: np.ndarray, cols: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`_trace` through the centres of the pixel window's pixels, skipping those whose ray cannot reach the surface
     (about two in three of a chair's window): they miss (FAR, a zero point, no coverage) as `_trace` would find."""
     shape = (len(rows), len(cols))
     t, points, cover = np.full(shape, kernels.FAR, dtype=np.float64), np.zeros(shape + (3,)), np.zeros(shape, np.float32)
     r, c = np.nonzero(_ray_candidates(geometry, camera, rows, cols))
-    t[r, c], points[r, c], cover[r, c] = _trace(geometry, camera, world_to_grid, origin, rows[r] + 0.5, cols[c] + 0.5,
+    t[r, c], points[r, c], cover[r, c] = _trace(geometry, camera, world_to_voxel, origin, rows[r] + 0.5, cols[c] + 0.5,
                                                 cover_behind)
     return t, points, cover
 
@@ -408,15 +408,15 @@ def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, 
     if min(geometry.occupied.shape) < 2:
         mask[...] = True
         return mask
-    grid_to_camera = camera.world_to_camera()[:3] @ geometry.grid_to_world
-    crop_to_camera = grid_to_camera + np.column_stack([np.zeros((3, 3)), grid_to_camera[:, :3] @ geometry.offset])
+    voxel_to_camera = camera.world_to_camera()[:3] @ geometry.voxel_to_world
+    crop_to_camera = voxel_to_camera + np.column_stack([np.zeros((3, 3)), voxel_to_camera[:, :3] @ geometry.offset])
     image = camera.intrinsics() @ np.diag([1.0, -1.0, -1.0])  # camera point -> (u, v, 1) * depth
     kernels.mark_surface_pixels(geometry.surface_cells, np.asarray(geometry.occupied.shape), image @ crop_to_camera,
                                 int(rows[0]), int(cols[0]), mask)
     return mask
 
 
-def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, origin: np.ndarray,
+def _trace(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray, origin: np.ndarray,
            v: np.ndarray, u: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v)
     (`cover_behind`: see visible_surface)."""
@@ -425,7 +425,7 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_grid: np.ndarray, 
     # The camera-space ray through (u, v) is ((u - cx) / f, -(v - cy) / f, -1): affine in (u, v, 1).
     (cx, cy), f = camera.principal_point, camera.focal_px
     camera_ray = np.array([[1.0 / f, 0.0, -cx / f], [0.0, -1.0 / f, cy / f], [0.0, 0.0, -1.0]])
-    pixel_to_ray = world_to_grid[:3, :3] @ camera.camera_to_world()[:3, :3] @ camera_ray
+    pixel_to_ray = world_to_voxel[:3, :3] @ camera.camera_to_world()[:3, :3] @ camera_ray
     t = np.empty(count)
     points = np.zeros((count, 3))
     deepest = np.empty(count)
@@ -489,7 +489,7 @@ def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     return floor, points
 
 
-def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_to_grid: np.ndarray) -> np.ndarray:
+def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_to_voxel: np.ndarray) -> np.ndarray:
     """Sky light reaching each floor point: 1 minus the broad occupancy straight above it."""
     occlusion = np.ones(len(floor_points), dtype=np.float32)
     if geometry.empty or not len(floor_points):
@@ -501,8 +501,8 @@ def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_t
     near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
     if not near.any():
         return occlusion
-    crop = floor_points[near] @ world_to_grid[:3, :3].T + world_to_grid[:3, 3] - geometry.offset
-    up = world_to_grid[:3, :3] @ np.array([0.0, 1.0, 0.0])
+    crop = floor_points[near] @ world_to_voxel[:3, :3].T + world_to_voxel[:3, 3] - geometry.offset
+    up = world_to_voxel[:3, :3] @ np.array([0.0, 1.0, 0.0])
     up /= np.linalg.norm(up)
     found = np.empty(int(near.sum()))
     kernels.occlusion_along(geometry.broad, BROAD_SCALE, np.ascontiguousarray(crop),
@@ -538,7 +538,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                                       light_position, floor_color)
     from_light, from_ambient, floor = floor_terms
     lights = light_points(light_position)
-    voxel = float(abs(np.linalg.det(geometry.grid_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
+    voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
     maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
     bounds = np.zeros((len(lights), 3))
     kernels.build_shadow_maps(geometry.occluders, OCCLUDER_RADIUS * voxel, lights, SHADOW_MAP_SIZE, maps, bounds)
