@@ -545,8 +545,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--renderer", choices=["nvr+", "nvr", "shaded", "splat"], default="nvr+")
     p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
     p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
-    p.add_argument("--shading-grid", type=int, default=128, metavar="N",
-                   help="the grid the shaded renderer draws from: 128 (the network's, the editor's) or 256 (finer)")
+    p.add_argument("--shading-grid", type=int, default=256, metavar="N",
+                   help="the grid the shaded renderer stands in for: 256 (the object's voxels unmerged, the editor's) "
+                        "or 128 (the network's: merged in pairs, faster)")
     p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
                    help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")

@@ -46,7 +46,6 @@ MIRROR_IOU_THRESHOLD = 0.9
 # (deep shadow, where the photo holds little but noise) or that are not fully covered keep no color of their own.
 SHADING_GREY = 0.5
 MIN_SHADING = 0.02
-SHADING_GRID_SIZE = 256  # the voxel shader's finer grid: one grid voxel per object voxel at scale 1
 HIDDEN_RULES = ("blend", "ray")  # how voxels the photo does not show well are colored (see the module docstring)
 # The blend's Gaussians, in voxels: the narrowest whose weight of well-seen voxels reaches HIDDEN_MIN_WEIGHT
 # colors a voxel (a plane of well-seen voxels reaches it from 3.3 voxels away at 1.5, 6 at 3, ...); the widest
@@ -175,7 +174,7 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     occupied = occupancy(grey)
     grey[..., :3] = np.where(occupied[..., None], np.float32(linear_to_srgb(SHADING_GREY)), np.float32(0.0))
     # A pixel where one part is drawn over another mixes both in the photo: it must not count as covered.
-    shaded = shade_scene(scene, grey, scene.floor.color, grid_size=SHADING_GRID_SIZE, cover_behind=False)
+    shaded = shade_scene(scene, grey, scene.floor.color, cover_behind=False)
     shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
     known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
     albedo = srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING)

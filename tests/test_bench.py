@@ -29,11 +29,11 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     first = ["shade_floor", "shade"] if shipped.shading_input else ["floor_light"] if shipped.floor_light_input else []
     expected = [*first, "splat_branch", "light"] if first else ["light"]
     assert results["edits"]["light"]["stages"] == expected
-    # A move along the floor keeps the shader's voxel work (its finer grid holds the object at the origin); a turn redoes it.
-    if shipped.shading_input and shipped.shading_grid_factor > 1:
-        assert "shade_surface" in results["edits"]["object move"]["stages"]
-        assert "shade_geometry" not in results["edits"]["object move"]["stages"]
-        assert "shade_geometry" in results["edits"]["object turn"]["stages"]
+    # A move, a turn and a camera tilt keep the shader's voxel work (its geometry is the object's own voxels, placed).
+    if shipped.shading_input:
+        for edit in ("object move", "object turn", "camera"):
+            assert "shade_surface" in results["edits"][edit]["stages"]
+            assert "shade_geometry" not in results["edits"][edit]["stages"]
     labels = {row["label"] for row in results["renderers"]}
     assert {"path tracing 1 spp", "path tracing 1 spp + OIDN", "path tracing 4 spp + OIDN", "splatting"} <= labels
     rows = {row["label"]: row for row in results["renderers"]}

@@ -58,7 +58,7 @@ from renderer.errors import InputError
 from renderer.io import save_json
 from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
-from renderer.scene import GRID_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
@@ -126,8 +126,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         rows.append(bench_splatting(scenes, settings, memory, score))
         shader_row, shader_light_ms = bench_shading(scenes, settings, memory, score)
         rows.append(shader_row)
-        # The shader of the grid a shader refiner reads (finer than the network's): slower, closer to the path tracer.
-        rows.append(bench_shading(scenes, settings, memory, score, ShaderRefinerConfig().shading_grid_size)[0])
+        # The shader of the network's grid (the object voxels merged in pairs): faster, further from the path tracer.
+        rows.append(bench_shading(scenes, settings, memory, score, GRID_SIZE)[0])
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.
         trained += [_load_engine(path, _precisions()[0], shading_grid_factor=1) for path in _weights_files(model_paths)
@@ -157,6 +157,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "nvrplus_frame_ms": edits["object move"]["ms"],
         "pathtrace_1spp_oidn_ms": rival.ms,
         "shader_frame_ms": shader_row.ms,
+        "shader_grid": shader_row.setting,
         "shader_light_edit_ms": statistics.median(shader_light_ms),
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "quick": settings == QUICK,
@@ -212,7 +213,7 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
 
 
 def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
-                  score: Callable[[list[np.ndarray]], dict], grid_size: int = GRID_SIZE) -> tuple[Row, list[float]]:
+                  score: Callable[[list[np.ndarray]], dict], grid_size: int = SHADER_GRID_SIZE) -> tuple[Row, list[float]]:
     """The voxel shader of a `grid_size`^3 grid with its stages cached as in the editor: a frame after an object
     move and, separately, a light edit (the light stage alone); the voxels are painted once per scene."""
     memory.start()
@@ -230,7 +231,7 @@ def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: Pea
 class _PaintedShader:
     """The staged voxel shader of one bench scene's painted voxels, rendering like an engine."""
 
-    def __init__(self, bench: BenchScene, grid_size: int = GRID_SIZE):
+    def __init__(self, bench: BenchScene, grid_size: int = SHADER_GRID_SIZE):
         self._rgba, self._floor = painted_voxels(bench.scene, object_voxels(bench.scene))
         self._key = bench.name
         self._shader = StagedShader(grid_size)

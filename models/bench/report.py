@@ -79,7 +79,7 @@ def _targets(r: dict[str, Any]) -> list[str]:
              f"{'met' if edits[slowest]['ms'] < EDIT_TARGET_MS else 'missed'}."]
     if "shader_frame_ms" in r:
         frame, light_edit = r["shader_frame_ms"], r["shader_light_edit_ms"]
-        lines.append(f"- Voxel shader: a frame after an object move {frame:.1f} ms (target {SHADER_FRAME_TARGET_MS:.0f} ms: "
+        lines.append(f"- Voxel shader ({r.get('shader_grid', '128^3 grid')}): a frame after an object move {frame:.1f} ms (target {SHADER_FRAME_TARGET_MS:.0f} ms: "
                      f"{'met' if frame <= SHADER_FRAME_TARGET_MS else 'missed'}), a light edit {light_edit:.1f} ms (target "
                      f"{SHADER_LIGHT_TARGET_MS:.0f} ms: {'met' if light_edit <= SHADER_LIGHT_TARGET_MS else 'missed'}).")
     trained = [row for row in r["renderers"] if row["family"] == "NVR+" and row["mse"] is not None]

@@ -22,7 +22,7 @@ from models.networks.nvr import reads_floor_light, reads_shading
 from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
-from renderer.scene import GRID_SIZE
+from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
 
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 # NVR+ is the network that refines the voxel shader at half the image's side; nvrplus_shader_refiner.safetensors (the
@@ -54,9 +54,9 @@ def _load_renderer(model_path: str | None, renderer: str):
 
 
 def evaluate(data: list[str], model_path: str | None, renderer: str, report: str | Path, limit: int = 0,
-             shading_grid: int = GRID_SIZE) -> Path:
+             shading_grid: int = SHADER_GRID_SIZE) -> Path:
     """Compute MSE, DSSIM and perceptual per setting; write the report and figure; return the report path.
-    `shading_grid`: the side of the grid the 'shaded' renderer draws from (a multiple of the network grid's 128)."""
+    `shading_grid`: the side of the grid the 'shaded' renderer stands in for (a multiple of the network grid's 128)."""
     report = Path(report)
     if shading_grid < GRID_SIZE or shading_grid % GRID_SIZE:
         raise InputError(f"--shading-grid must be a multiple of {GRID_SIZE}, got {shading_grid}")

@@ -46,10 +46,10 @@ from renderer.scene import (
     AMBIENT_RADIANCE,
     CAMERA_DISTANCE,
     GRID_EXTENT,
-    GRID_SIZE,
     LIGHT_RADIANCE,
     LIGHT_SIZE,
     OBJECT_SIZE,
+    SHADER_GRID_SIZE,
     ObjectSpec,
     Scene,
 )
@@ -643,7 +643,7 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
 
 
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
-                grid_size: int = GRID_SIZE, cover_behind: bool = True) -> ShadedImage:
+                grid_size: int = SHADER_GRID_SIZE, cover_behind: bool = True) -> ShadedImage:
     """All three stages at once: the shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size`
     (default the scene's), from the object voxels merged as for a `grid_size`^3 grid (renderer.grid.shader_pool_factors;
     `cover_behind`: see visible_surface)."""

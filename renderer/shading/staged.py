@@ -25,14 +25,14 @@ import numpy as np
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import pool_object, shader_pool_factors
-from renderer.scene import GRID_SIZE, Scene
+from renderer.scene import SHADER_GRID_SIZE, Scene
 from renderer.shading.shader import ShadedImage, object_geometry, placed, shade, visible_surface
 
 
 class StagedShader:
     """Shades scenes one after another, rerunning only the stages an edit changed."""
 
-    def __init__(self, grid_size: int = GRID_SIZE) -> None:
+    def __init__(self, grid_size: int = SHADER_GRID_SIZE) -> None:
         self.grid_size = grid_size  # the grid whose merge of the object voxels the shader draws (grid.shader_pool_factors)
         self._memo: dict[str, tuple[Hashable, Any]] = {}
         self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
