@@ -35,8 +35,9 @@ when those change:
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
 runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
 networks that read the shader, like the shipped NVR+: shade_geometry only for another object or a scale across a
-merge threshold, shade_surface after any placement or camera edit, shade_colors after paint, placement or camera, shade_floor after an edit that reruns floor_light, and shade after all of
-these; for the others a light move reruns the light stage alone):
+merge threshold, shade_surface after any placement or camera edit, shade_colors after paint, placement or camera,
+shade_floor after an edit that reruns floor_light, and shade after all of these; for the others a light move reruns
+the light stage alone):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light

@@ -23,8 +23,8 @@ lengths below in voxels are those merged voxels.
    while the object moves) times the object's shadow; composited over the background, in sRGB.
 
 A light move reruns only `shade`; a placement or camera edit stages 2 and 3; only another object (or a scale across a
-merge threshold) all three. Known gaps (a network's job): the floor's glossy reflection of the object, color bleeding between object parts, exact penumbra shape,
-and whatever shading stays in photo-colored voxels (renderer/photo.py divides the photo's light out
+merge threshold) all three. Known gaps (a network's job): the floor's glossy reflection of the object, color bleeding
+between object parts, exact penumbra shape, and whatever shading stays in photo-colored voxels (renderer/photo.py divides the photo's light out
 when it is known, with this shader's own light, so its errors stay in the colors).
 """
 
