@@ -11,9 +11,18 @@ from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
 from renderer.grid import pool_object, shader_pool_factors
-from renderer.scene import GRID_SIZE, LIGHT_RADIANCE, LIGHT_SIZE, CameraSpec, LightSpec, ObjectSpec, Scene
+from renderer.scene import (
+    FLOOR_HALF_SIZE,
+    GRID_SIZE,
+    LIGHT_RADIANCE,
+    LIGHT_SIZE,
+    CameraSpec,
+    LightSpec,
+    ObjectSpec,
+    Scene,
+)
 from renderer.shading import kernels, object_geometry, placed, repaint_surface, shade, shade_scene, visible_surface
-from renderer.shading.shader import _pixel_window, _ray_candidates, _trace, _trace_candidates
+from renderer.shading.shader import FLOOR_SHADOW_STEP, _pixel_window, _ray_candidates, _trace, _trace_candidates
 from renderer.shading.staged import StagedShader
 
 FLOOR = (0.6, 0.6, 0.6)
@@ -444,3 +453,20 @@ def test_a_repainted_surface_is_the_surface_of_the_painted_object():
     np.testing.assert_array_equal(shade(second, repainted, light, FLOOR).image, shade(second, fresh, light, FLOOR).image)
     blue = np.all(np.isclose(repainted.images.albedo_srgb, (0.1, 0.5, 0.9)), axis=-1)
     assert 0 < blue.sum() < repainted.pixels.shape[0]  # part of the ball was painted blue, and it shows
+
+
+def test_an_object_reaching_up_to_the_light_reads_only_the_floor_in_view(monkeypatch):
+    """A tall object whose top comes just under the light casts a shadow box that grows without bound (nothing
+    clips an object to a grid): the floor's shadows are read only over the floor the camera sees."""
+    read = []
+    light_visibility = kernels.light_visibility
+
+    def counting(receivers, *args):
+        read.append(len(receivers))
+        return light_visibility(receivers, *args)
+
+    monkeypatch.setattr(kernels, "light_visibility", counting)
+    out = shaded(cube(12), ObjectSpec(voxels="v.npz", scale=(0.3, 2.74, 0.3)), (1.0, 2.75, 0.5), size=48)
+    assert np.all(np.isfinite(out.image)) and out.visibility.min() < 0.5  # it does cast a shadow
+    floor_side = 2 * FLOOR_HALF_SIZE / FLOOR_SHADOW_STEP + 3
+    assert max(read) <= floor_side**2  # unclipped: a box about 130 units wide, 27 million samples

@@ -568,6 +568,8 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
     points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
     seen = np.ones(len(floor_points))
+    if not len(floor_points):
+        return seen
     lo, hi = geometry.occluder_box
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
@@ -578,6 +580,11 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
     (x0, z0), (x1, z1) = cast[:, [0, 2]].min(axis=0) - FLOOR_SHADOW_STEP, cast[:, [0, 2]].max(axis=0) + FLOOR_SHADOW_STEP
     x, z = floor_points[:, 0], floor_points[:, 2]
+    # No wider than the floor the camera sees (on the same grid of samples): an object whose top comes near the
+    # light's height casts a box that grows without bound, and nothing clips a large object to a grid.
+    x0 += max(math.floor((float(x.min()) - x0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
+    z0 += max(math.floor((float(z.min()) - z0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
+    x1, z1 = min(x1, float(x.max()) + FLOOR_SHADOW_STEP), min(z1, float(z.max()) + FLOOR_SHADOW_STEP)
     near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
     if not near.any():
         return seen
