@@ -50,6 +50,15 @@ def world_to_object(spec: ObjectSpec) -> np.ndarray:
     return m
 
 
+def merged_voxel_to_object(resolution: int, factors: tuple[int, int, int]) -> np.ndarray:
+    """4x4 matrix from continuous indices of an N^3 object's voxels merged by `factors` to object coordinates
+    (merged voxel m spans object voxels m * f to (m + 1) * f along each axis)."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = np.diag(OBJECT_SIZE / resolution * np.asarray(factors, dtype=np.float64))
+    matrix[:3, 3] = OBJECT_BOX_MIN
+    return matrix
+
+
 def object_voxel_centers(resolution: int) -> np.ndarray:
     """Object-space centres of all voxels of an N^3 object grid, shape (N, N, N, 3), indexed [i, j, k]."""
     n = resolution

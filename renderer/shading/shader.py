@@ -48,14 +48,13 @@ from renderer.scene import (
     GRID_EXTENT,
     LIGHT_RADIANCE,
     LIGHT_SIZE,
-    OBJECT_SIZE,
     SHADER_GRID_SIZE,
     ObjectSpec,
     Scene,
 )
 from renderer.shading import filters, kernels
 from renderer.splat import cached_floor_mask
-from renderer.transform import OBJECT_BOX_MIN, object_to_world
+from renderer.transform import merged_voxel_to_object, object_to_world
 
 THIN_LEVEL = 0.35  # voxels above a thin part's core where its surface is drawn (if more than SURFACE_LEVEL)
 SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
@@ -183,7 +182,7 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     if merged.ndim != 4 or merged.shape[3] != 4:
         raise InputError(f"merged object voxels must be (D, H, W, 4), got {merged.shape}")
     occupied_all = merged[..., 3] >= 0.5
-    voxel_to_world = object_voxel_to_object(resolution, factors)
+    voxel_to_world = merged_voxel_to_object(resolution, factors)
     spans = occupied_spans(occupied_all)  # argwhere over the object's box only
     if spans is None:
         found = np.zeros((0, 3), dtype=int)
@@ -207,15 +206,6 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
         distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core), smooth=smooth,
         broad=_broad(solid), voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=_box(occluders))
-
-
-def object_voxel_to_object(resolution: int, factors: tuple[int, int, int]) -> np.ndarray:
-    """4x4 matrix from continuous indices of an N^3 object's voxels merged by `factors` to object coordinates
-    (renderer/transform.py: merged voxel m spans object voxels m * f to (m + 1) * f along each axis)."""
-    matrix = np.eye(4)
-    matrix[:3, :3] = np.diag(OBJECT_SIZE / resolution * np.asarray(factors, dtype=np.float64))
-    matrix[:3, 3] = OBJECT_BOX_MIN
-    return matrix
 
 
 def _box(points: np.ndarray) -> np.ndarray:
