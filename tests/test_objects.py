@@ -261,3 +261,18 @@ def test_demo_asset_is_what_the_demo_code_writes_and_keeps_its_colors(tmp_path):
     colors = mesh.visual.vertex_colors
     assert len(np.unique(colors[:, :3], axis=0)) > 50
     assert mesh.bounds[0][1] == pytest.approx(0.0, abs=1e-7) and (mesh.extents.max() == pytest.approx(1.0, abs=1e-7))
+
+
+def test_a_hollow_solid_keeps_its_outline_and_loses_volume():
+    plain = {"layout_seed": 7, "size": 0.5, "pieces": 1, "cuts": 0, "rods": 0, "rod_radius": 0.01}
+    full = generate_object("solids", 0, {**plain, "hollow": False})
+    hollow = generate_object("solids", 0, {**plain, "hollow": True})
+    assert np.allclose(full.mesh.bounds, hollow.mesh.bounds, atol=1e-9)  # the walls stand where the solid stood
+    assert hollow.mesh.volume < 0.9 * full.mesh.volume
+
+
+def test_a_tree_of_rods_is_thin_and_one_piece():
+    rods = generate_object("solids", 0, {"layout_seed": 3, "pieces": 0, "rod_radius": 0.005})
+    low, high = rods.mesh.bounds
+    assert rods.mesh.volume < 0.05 * np.prod(high - low)  # thin parts: little of its box is filled
+    assert len(rods.mesh.split(only_watertight=False)) == 1

@@ -13,13 +13,14 @@ from typing import Any
 import numpy as np
 
 from renderer.errors import InputError
-from renderer.objects import chairs, novel, sofas, stools, tables
+from renderer.objects import chairs, novel, sofas, solids, stools, tables
 from renderer.objects.assembly import LabeledMesh, assemble
 from renderer.objects.category import Category
 from renderer.objects.params import draw_params
 
 CATEGORIES: dict[str, Category] = {
-    c.name: c for c in (chairs.CATEGORY, tables.CATEGORY, sofas.CATEGORY, stools.CATEGORY, novel.CATEGORY)
+    c.name: c
+    for c in (chairs.CATEGORY, tables.CATEGORY, sofas.CATEGORY, stools.CATEGORY, novel.CATEGORY, solids.CATEGORY)
 }
 
 SPLITS = ("train", "test")
