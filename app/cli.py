@@ -482,7 +482,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="voxels the source photo does not show: a blend of the colors seen around them, or the "
                         "paper's first voxel on the camera ray")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--categories", default="chair", help="comma-separated object categories")
+    p.add_argument("--categories", default="chair",
+                   help="comma-separated object categories: chair, table, sofa, stool, solids (random assemblies, "
+                        "for training), novel (the generalisation shapes, for testing)")
     p.add_argument("--res", type=int, default=100, help="object voxels per side")
     p.add_argument("--shard", default=None, help="I/N: make only part I of N (merge the parts afterwards)")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
