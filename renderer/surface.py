@@ -93,11 +93,15 @@ class Shell:
 
     def facing(self, viewpoint_grid: np.ndarray) -> np.ndarray:
         """Flat indices (ascending) of the voxels with an exposed face whose outer side sees `viewpoint_grid`."""
+        return self.voxels[self.facing_mask(viewpoint_grid)]
+
+    def facing_mask(self, viewpoint_grid: np.ndarray) -> np.ndarray:
+        """(K,) bool over the shell's voxels: those `facing` returns."""
         seen = np.zeros(len(self.voxels), dtype=bool)
         for i, (axis, side) in enumerate(self.SIDES):
             face = self.coords[:, axis] + (side > 0)  # the face's coordinate, as facing_exposed computes it
             seen |= self.faces[:, i] & ((viewpoint_grid[axis] - face) * side > 0)
-        return self.voxels[seen]
+        return seen
 
 
 def voxel_centers_at(indices: np.ndarray, resolution: int) -> np.ndarray:
