@@ -290,7 +290,9 @@ def cmd_data_generate(args: argparse.Namespace) -> None:
 def cmd_data_recolor(args: argparse.Namespace) -> None:
     from renderer.dataset import recolor_dataset
 
-    print(f"wrote {recolor_dataset(args.data, args.out, workers=args.workers, hidden_rule=args.hidden_voxels)}")
+    manifest = recolor_dataset(args.data, args.out, workers=args.workers, hidden_rule=args.hidden_voxels,
+                               resolution=args.res)
+    print(f"wrote {manifest}")
 
 
 def cmd_data_merge(args: argparse.Namespace) -> None:
@@ -495,12 +497,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_data_merge)
     p = data.add_parser("recolor", help="copy a data set whose photo colors other rules made (light kept, or the "
                                         "other rule for hidden voxels), recoloring its voxels with the light divided "
-                                        "out and the --hidden-voxels rule")
+                                        "out and the --hidden-voxels rule; --res: at another voxel resolution")
     p.add_argument("data", help="the data folder to copy (left unchanged)")
     p.add_argument("--out", required=True, help="new data folder (rerun to resume); targets are hard links")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
     p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
                    help="the rule for voxels the source photo does not show (as for generate)")
+    p.add_argument("--res", type=int, default=None,
+                   help="voxelise every object anew at this many voxels per side (its mesh remade from its record; "
+                        "no path tracing); default: keep the set's voxels")
     p.set_defaults(func=cmd_data_recolor)
 
     p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")

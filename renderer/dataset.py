@@ -383,11 +383,13 @@ def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_o
 
 
 def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True,
-                    hidden_rule: str = "blend") -> Path:
+                    hidden_rule: str = "blend", resolution: int | None = None) -> Path:
     """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, another
     hidden_rule, or an older shader), as generation makes them with `hidden_rule`: photo-colored voxels recolored from their
-    source photos with the light divided out, splats redrawn from them. Targets and source photos are hard links
-    where the file system allows (else copies); rerun to resume. Returns the manifest path."""
+    source photos with the light divided out, splats redrawn from them. `resolution`: voxelise every object anew at
+    that many voxels per side (its mesh remade from the record's category and seeds, as generation made it), so a set
+    moves to finer voxels without path tracing again. Targets and source photos are hard links where the file system
+    allows (else copies); rerun to resume. Returns the manifest path."""
     from tqdm import tqdm
 
     source, out = Path(source), Path(out)
@@ -397,11 +399,12 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     config = _config_or_none(stored) if isinstance(stored, dict) else None
     if config is None:
         raise InputError("config.json does not describe a data set", source)
-    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=DELIGHT_SHADERS[0])
+    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=DELIGHT_SHADERS[0],
+                                    resolution=config.resolution if resolution is None else resolution)
     recolored.check()
     if recolored == config:
         raise InputError(f"its photo colors are already made by these rules (light divided out by today's shader, "
-                         f"hidden voxels {hidden_rule})", source)
+                         f"hidden voxels {hidden_rule}, {config.resolution}^3 voxels)", source)
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
     config = recolored
@@ -410,11 +413,27 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
         _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json")
     prepare_folder(out, config)
     bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"recolor {source.name}")
-    jobs = [(str(source), str(out), name, config.hidden_rule) for name in todo]
+    jobs = [(str(source), str(out), name, config.hidden_rule, config.resolution) for name in todo]
     for _ in _run_jobs(jobs, workers, _recolor_one):
         bar.update(1)
     bar.close()
     return write_manifest(out, config)
+
+
+def _voxelised_again(obj: dict[str, Any], resolution: int) -> np.ndarray:
+    """A record's object voxelised at `resolution`: its mesh remade as generation made it (category, seed, appearance
+    seed and split), single-colored voxels painted its color (photo-colored ones are colored by the caller)."""
+    from renderer.objects import apply_appearance, generate_object
+    from renderer.voxels import voxelize
+
+    appearance = obj["appearance"]
+    labeled = generate_object(obj["category"], int(obj["seed"]))
+    mesh, _, _ = apply_appearance(labeled, obj["setting"], int(appearance["seed"]), appearance["split"])
+    rgba = voxelize(mesh, resolution=resolution)
+    if obj["setting"] == "single":
+        color = np.asarray(appearance["color"], dtype=np.float32)
+        rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, color, 0.0)
+    return rgba
 
 
 RECORD_OBJECT_KEYS = ("index", "setting", "floor_color", "voxels", "source_image", "source_camera",
@@ -432,17 +451,17 @@ def _check_record(record: Any, path: Path) -> None:
         raise InputError(f"not a data set record: it lacks {what}", path)
 
 
-def _recolor_one(args: tuple[str, str, str, str]) -> int:
+def _recolor_one(args: tuple[str, str, str, str, int]) -> int:
     """Recolor one object of a data set into `out` (see recolor_dataset); its record is written last."""
-    source, out, name, hidden_rule = Path(args[0]), Path(args[1]), args[2], args[3]
+    source, out, name, hidden_rule, resolution = Path(args[0]), Path(args[1]), args[2], args[3], args[4]
     try:
-        return _recolor_object(source, out, name, hidden_rule)
+        return _recolor_object(source, out, name, hidden_rule, resolution)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"a malformed record or camera file ({type(exc).__name__}: {exc})",
                          source / "records" / f"{name}.json") from None
 
 
-def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str) -> int:
+def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolution: int) -> int:
     from renderer.capture.pose import lit_photo_scene, load_pose
     from renderer.photo import color_voxels_from_photo, photo_albedo
     from renderer.splat import splat_scene
@@ -452,6 +471,9 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str) -> int
     obj = record["object"]
     floor_color = tuple(float(c) for c in obj["floor_color"])
     rgba = load_voxels(source / obj["voxels"])
+    revoxelise = rgba.shape[0] != resolution
+    if revoxelise:
+        rgba = _voxelised_again(obj, resolution)
     recolor = obj["setting"] != "single"
     if recolor:
         camera_file = source / obj["source_camera"]
@@ -465,12 +487,14 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str) -> int
         rgba = color_voxels_from_photo(rgba, pose.object_to_world(), albedo, pose.camera,
                                        mirror=bool(obj["mirror_symmetry_used"]), trusted=known,
                                        hidden_rule=hidden_rule).rgba
+    redrawn = recolor or revoxelise
+    if redrawn:
         save_voxels(out / obj["voxels"], rgba)
     links = [obj["source_image"], obj["source_camera"]] + [s["target"] for s in record["samples"]]
-    links += [] if recolor else [obj["voxels"]] + [s["splat"] for s in record["samples"]]
+    links += [] if redrawn else [obj["voxels"]] + [s["splat"] for s in record["samples"]]
     for rel in links:
         _link_or_copy(source / rel, out / rel)
-    if recolor:
+    if redrawn:
         for sample in record["samples"]:
             scene = scene_from_dict(sample["scene"])
             save_png(out / sample["splat"], splat_scene(scene, rgba, floor_color))

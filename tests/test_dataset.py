@@ -140,6 +140,29 @@ def test_a_set_made_by_older_color_rules_is_copied_as_generation_makes_it_now(re
     assert manifest_of(ray)["config"]["hidden_rule"] == "ray"
 
 
+@pytest.mark.parametrize("setting", ["default", "single"])
+def test_a_set_moved_to_finer_voxels_equals_one_generated_at_them(setting, tmp_path):
+    """`nvr data recolor --res`: every object voxelised anew from its remade mesh and colored from its stored source
+    photo, as generation at that resolution makes it (up to the photo's 8-bit rounding), with no path tracing: the
+    targets are the coarse set's, linked."""
+    coarse, fine = replace(TINY, setting=setting), replace(TINY, setting=setting, resolution=48)
+    generate_dataset(tmp_path / "coarse", coarse, progress=False)
+    generate_dataset(tmp_path / "fine", fine, progress=False)
+    moved = recolor_dataset(tmp_path / "coarse", tmp_path / "moved", progress=False, resolution=48).parent
+    assert manifest_of(moved)["config"] == fine.to_dict()
+    for obj in manifest_of(moved)["objects"]:
+        after, made = (np.load(f / obj["voxels"])["rgba"].astype(int) for f in (moved, tmp_path / "fine"))
+        assert after.shape == made.shape == (48, 48, 48, 4)
+        assert np.array_equal(after[..., 3], made[..., 3])
+        assert np.abs(after - made)[made[..., 3] > 0].max() <= 3
+    for sample in manifest_of(moved)["samples"]:
+        assert (moved / sample["target"]).stat().st_ino == (tmp_path / "coarse" / sample["target"]).stat().st_ino
+        splat_moved, splat_made = (np.asarray(Image.open(f / sample["splat"]), dtype=int) for f in (moved, tmp_path / "fine"))
+        assert np.abs(splat_moved - splat_made).max() <= 3
+    with pytest.raises(InputError, match="already made by these rules"):
+        recolor_dataset(moved, tmp_path / "again", progress=False, resolution=48)
+
+
 def test_sampling_protocol_ranges():
     rng = np.random.default_rng(0)
     views = sample_train_views(rng, 500)
