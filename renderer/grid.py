@@ -75,31 +75,96 @@ def pool_voxels(rgba: np.ndarray, factors: tuple[int, int, int]) -> np.ndarray:
     return np.stack([planes[0] / mean, planes[1] / mean, planes[2] / mean, (count > 0).astype(np.float32)], axis=-1)
 
 
-def repool_voxels(pooled: np.ndarray, before: np.ndarray, after: np.ndarray, factors: tuple[int, int, int]) -> np.ndarray:
-    """pool_voxels(after, factors), given pooled = pool_voxels(before, factors) for a grid of the same shape: only the
-    blocks with a voxel that differs are merged again (a paint stroke touches a few), by pool_voxels itself."""
+def repool_voxels(pooled: np.ndarray, after: np.ndarray, factors: tuple[int, int, int], changed: np.ndarray,
+                  out: np.ndarray | None = None) -> np.ndarray:
+    """pool_voxels(after, factors), given pooled = pool_voxels(before, factors) for a grid of the same shape that
+    differs from `after` at the flat voxel indices `changed` (colors_and_changes): only their blocks are merged again (a
+    paint stroke touches a few), as pool_voxels merges them. `out`: where to write (`pooled` itself is allowed, when
+    nothing else reads it); by default a new array."""
     if tuple(factors) == (1, 1, 1):
         return np.asarray(after, dtype=np.float32)
-    words = [np.ascontiguousarray(v, dtype=np.float32).view(np.uint64).reshape(-1) for v in (before, after)]
-    differs = np.flatnonzero(words[0] != words[1]) // 2  # two 8-byte words per voxel: its flat index
-    out = np.array(pooled, dtype=np.float32, copy=True)
-    if differs.size == 0:
+    if out is None:
+        out = np.array(pooled, dtype=np.float32, copy=True)
+    elif out is not pooled:
+        np.copyto(out, pooled)
+    if len(changed) == 0:
         return out
-    shape, f = np.asarray(after.shape[:3]), np.asarray(factors)
-    block_grid = tuple(-(-shape // f))
-    touched = np.unique(np.ravel_multi_index(tuple(np.stack(np.unravel_index(differs, tuple(shape))) // f[:, None]), block_grid))
-    if len(touched) * 4 > np.prod(block_grid):  # most blocks changed (a new base color): merge them all
-        return pool_voxels(after, factors)
-    blocks = np.stack(np.unravel_index(touched, block_grid), axis=1)  # (K, 3)
-    # Each block's members (K, f0, f1, f2), zero past the grid's end: pool_voxels adds nothing for them.
-    offsets = np.stack(np.meshgrid(*(np.arange(k) for k in factors), indexing="ij"), axis=-1)
-    members = blocks[:, None, None, None, :] * f + offsets
-    inside = (members < shape).all(axis=-1)
-    values = np.asarray(after, dtype=np.float32)[tuple(np.minimum(members, shape - 1).transpose(4, 0, 1, 2, 3))]
-    values[~inside] = 0.0
-    merged = pool_voxels(values.reshape(-1, *values.shape[2:]), factors)  # (K, 1, 1, 4): blocks stacked along axis 0
-    out[tuple(blocks.T)] = merged.reshape(-1, 4)
+    f = np.asarray(factors, dtype=np.int64)
+    blocks = _touched_blocks(np.asarray(changed, dtype=np.int64), np.asarray(after.shape[:3], dtype=np.int64), f,
+                             np.zeros(out.shape[:3], dtype=np.bool_))
+    if len(blocks) * 4 > np.prod(out.shape[:3]):  # most blocks changed (a new base color): merge them all
+        out[...] = pool_voxels(after, factors)
+        return out
+    _merge_blocks(np.asarray(after, dtype=np.float32), blocks, f, out)
     return out
+
+
+@njit(cache=True)
+def _touched_blocks(changed, shape, factors, seen):
+    """(K, 3) the merge blocks holding the flat voxel indices `changed`, each once (`seen`: False over the blocks)."""
+    blocks = np.empty((len(changed), 3), dtype=np.int64)
+    count = 0
+    for v in changed:
+        i, rest = divmod(v, shape[1] * shape[2])
+        j, k = divmod(rest, shape[2])
+        a, b, c = i // factors[0], j // factors[1], k // factors[2]
+        if not seen[a, b, c]:
+            seen[a, b, c] = True
+            blocks[count, 0], blocks[count, 1], blocks[count, 2] = a, b, c
+            count += 1
+    return blocks[:count]
+
+
+@njit(cache=True)
+def _merge_blocks(rgba, blocks, factors, out):
+    """out[block] = the block's merge for each block index in `blocks` (K, 3), equal to pool_voxels' bit for bit: the
+    same float32 sums in the same order (along axis 0, then 1, then 2). A loop over the blocks' members: numpy's
+    gather of them took 13-22 ms for a stroke of 19,000 voxels at 200^3."""
+    n0, n1, n2 = rgba.shape[0], rgba.shape[1], rgba.shape[2]
+    zero = np.float32(0.0)
+    for b in range(blocks.shape[0]):
+        i0, j0, k0 = blocks[b, 0] * factors[0], blocks[b, 1] * factors[1], blocks[b, 2] * factors[2]
+        total = np.zeros(4, dtype=np.float32)
+        for k in range(k0, min(k0 + factors[2], n2)):
+            along_j = np.zeros(4, dtype=np.float32)
+            for j in range(j0, min(j0 + factors[1], n1)):
+                along_i = np.zeros(4, dtype=np.float32)
+                for i in range(i0, min(i0 + factors[0], n0)):
+                    occupied = rgba[i, j, k, 3] >= 0.5
+                    for c in range(3):
+                        along_i[c] += rgba[i, j, k, c] if occupied else zero
+                    along_i[3] += np.float32(1.0) if occupied else zero
+                along_j += along_i
+            total += along_j
+        mean = max(total[3], np.float32(1.0))
+        for c in range(3):
+            out[blocks[b, 0], blocks[b, 1], blocks[b, 2], c] = total[c] / mean
+        out[blocks[b, 0], blocks[b, 1], blocks[b, 2], 3] = np.float32(1.0) if total[3] > 0 else zero
+
+
+def colors_and_changes(rgba: np.ndarray, voxels: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rows (K, 4) of `rgba` at the flat voxel indices `voxels` (ascending), and the indices among them (ascending)
+    whose row differs from `before` (K, 4), the same voxels' rows of another grid: what repool_voxels needs after a
+    paint stroke, in one pass over the occupied voxels (paint recolors nothing else)."""
+    rows = np.empty((len(voxels), 4), dtype=np.float32)
+    changed = np.empty(len(voxels), dtype=np.int64)
+    count = _gather_changes(np.asarray(rgba, dtype=np.float32).reshape(-1, 4), np.asarray(voxels, dtype=np.int64),
+                            np.asarray(before, dtype=np.float32), rows, changed)
+    return rows, changed[:count]
+
+
+@njit(cache=True)
+def _gather_changes(table, voxels, before, rows, changed):
+    count = 0
+    for n in range(len(voxels)):
+        differs = False
+        for c in range(4):
+            rows[n, c] = table[voxels[n], c]
+            differs |= rows[n, c] != before[n, c]
+        if differs:
+            changed[count] = voxels[n]
+            count += 1
+    return count
 
 
 def _sum_blocks(values: np.ndarray, f: int, axis: int) -> np.ndarray:

@@ -11,14 +11,13 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
-from scipy import ndimage
+from numba import njit
 
 from renderer.errors import InputError
 from renderer.scene import PaintOp
 
 Color = tuple[float, float, float]
 COLOR_SLACK = 1e-6  # so a tolerance of exactly the difference counts despite float rounding
-FACE_NEIGHBOURS = ndimage.generate_binary_structure(3, 1)  # 6-connectivity
 
 
 def occupied_voxels(rgba: np.ndarray) -> np.ndarray:
@@ -27,13 +26,13 @@ def occupied_voxels(rgba: np.ndarray) -> np.ndarray:
 
 
 def fill_region(rgba: np.ndarray, seed: tuple[int, int, int], color: Color, tolerance: float,
-                occupied: np.ndarray | None = None) -> np.ndarray:
+                occupied: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """Paint the 6-connected occupied voxels around `seed` whose color is within `tolerance` of the seed's.
 
     Color distance is the largest absolute channel difference. The seed must be an occupied
-    voxel of the grid. `occupied`: the grid's `occupied_voxels`, if the caller keeps them.
+    voxel of the grid. `occupied`: the grid's `occupied_voxels`, if the caller keeps them. `out`: see `_paint`.
     """
-    return _paint(rgba, fill_region_voxels(rgba, seed, tolerance, occupied), color)
+    return _paint(rgba, fill_region_voxels(rgba, seed, tolerance, occupied), color, out)
 
 
 def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.ndarray | None = None) -> np.ndarray:
@@ -49,20 +48,49 @@ def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.nd
     similar = occupied[_color_distance(rgba, occupied, seed_flat) <= tolerance + COLOR_SLACK]
     mask = np.zeros(shape, dtype=bool)
     mask.reshape(-1)[similar] = True
-    labels = ndimage.label(mask, structure=FACE_NEIGHBOURS)[0].reshape(-1)
-    return similar[labels[similar] == labels[seed_flat]]
+    return np.sort(_flood(mask, seed_flat, len(similar)))
 
 
-def fill_object(rgba: np.ndarray, color: Color, occupied: np.ndarray | None = None) -> np.ndarray:
-    """Paint every occupied voxel (`occupied`: the grid's `occupied_voxels`, if the caller keeps them)."""
-    return _paint(rgba, occupied_voxels(rgba) if occupied is None else occupied, color)
+@njit(cache=True)
+def _flood(mask, seed_flat, most):
+    """Flat indices of the 6-connected voxels of `mask` reached from `seed_flat` (at most `most` of them), in the
+    order found. A breadth-first search visits the region alone: labelling every component of the grid
+    (scipy.ndimage.label) took 77 ms at 200^3 on this project's 2-core machine, whatever the region's size."""
+    n0, n1, n2 = mask.shape
+    flat = mask.reshape(-1)
+    found = np.empty(most, dtype=np.int64)
+    found[0] = seed_flat
+    flat[seed_flat] = False  # visited voxels leave the mask
+    head, tail = 0, 1
+    while head < tail:
+        v = found[head]
+        head += 1
+        i, rest = divmod(v, n1 * n2)
+        j, k = divmod(rest, n2)
+        for di, dj, dk in ((-1, 0, 0), (1, 0, 0), (0, -1, 0), (0, 1, 0), (0, 0, -1), (0, 0, 1)):
+            a, b, c = i + di, j + dj, k + dk
+            if 0 <= a < n0 and 0 <= b < n1 and 0 <= c < n2:
+                w = (a * n1 + b) * n2 + c
+                if flat[w]:
+                    flat[w] = False
+                    found[tail] = w
+                    tail += 1
+    return found[:tail]
+
+
+def fill_object(rgba: np.ndarray, color: Color, occupied: np.ndarray | None = None,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """Paint every occupied voxel (`occupied`: the grid's `occupied_voxels`, if the caller keeps them; `out`: see
+    `_paint`)."""
+    return _paint(rgba, occupied_voxels(rgba) if occupied is None else occupied, color, out)
 
 
 def apply_paint(rgba: np.ndarray, floor_color: Color, ops: Iterable[PaintOp],
-                occupied: np.ndarray | None = None) -> tuple[np.ndarray, Color]:
+                occupied: np.ndarray | None = None, out: np.ndarray | None = None) -> tuple[np.ndarray, Color]:
     """Replay paint strokes in order: region and object fills on the voxels, floor fills on the floor color.
 
-    `occupied`: the voxels' `occupied_voxels`, if the caller keeps them (else found at the first fill).
+    `occupied`: the voxels' `occupied_voxels`, if the caller keeps them (else found at the first fill). `out`: an
+    array of the voxels' shape the fills may write into instead of a new one (see `_paint`).
     """
     for op in ops:
         if op.target == "floor":
@@ -74,9 +102,10 @@ def apply_paint(rgba: np.ndarray, floor_color: Color, ops: Iterable[PaintOp],
             raise InputError("a region fill needs a seed voxel")
         occupied = occupied_voxels(rgba) if occupied is None else occupied
         if op.target == "object":
-            rgba = fill_object(rgba, op.color, occupied)
+            rgba = fill_object(rgba, op.color, occupied, out)
         else:
-            rgba = fill_region(rgba, op.seed, op.color, op.tolerance, occupied)
+            rgba = fill_region(rgba, op.seed, op.color, op.tolerance, occupied, out)
+        out = rgba if out is not None else None  # later fills paint over the first one's result
     return rgba, floor_color
 
 
@@ -93,8 +122,13 @@ def _color_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -> np.
     return distance
 
 
-def _paint(rgba: np.ndarray, voxels: np.ndarray, color: Color) -> np.ndarray:
-    """A copy of `rgba` with the voxels at flat indices `voxels` set to `color`."""
-    out = np.array(rgba, dtype=np.float32, copy=True)
+def _paint(rgba: np.ndarray, voxels: np.ndarray, color: Color, out: np.ndarray | None = None) -> np.ndarray:
+    """A copy of `rgba` with the voxels at flat indices `voxels` set to `color`: a new array, or `out` (float32, the
+    shape of `rgba`; `rgba` itself is allowed). At 200^3 a new array took twice as long as a copy into a used one
+    (54 against 25 ms on this project's 2-core machine: fresh memory is mapped page by page)."""
+    if out is None:
+        out = np.array(rgba, dtype=np.float32, copy=True)
+    elif out is not rgba:
+        np.copyto(out, rgba)
     out.reshape(-1, 4)[voxels, :3] = np.clip(np.asarray(color, dtype=np.float32), 0.0, 1.0)
     return out

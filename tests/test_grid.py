@@ -9,6 +9,7 @@ from scipy import ndimage
 
 from renderer.camera import Camera, camera_to_grid_index, grid_centers_camera
 from renderer.grid import (
+    colors_and_changes,
     gather,
     grid_index_to_world,
     ground_mask,
@@ -229,9 +230,25 @@ def test_repooling_after_a_change_equals_pooling_from_scratch(factors):
     after[8:11, 0:3, 9:11, :3] = (0.2, 0.9, 0.4)  # a stroke in a far corner
     after[0, 5, 5] = (0.7, 0.7, 0.7, 1.0)  # a voxel that was empty
     pooled = pool_voxels(before, factors)
-    repooled = repool_voxels(pooled, before, after, factors)
+    every = np.arange(before[..., 0].size)
+    repooled = repool_voxels(pooled, after, factors, colors_and_changes(after, every, before.reshape(-1, 4))[1])
     np.testing.assert_array_equal(repooled, pool_voxels(after, factors))
     np.testing.assert_array_equal(pooled, pool_voxels(before, factors))  # the old result is left alone
-    np.testing.assert_array_equal(repool_voxels(pooled, before, before, factors), pooled)
+    assert len(colors_and_changes(before, every, before.reshape(-1, 4))[1]) == 0
+    np.testing.assert_array_equal(repool_voxels(pooled, before, factors, np.zeros(0, dtype=int)), pooled)
+    # Paint recolors occupied voxels alone: told which of them changed (the engine compares those rows only), the
+    # merge is redone in place.
+    painted = before.copy()
+    corner = np.zeros_like(occupied)
+    corner[8:11, 0:3, 9:11] = True
+    painted[corner & occupied, :3] = (0.2, 0.9, 0.4)
+    occupied_flat = np.flatnonzero(occupied)
+    rows, changed = colors_and_changes(painted, occupied_flat, before.reshape(-1, 4)[occupied_flat])
+    np.testing.assert_array_equal(rows, painted.reshape(-1, 4)[occupied_flat])
+    np.testing.assert_array_equal(changed, np.flatnonzero((corner & occupied).reshape(-1)))
+    in_place = pool_voxels(before, factors)
+    out = repool_voxels(in_place, painted, factors, changed, out=in_place)
+    assert out is in_place or factors == (1, 1, 1)  # nothing to merge: the voxels themselves
+    np.testing.assert_array_equal(out, pool_voxels(painted, factors))
 
 

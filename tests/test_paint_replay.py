@@ -31,9 +31,9 @@ def fills(monkeypatch) -> list:
     """Records the strokes the replay paints."""
     painted = []
 
-    def counting(rgba, floor, ops, occupied=None):
+    def counting(rgba, floor, ops, occupied=None, out=None):
         painted.extend(ops)
-        return apply_paint(rgba, floor, ops, occupied)
+        return apply_paint(rgba, floor, ops, occupied, out)
 
     monkeypatch.setattr(paint_replay, "apply_paint", counting)
     return painted
@@ -54,11 +54,17 @@ def test_each_step_equals_a_replay_from_scratch_and_paints_at_most_one_stroke(fi
         (None, (corner,), []),  # undo once more
         ((0.2, 0.2, 0.2), (corner,), [corner]),  # a new base color repaints
     ]
+    steps += [(None, (corner, bar), [corner, bar]),  # the voxels' own colors again
+              (None, (corner, recolored_bar), [recolored_bar])]  # another last stroke, no undo between
+    last = None
     for color, strokes, expected in steps:
         fills.clear()
         out = replay.painted(color, strokes)
         assert fills == expected
         np.testing.assert_array_equal(out, from_scratch(rgba, color, strokes))
+        if last is not None:  # arrays are reused for new fills, never the one returned before this call
+            np.testing.assert_array_equal(last[0], from_scratch(rgba, *last[1:]))
+        last = (out, color, strokes)
     corner_after_bar = replay.painted(None, (corner, recolored_bar))
     assert tuple(corner_after_bar[4, 2, 4, :3]) == BLUE and tuple(corner_after_bar[0, 0, 0, :3]) == RED
     np.testing.assert_array_equal(rgba, two_blobs())  # the unpainted voxels are never changed

@@ -16,6 +16,7 @@ from renderer.paint import Color, apply_paint, fill_object, occupied_voxels
 from renderer.scene import PaintOp
 
 KEPT = 2  # painted lists remembered (each N^3 x 16 bytes): the current one and the one before its last stroke
+# (and one more such array, the last forgotten, for the next fill to write into)
 
 
 class PaintReplay:
@@ -25,6 +26,8 @@ class PaintReplay:
         self.rgba = rgba  # the unpainted object voxels
         self.occupied = occupied_voxels(rgba)
         self._painted: OrderedDict[tuple, np.ndarray] = OrderedDict()
+        self._returned: np.ndarray | None = None  # what `painted` returned last: its caller may still read it
+        self._unused: np.ndarray | None = None  # a forgotten list's array, reused by the next fill
 
     def painted(self, color: Color | None, strokes: tuple[PaintOp, ...]) -> np.ndarray:
         """The voxels filled with `color` (None: their own colors) and then painted by `strokes` (no floor strokes)."""
@@ -36,11 +39,23 @@ class PaintReplay:
         rgba = self._painted[(color, strokes[:done])]
         self._painted.move_to_end((color, strokes[:done]))
         for k in range(done, len(strokes)):
-            rgba, _ = apply_paint(rgba, (0.0, 0.0, 0.0), strokes[k:k + 1], self.occupied)
+            rgba, _ = apply_paint(rgba, (0.0, 0.0, 0.0), strokes[k:k + 1], self.occupied, self._spare(rgba))
             self._keep((color, strokes[:k + 1]), rgba)
+        self._returned = rgba
         return rgba
 
     def _keep(self, key: tuple, rgba: np.ndarray) -> None:
         self._painted[key] = rgba
         while len(self._painted) > KEPT:
-            self._painted.popitem(last=False)
+            _, forgotten = self._painted.popitem(last=False)
+            if forgotten is not self.rgba:
+                self._unused = forgotten
+
+    def _spare(self, source: np.ndarray) -> np.ndarray | None:
+        """The array of the painted list forgotten last, for the next fill to write into (a copy into used memory
+        is twice as fast as into new), unless it is `source` or the result returned last (its caller may still read
+        that one until this call returns)."""
+        spare, self._unused = self._unused, None
+        if spare is None or spare is source or spare is self._returned:
+            return None
+        return spare

@@ -89,6 +89,7 @@ from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image, lit_floor_terms
 from renderer.grid import (
+    colors_and_changes,
     gather,
     grid_index_to_world,
     ground_mask,
@@ -144,7 +145,7 @@ class _Placement(NamedTuple):
 
 class _Pooled(NamedTuple):
     voxels: np.ndarray  # merged voxels (renderer.grid.pool_voxels)
-    painted: np.ndarray  # the painted voxels they were merged from
+    colors: np.ndarray  # (K, 4) the painted voxels they were merged from, at the object's occupied voxels
     source: tuple  # where those voxels were read from (_voxel_source)
     factors: tuple[int, int, int]
     within: tuple | None  # the box of the non-empty merged voxels (renderer.grid.pool_object); paint keeps it
@@ -331,13 +332,18 @@ class RenderEngine:
 
     def _pool(self, stage: str, painted: np.ndarray, source: tuple, factors: tuple[int, int, int]) -> _Pooled:
         """Merged voxels (the network's grid's, or the shader's finer grid's); after a paint edit (same object, same
-        merge factors) only the blocks it touched are merged, and their box stays (paint keeps occupancy)."""
+        merge factors) only the blocks it touched are merged again, in the last merge's array (the stage keeps one
+        result and nothing else reads it), and their box stays. Paint changes the colors of occupied voxels alone,
+        so only they are compared: work in proportion to the surface, not the grid."""
+        occupied = self._memo["voxels"][1].occupied  # this object's (the voxels stage ran for `source` first)
         last = self._memo[stage][1] if stage in self._memo else None
-        if last is not None and (last.source, last.factors) == (source, factors):
-            return _Pooled(repool_voxels(last.voxels, last.painted, painted, factors), painted, source, factors,
-                           last.within)
-        pooled, within = pool_object(painted, factors)
-        return _Pooled(pooled, painted, source, factors, within)
+        if last is None or (last.source, last.factors) != (source, factors):
+            pooled, within = pool_object(painted, factors)
+            return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, within)
+        del self._memo[stage]  # updated in place below: never a stale entry under the old key
+        colors, changed = colors_and_changes(painted, occupied, last.colors)
+        return _Pooled(repool_voxels(last.voxels, painted, factors, changed, out=last.voxels), colors, source, factors,
+                       last.within)
 
     def _background(self, floor: tuple, elevation: float) -> Background:
         """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""
