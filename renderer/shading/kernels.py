@@ -220,17 +220,18 @@ def near_surface_cell_mask(fields, level, thin, slack):
 @njit(cache=True, parallel=True)
 def mark_surface_pixels(cells, shape, projection, row0, col0, mask):
     """mask[r, c] = True (image pixel row0 + r, col0 + c) where the pixel's centre falls in the image rectangle of
-    one of `cells` (near_surface_cell_mask's, (K, 3) indices into a crop of `shape` voxels; the cells at the crop's
-    faces reach to its faces, where samples are clamped): the pixels whose centre ray may stop in `trace_surface`.
+    one of `cells` (runs i, j, first k, last k of near_surface_cell_mask's cells, (K, 4) indices into a crop of
+    `shape` voxels; the cells at the crop's faces reach to its faces, where samples are clamped): a superset of the
+    pixels whose centre ray may stop in `trace_surface` (a run's box covers its cells').
     `projection`: 3x4, crop point -> (u * depth, v * depth, depth)."""
     n0, n1, n2 = shape[0], shape[1], shape[2]
     rows, cols = mask.shape
     for q in prange(cells.shape[0]):
-        i, j, k = cells[q, 0], cells[q, 1], cells[q, 2]
+        i, j, k, k_last = cells[q, 0], cells[q, 1], cells[q, 2], cells[q, 3]
         u0, u1, v0, v1 = 1e30, -1e30, 1e30, -1e30
         for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
             for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
-                for z in (0.0 if k == 0 else k + 0.5, n2 if k == n2 - 2 else k + 1.5):
+                for z in (0.0 if k == 0 else k + 0.5, n2 if k_last == n2 - 2 else k_last + 1.5):
                     pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
                     pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]
                     pd = projection[2, 0] * x + projection[2, 1] * y + projection[2, 2] * z + projection[2, 3]

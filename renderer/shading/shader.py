@@ -96,6 +96,7 @@ COVERAGE_PROBE = 4.0
 # openings a ray passes through keep their empty pixels and stay open.
 SPECK_PIXELS = 40
 CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still mark its pixels as ray candidates
+CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (more: fewer boxes, more pixels traced)
 
 
 @dataclass(frozen=True)
@@ -114,7 +115,8 @@ class ObjectGeometry:
     voxel_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
     occluders: np.ndarray  # (M, 3) float64 world centres of the occupied voxels
     occluder_box: np.ndarray  # (2, 3) their least and greatest world coordinates (0s if none): kept for every light
-    surface_cells: np.ndarray  # (K, 3) int: the crop's cells where a camera ray may meet the surface (any camera)
+    surface_cells: np.ndarray  # (K, 4) int: runs i, j, k_first, k_last of the crop's cells where a camera ray may
+    # meet the surface (any camera)
 
     @property
     def empty(self) -> bool:
@@ -214,12 +216,23 @@ def _box(points: np.ndarray) -> np.ndarray:
 
 
 def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
-    """The cells of the crop where a traced ray may stop (kernels.near_surface_cell_mask; none in a crop thinner
-    than two voxels, where every pixel is a candidate instead)."""
+    """The cells of the crop where a traced ray may stop (kernels.near_surface_cell_mask), as runs of up to
+    CELL_RUN consecutive cells along the last axis (K, 4: i, j, first k, last k): the pixel mask projects one box
+    per run, not per cell. None in a crop thinner than two voxels, where every pixel is a candidate instead."""
     if min(distance_and_core.shape[:3]) < 2:
-        return np.zeros((0, 3), dtype=np.int64)
-    return filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
-                                                                   CANDIDATE_SLACK))
+        return np.zeros((0, 4), dtype=np.int64)
+    cells = filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
+                                                                    CANDIDATE_SLACK))
+    # A run starts where the cell before it (along k) is not marked or the run so far is CELL_RUN long.
+    follows = np.zeros(len(cells), dtype=bool)
+    follows[1:] = (cells[1:, 0] == cells[:-1, 0]) & (cells[1:, 1] == cells[:-1, 1]) & (cells[1:, 2] == cells[:-1, 2] + 1)
+    starts = np.flatnonzero(~follows)
+    run_of = np.cumsum(~follows) - 1
+    position = np.arange(len(cells)) - starts[run_of]
+    first = ~follows | (position % CELL_RUN == 0)
+    heads = np.flatnonzero(first)
+    lasts = np.append(heads[1:] - 1, len(cells) - 1)
+    return np.column_stack([cells[heads], cells[lasts, 2]]).astype(np.int64)
 
 
 def placed(geometry: ObjectGeometry, object_spec: ObjectSpec, elevation_deg: float) -> ObjectGeometry:
