@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from renderer.errors import InputError
-from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
+from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 
 EXIT_USER_ERROR = 2
 
@@ -419,7 +419,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("voxelize", help="voxelise a mesh into an RGBA grid (.npz)")
     p.add_argument("mesh", help="OBJ, PLY, STL, OFF, GLB or GLTF file")
     p.add_argument("-o", "--output", required=True, help=".npz to write (key 'rgba', N^3 x 4)")
-    p.add_argument("--res", type=int, default=100, help="voxels per side (default 100)")
+    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"voxels per side (default {DEFAULT_RESOLUTION})")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.set_defaults(func=cmd_voxelize)
@@ -437,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
                    help="the object's box in photo pixels: outside it is background (needed on cluttered photos)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
-    p.add_argument("--res", type=int, default=100, help="object voxels per side (default 100)")
+    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"object voxels per side (default {DEFAULT_RESOLUTION})")
     p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")
     p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
     p.set_defaults(func=cmd_capture)
@@ -487,7 +487,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--categories", default="chair",
                    help="comma-separated object categories: chair, table, sofa, stool, solids (random assemblies, "
                         "for training), novel (the generalisation shapes, for testing)")
-    p.add_argument("--res", type=int, default=100, help="object voxels per side")
+    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"object voxels per side (default {DEFAULT_RESOLUTION})")
     p.add_argument("--shard", default=None, help="I/N: make only part I of N (merge the parts afterwards)")
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
     p.set_defaults(func=cmd_data_generate)

@@ -35,7 +35,7 @@ import numpy as np
 
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_image, load_json, remove_stale_temporaries, save_json, save_png
-from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
+from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 from renderer.scene import (
     ELEVATION_RANGE,
     LIGHT_XZ_RANGE,
@@ -77,7 +77,7 @@ class DataConfig:
     denoise: bool = True
     seed: int = 0
     categories: tuple[str, ...] = ("chair",)
-    resolution: int = 100
+    resolution: int = DEFAULT_RESOLUTION
     delight: bool = True  # photo-colored voxels carry the source photo's colors with its light divided out
     hidden_rule: str = "blend"  # how photo coloring colors voxels the photo does not show (renderer.photo.HIDDEN_RULES)
     # The voxel shader that divided the light out: its light is what is divided, so a set follows the shader it was

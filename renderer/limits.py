@@ -12,9 +12,12 @@ from __future__ import annotations
 MIN_IMAGE_SIZE = 16
 MAX_IMAGE_SIZE = 2048
 
-# Object voxels per side: 256^3 RGBA floats are 268 MB, the largest grid a CPU edit loop can hold.
+# Object voxels per side: 256^3 RGBA floats are 268 MB, the largest grid a CPU edit loop can hold. Meshes are
+# voxelised at DEFAULT_RESOLUTION unless a scene or a command says otherwise: at 200^3 against 100^3 the shipped NVR+
+# lost a fifth of its error on the test split (docs/results.md, "Why NVR+ is still far from the paper", item 5).
 MIN_RESOLUTION = 4
 MAX_RESOLUTION = 256
+DEFAULT_RESOLUTION = 200
 
 # Meshes: a 5 M-face mesh is a 250 MB text OBJ and voxelises in seconds; beyond that a mesh is
 # decimated first. Counts are read from the file's header (PLY, OFF, STL, GLB) before the body.

@@ -19,7 +19,7 @@ from typing import Any
 
 from renderer.errors import InputError
 from renderer.io import check_path_text, load_json, save_json
-from renderer.limits import MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
+from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 
 SCENE_VERSION = 1
 
@@ -72,7 +72,7 @@ class PaintOp:
 class ObjectSpec:
     mesh: str | None = None  # path relative to the scene file
     up: str = "y"
-    resolution: int = 100
+    resolution: int = DEFAULT_RESOLUTION
     color: tuple[float, float, float] | None = None  # None: the mesh's own colors
     translation: tuple[float, float] = (0.0, 0.0)  # world x and z
     rotation_deg: float = 0.0  # about the vertical axis
@@ -219,7 +219,7 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     if version != SCENE_VERSION:
         raise r.fail("version", f"unsupported scene version {version!r} (expected {SCENE_VERSION})")
     o = r.section(data, "object", required=True)
-    resolution = o.get("resolution", 100)
+    resolution = o.get("resolution", DEFAULT_RESOLUTION)
     if isinstance(resolution, bool) or not isinstance(resolution, int):
         raise r.fail("object.resolution", f"must be an integer, got {json_type(resolution)}")
     up = r.string(o, "up", "object.up", "y")

@@ -35,7 +35,7 @@ import trimesh
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import atomic_path
-from renderer.limits import MAX_RESOLUTION, MAX_VOXEL_FILE_BYTES, MIN_RESOLUTION
+from renderer.limits import DEFAULT_RESOLUTION, MAX_RESOLUTION, MAX_VOXEL_FILE_BYTES, MIN_RESOLUTION
 from renderer.mesh import mesh_colors_at
 from renderer.scene import OBJECT_SIZE
 from renderer.transform import OBJECT_BOX_MIN
@@ -46,7 +46,7 @@ FACES_PER_CHUNK = 20_000  # bounds memory and sets the progress steps
 ProgressCallback = Callable[[float], None]
 
 
-def voxelize(mesh: trimesh.Trimesh, resolution: int = 100, progress: ProgressCallback | None = None) -> np.ndarray:
+def voxelize(mesh: trimesh.Trimesh, resolution: int = DEFAULT_RESOLUTION, progress: ProgressCallback | None = None) -> np.ndarray:
     """Surface voxels (N, N, N, 4) float32 of a mesh already in object coordinates (see normalise_mesh).
 
     Parts outside the object box are clipped. `progress(fraction)` is called as faces are done.

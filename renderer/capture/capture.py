@@ -33,6 +33,7 @@ from renderer.capture.pose import PhotoPose, lit_photo_scene
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
+from renderer.limits import DEFAULT_RESOLUTION
 from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score, photo_albedo
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
@@ -250,7 +251,7 @@ def _downscale(rgb: np.ndarray, alpha: np.ndarray | None, long_side: int) -> tup
 
 
 def captured_scene(mesh_path: str | Path, voxels_path: str | Path, pose: PhotoPose, up: str = "y",
-                   resolution: int = 100, image_size: int = 256) -> Scene:
+                   resolution: int = DEFAULT_RESOLUTION, image_size: int = 256) -> Scene:
     """A scene that shows the object as the photo did: the pose's placement and elevation, the captured voxels.
 
     Paths are taken relative to the working directory; save_scene rewrites them relative to the scene file.
