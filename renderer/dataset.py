@@ -399,6 +399,7 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     config = _config_or_none(stored) if isinstance(stored, dict) else None
     if config is None:
         raise InputError("config.json does not describe a data set", source)
+    stored_resolution = config.resolution
     recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=DELIGHT_SHADERS[0],
                                     resolution=config.resolution if resolution is None else resolution)
     recolored.check()
@@ -409,8 +410,9 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
     config = recolored
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
+    revoxelise = config.resolution != stored_resolution
     for name in todo:  # every record readable before anything is written
-        _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json")
+        _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json", revoxelise)
     prepare_folder(out, config)
     bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"recolor {source.name}")
     jobs = [(str(source), str(out), name, config.hidden_rule, config.resolution) for name in todo]
@@ -440,11 +442,13 @@ RECORD_OBJECT_KEYS = ("index", "setting", "floor_color", "voxels", "source_image
                       "mirror_symmetry_used")
 
 
-def _check_record(record: Any, path: Path) -> None:
-    """InputError naming `path` unless the record holds what recoloring an object reads."""
+def _check_record(record: Any, path: Path, revoxelise: bool = False) -> None:
+    """InputError naming `path` unless the record holds what recoloring an object reads (and, to `revoxelise` it,
+    what remaking its mesh reads)."""
     obj = record.get("object") if isinstance(record, dict) else None
     samples = record.get("samples") if isinstance(record, dict) else None
-    missing = [key for key in RECORD_OBJECT_KEYS if not isinstance(obj, dict) or key not in obj]
+    keys = RECORD_OBJECT_KEYS + (("category", "seed", "appearance") if revoxelise else ())
+    missing = [key for key in keys if not isinstance(obj, dict) or key not in obj]
     if missing or not isinstance(samples, list) or not all(
             isinstance(s, dict) and all(k in s for k in ("scene", "target", "splat")) for s in samples):
         what = f"object keys {', '.join(missing)}" if missing else "samples with a scene, target and splat each"
