@@ -486,3 +486,20 @@ def test_a_loader_worker_prepares_the_very_batches_of_the_training_process(data,
     train(tmp_path / "worker", config(data, steps=3, loader_workers=1), progress=False)
     a, b = weights(tmp_path / "here" / CHECKPOINT), weights(tmp_path / "worker" / CHECKPOINT)
     assert a.keys() == b.keys() and all(torch.equal(a[key], b[key]) for key in a)
+
+
+def test_the_voxel_cache_is_bounded_in_bytes_and_keeps_the_latest_object(tmp_path):
+    """Object voxels read for samples are kept up to a byte budget (at 200^3 one object is 128 MB), the latest always."""
+    from renderer.voxels import load_voxels
+
+    first = make_fake_dataset(tmp_path / "a", samples=2, resolution=16)
+    second = make_fake_dataset(tmp_path / "b", samples=2, resolution=16, seed=1)
+    one_object = 16**3 * 4 * 4
+    dataset = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=one_object)
+    for index in (0, 2, 1):
+        np.testing.assert_array_equal(dataset.object_voxels(index), load_voxels(dataset.scene(index).voxels_path()))
+        assert list(dataset._voxels) == [str(dataset.scene(index).voxels_path())]
+    roomy = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=2 * one_object)
+    for index in (0, 2, 1):
+        roomy.object_voxels(index)
+    assert len(roomy._voxels) == 2 and roomy.object_voxels(1) is roomy.object_voxels(0)  # one object, read once
