@@ -141,8 +141,9 @@ def _splat_depths(points, to_camera, edges, f, cx, cy, depth_buffer, nearest):
     pixel holding its centre (so a voxel smaller than a pixel still shows). The box is first-order perspective: a
     camera-space offset (dx, dy, dz) at a point with x/depth = a, y/depth = b moves the pixel by
     f/depth * (dx + a dz, -(dy + b dz)), and a parallelepiped with edges e_k spans half of sum_k |.| of its edges'
-    offsets each side. Points nearer the image plane than NEAR_DEPTH are dropped. A loop: numpy's scatter-minimum
-    over every (point, pixel) pair took 4-5 times as long (np.minimum.at)."""
+    offsets each side. Points nearer the image plane than NEAR_DEPTH are dropped. A loop: with numpy's
+    scatter-minimum over every (point, pixel) pair (np.minimum.at) the whole layout took 2.6-2.8 times as long on a
+    test chair at 100^3 and 200^3."""
     for i in range(points.shape[0]):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         px = to_camera[0, 0] * x + to_camera[0, 1] * y + to_camera[0, 2] * z + to_camera[0, 3]
