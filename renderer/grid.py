@@ -76,17 +76,14 @@ def pool_voxels(rgba: np.ndarray, factors: tuple[int, int, int]) -> np.ndarray:
 
 
 def repool_voxels(pooled: np.ndarray, after: np.ndarray, factors: tuple[int, int, int], changed: np.ndarray,
-                  out: np.ndarray | None = None) -> np.ndarray:
+                  in_place: bool = False) -> np.ndarray:
     """pool_voxels(after, factors), given pooled = pool_voxels(before, factors) for a grid of the same shape that
     differs from `after` at the flat voxel indices `changed` (colors_and_changes): only their blocks are merged again (a
-    paint stroke touches a few), as pool_voxels merges them. `out`: where to write (`pooled` itself is allowed, when
-    nothing else reads it); by default a new array."""
+    paint stroke touches a few), as pool_voxels merges them. `in_place`: write into `pooled` (when nothing else
+    reads it) rather than a new array."""
     if tuple(factors) == (1, 1, 1):
         return np.asarray(after, dtype=np.float32)
-    if out is None:
-        out = np.array(pooled, dtype=np.float32, copy=True)
-    elif out is not pooled:
-        np.copyto(out, pooled)
+    out = pooled if in_place else np.array(pooled, dtype=np.float32, copy=True)
     if len(changed) == 0:
         return out
     f = np.asarray(factors, dtype=np.int64)

@@ -105,7 +105,6 @@ def apply_paint(rgba: np.ndarray, floor_color: Color, ops: Iterable[PaintOp],
             rgba = fill_object(rgba, op.color, occupied, out)
         else:
             rgba = fill_region(rgba, op.seed, op.color, op.tolerance, occupied, out)
-        out = rgba if out is not None else None  # later fills paint over the first one's result
     return rgba, floor_color
 
 

@@ -247,7 +247,7 @@ def test_repooling_after_a_change_equals_pooling_from_scratch(factors):
     np.testing.assert_array_equal(rows, painted.reshape(-1, 4)[occupied_flat])
     np.testing.assert_array_equal(changed, np.flatnonzero((corner & occupied).reshape(-1)))
     in_place = pool_voxels(before, factors)
-    out = repool_voxels(in_place, painted, factors, changed, out=in_place)
+    out = repool_voxels(in_place, painted, factors, changed, in_place=True)
     assert out is in_place or factors == (1, 1, 1)  # nothing to merge: the voxels themselves
     np.testing.assert_array_equal(out, pool_voxels(painted, factors))
 

@@ -39,7 +39,7 @@ class PaintReplay:
         rgba = self._painted[(color, strokes[:done])]
         self._painted.move_to_end((color, strokes[:done]))
         for k in range(done, len(strokes)):
-            rgba, _ = apply_paint(rgba, (0.0, 0.0, 0.0), strokes[k:k + 1], self.occupied, self._spare(rgba))
+            rgba, _ = apply_paint(rgba, (0.0, 0.0, 0.0), strokes[k:k + 1], self.occupied, self._spare())
             self._keep((color, strokes[:k + 1]), rgba)
         self._returned = rgba
         return rgba
@@ -51,11 +51,9 @@ class PaintReplay:
             if forgotten is not self.rgba:
                 self._unused = forgotten
 
-    def _spare(self, source: np.ndarray) -> np.ndarray | None:
+    def _spare(self) -> np.ndarray | None:
         """The array of the painted list forgotten last, for the next fill to write into (a copy into used memory
-        is twice as fast as into new), unless it is `source` or the result returned last (its caller may still read
-        that one until this call returns)."""
+        is twice as fast as into new), unless it is the result returned last (its caller may still read that one
+        until this call returns). It is never the array painted from: that list was used last, so it is kept."""
         spare, self._unused = self._unused, None
-        if spare is None or spare is source or spare is self._returned:
-            return None
-        return spare
+        return None if spare is self._returned else spare

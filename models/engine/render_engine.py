@@ -342,7 +342,7 @@ class RenderEngine:
             return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, within)
         del self._memo[stage]  # updated in place below: never a stale entry under the old key
         colors, changed = colors_and_changes(painted, occupied, last.colors)
-        return _Pooled(repool_voxels(last.voxels, painted, factors, changed, out=last.voxels), colors, source, factors,
+        return _Pooled(repool_voxels(last.voxels, painted, factors, changed, in_place=True), colors, source, factors,
                        last.within)
 
     def _background(self, floor: tuple, elevation: float) -> Background:

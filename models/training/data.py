@@ -53,7 +53,7 @@ def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size
 
 
 # Object voxels a data set keeps in memory per process (the latest object always): 128 objects at 100^3, 16 at
-# 200^3 (128 MB each). A count alone let an evaluation of 60 objects at 200^3 grow past this machine's 24 GB.
+# 200^3 (128 MB each). A count of 256 would allow 32 GB at 200^3; an evaluation of 60 such objects reached 7 GB.
 VOXEL_CACHE_BYTES = 2 * 2**30
 
 
