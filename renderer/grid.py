@@ -59,20 +59,17 @@ def pool_factors(resolution: int, scale: tuple[float, float, float], grid_size: 
 def pool_voxels(rgba: np.ndarray, factors: tuple[int, int, int]) -> np.ndarray:
     """Merge blocks of factors[0] x factors[1] x factors[2] voxels (the last block may be partial).
 
-    A block is occupied if any member is; its color is the mean of its occupied members.
-    Works on one channel plane at a time (numpy is slow on a trailing axis of length 4).
-    With nothing to merge the voxels are returned as they are (voxelize, load_voxels and the
-    paint tools keep empty voxels black).
+    A block is occupied if any member is; its color is the mean of its occupied members, summed in float32 along
+    axis 0, then 1, then 2. With nothing to merge the voxels are returned as they are (voxelize, load_voxels and the
+    paint tools keep empty voxels black). A compiled loop over the blocks on every core: numpy's per-plane block
+    sums took 0.4 s at 200^3, a third of preparing a training sample.
     """
     if tuple(factors) == (1, 1, 1):
         return np.asarray(rgba, dtype=np.float32)
-    occupied = (rgba[..., 3] >= 0.5).astype(np.float32)
-    planes = [rgba[..., c] * occupied for c in range(3)] + [occupied]
-    for axis, f in enumerate(factors):
-        planes = [_sum_blocks(p, f, axis) for p in planes]
-    count = planes[3]
-    mean = np.maximum(count, 1.0)
-    return np.stack([planes[0] / mean, planes[1] / mean, planes[2] / mean, (count > 0).astype(np.float32)], axis=-1)
+    f = np.asarray(factors, dtype=np.int64)
+    out = np.empty((*(-(-n // k) for n, k in zip(rgba.shape[:3], factors)), 4), dtype=np.float32)
+    _merge_all_blocks(np.ascontiguousarray(rgba, dtype=np.float32), f, out)
+    return out
 
 
 def repool_voxels(pooled: np.ndarray, after: np.ndarray, factors: tuple[int, int, int], changed: np.ndarray,
@@ -114,29 +111,52 @@ def _touched_blocks(changed, shape, factors, seen):
 
 @njit(cache=True)
 def _merge_blocks(rgba, blocks, factors, out):
-    """out[block] = the block's merge for each block index in `blocks` (K, 3), equal to pool_voxels' bit for bit: the
-    same float32 sums in the same order (along axis 0, then 1, then 2). A loop over the blocks' members: numpy's
-    gather of them took 13-22 ms for a stroke of 19,000 voxels at 200^3."""
-    n0, n1, n2 = rgba.shape[0], rgba.shape[1], rgba.shape[2]
-    zero = np.float32(0.0)
+    """out[block] = the block's merge for each block index in `blocks` (K, 3), as pool_voxels merges it. A loop over
+    the blocks' members: numpy's gather of them took 13-22 ms for a stroke of 19,000 voxels at 200^3."""
     for b in range(blocks.shape[0]):
-        i0, j0, k0 = blocks[b, 0] * factors[0], blocks[b, 1] * factors[1], blocks[b, 2] * factors[2]
-        total = np.zeros(4, dtype=np.float32)
-        for k in range(k0, min(k0 + factors[2], n2)):
-            along_j = np.zeros(4, dtype=np.float32)
-            for j in range(j0, min(j0 + factors[1], n1)):
-                along_i = np.zeros(4, dtype=np.float32)
-                for i in range(i0, min(i0 + factors[0], n0)):
-                    occupied = rgba[i, j, k, 3] >= 0.5
-                    for c in range(3):
-                        along_i[c] += rgba[i, j, k, c] if occupied else zero
-                    along_i[3] += np.float32(1.0) if occupied else zero
-                along_j += along_i
-            total += along_j
-        mean = max(total[3], np.float32(1.0))
-        for c in range(3):
-            out[blocks[b, 0], blocks[b, 1], blocks[b, 2], c] = total[c] / mean
-        out[blocks[b, 0], blocks[b, 1], blocks[b, 2], 3] = np.float32(1.0) if total[3] > 0 else zero
+        _merge_block(rgba, blocks[b, 0], blocks[b, 1], blocks[b, 2], factors, out)
+
+
+@njit(cache=True, parallel=True)
+def _merge_all_blocks(rgba, factors, out):
+    """Every block's merge into `out` (pool_voxels), the block rows along axis 0 spread over the cores."""
+    for a in prange(out.shape[0]):
+        for b in range(out.shape[1]):
+            for c in range(out.shape[2]):
+                _merge_block(rgba, a, b, c, factors, out)
+
+
+@njit(cache=True, inline="always")
+def _merge_block(rgba, a, b, c, factors, out):
+    """out[a, b, c]: the occupied members' mean color and the block's occupancy, the float32 sums taken along axis 0,
+    then 1, then 2 (one order, so a block merged again after paint equals the first merge bit for bit)."""
+    n0, n1, n2 = rgba.shape[0], rgba.shape[1], rgba.shape[2]
+    i0, j0, k0 = a * factors[0], b * factors[1], c * factors[2]
+    zero = np.float32(0.0)
+    total_r = total_g = total_b = total_n = zero
+    for k in range(k0, min(k0 + factors[2], n2)):
+        along_j_r = along_j_g = along_j_b = along_j_n = zero
+        for j in range(j0, min(j0 + factors[1], n1)):
+            along_i_r = along_i_g = along_i_b = along_i_n = zero
+            for i in range(i0, min(i0 + factors[0], n0)):
+                if rgba[i, j, k, 3] >= 0.5:
+                    along_i_r += rgba[i, j, k, 0]
+                    along_i_g += rgba[i, j, k, 1]
+                    along_i_b += rgba[i, j, k, 2]
+                    along_i_n += np.float32(1.0)
+            along_j_r += along_i_r
+            along_j_g += along_i_g
+            along_j_b += along_i_b
+            along_j_n += along_i_n
+        total_r += along_j_r
+        total_g += along_j_g
+        total_b += along_j_b
+        total_n += along_j_n
+    mean = max(total_n, np.float32(1.0))
+    out[a, b, c, 0] = total_r / mean
+    out[a, b, c, 1] = total_g / mean
+    out[a, b, c, 2] = total_b / mean
+    out[a, b, c, 3] = np.float32(1.0) if total_n > 0 else zero
 
 
 def colors_and_changes(rgba: np.ndarray, voxels: np.ndarray, before: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -162,18 +182,6 @@ def _gather_changes(table, voxels, before, rows, changed):
             changed[count] = voxels[n]
             count += 1
     return count
-
-
-def _sum_blocks(values: np.ndarray, f: int, axis: int) -> np.ndarray:
-    """Sums of consecutive runs of f entries along `axis` (the last run may be shorter)."""
-    if f == 1:
-        return values
-    along = np.moveaxis(values, axis, 0)
-    total = along[0::f].copy()
-    for k in range(1, f):
-        part = along[k::f]
-        total[: len(part)] += part
-    return np.moveaxis(total, 0, axis)
 
 
 def voxel_table(pooled: np.ndarray, floor_color: tuple[float, float, float]) -> np.ndarray:

@@ -129,6 +129,29 @@ def test_pool_voxels_by_hand():
     np.testing.assert_allclose(uneven[0, 0, 0], [1.0, 0.0, 0.0, 1.0])
 
 
+@pytest.mark.parametrize("factors", [(2, 2, 2), (3, 1, 4), (1, 2, 1), (5, 5, 5)])
+def test_pool_voxels_equals_block_means(factors):
+    # The reference pads each axis to whole blocks and averages each block's occupied members in float64: the
+    # merge must agree to float32 rounding, count its partial last blocks, and be occupied where any member is.
+    rng = np.random.default_rng(7)
+    rgba = np.zeros((13, 11, 9, 4), dtype=np.float32)
+    occupied = rng.random(rgba.shape[:3]) < 0.3
+    rgba[occupied] = np.concatenate([rng.random((occupied.sum(), 3)), np.ones((occupied.sum(), 1))], axis=1)
+    rgba[~occupied, :3] = rng.random(((~occupied).sum(), 3))  # colors of empty voxels must not count
+    blocks = [-(-n // f) for n, f in zip(rgba.shape[:3], factors)]
+    padded_colors = np.zeros((*(b * f for b, f in zip(blocks, factors)), 3))
+    padded_occupied = np.zeros(padded_colors.shape[:3])
+    padded_colors[:13, :11, :9] = rgba[..., :3] * occupied[..., None]
+    padded_occupied[:13, :11, :9] = occupied
+    shape = (blocks[0], factors[0], blocks[1], factors[1], blocks[2], factors[2])
+    count = padded_occupied.reshape(shape).sum(axis=(1, 3, 5))
+    total = padded_colors.reshape(*shape, 3).sum(axis=(1, 3, 5))
+    pooled = pool_voxels(rgba, factors)
+    assert pooled.shape == (*blocks, 4) and pooled.dtype == np.float32
+    np.testing.assert_array_equal(pooled[..., 3], (count > 0).astype(np.float32))
+    np.testing.assert_allclose(pooled[..., :3], total / np.maximum(count, 1)[..., None], rtol=1e-6, atol=1e-7)
+
+
 @pytest.mark.parametrize("scale", [0.75, 1.0, 1.25])
 def test_resampled_thin_shell_stays_closed(scale):
     # At resolution 64 an object voxel is thinner than a grid voxel; plain nearest sampling

@@ -489,17 +489,24 @@ def test_a_loader_worker_prepares_the_very_batches_of_the_training_process(data,
 
 
 def test_the_voxel_cache_is_bounded_in_bytes_and_keeps_the_latest_object(tmp_path):
-    """Object voxels read for samples are kept up to a byte budget (at 200^3 one object is 128 MB), the latest always."""
+    """Object voxels read for samples are kept as their non-empty voxels up to a byte budget (at 200^3 one object is
+    128 MB dense), the latest always; an object given again from the cache equals its file."""
     from renderer.voxels import load_voxels
 
     first = make_fake_dataset(tmp_path / "a", samples=2, resolution=16)
     second = make_fake_dataset(tmp_path / "b", samples=2, resolution=16, seed=1)
-    one_object = 16**3 * 4 * 4
-    dataset = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=one_object)
+    files = {index: load_voxels(VoxelRenderSet([first, second], grid_size=16).scene(index).voxels_path()) for index in (0, 2)}
+    assert 0 < (files[0][..., 3] > 0).sum() < 16**3  # not all empty nor all full: the compact form is exercised
+    stored = (files[0].reshape(-1, 4).any(axis=1)).sum() * (4 * 4 + 8)  # rows and their flat indices
+    dataset = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=stored)
     for index in (0, 2, 1):
-        np.testing.assert_array_equal(dataset.object_voxels(index), load_voxels(dataset.scene(index).voxels_path()))
+        np.testing.assert_array_equal(dataset.object_voxels(index), files[index // 2 * 2])
         assert list(dataset._voxels) == [str(dataset.scene(index).voxels_path())]
-    roomy = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=2 * one_object)
-    for index in (0, 2, 1):
-        roomy.object_voxels(index)
-    assert len(roomy._voxels) == 2 and roomy.object_voxels(1) is roomy.object_voxels(0)  # one object, read once
+    roomy = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=2 * 16**3 * 4 * 4)
+    reads = []
+    read = roomy._load_voxels
+    roomy._load_voxels = lambda path: reads.append(path) or read(path)
+    for index in (0, 2, 1, 0):  # the first object again, rebuilt from the cache, not read
+        np.testing.assert_array_equal(roomy.object_voxels(index), files[index // 2 * 2])
+    assert len(reads) == 2
+    assert len(roomy._voxels) == 2 and roomy.object_voxels(1) is roomy.object_voxels(0)  # the latest kept dense

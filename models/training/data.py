@@ -2,8 +2,8 @@
 
 Each sample gives the network's three inputs and its target, in the convention of models/networks/nvr.py:
 voxels (4, D, H, W) in [0, 1], light (3,) in camera coordinates (scaled), splat (3, S, S) and
-target (3, S, S) in sRGB [0, 1]. Object voxels are read once per object and kept; the scene grid
-is resampled per sample (tens of milliseconds), which is cheap next to a training step.
+target (3, S, S) in sRGB [0, 1]. Object voxels are read once per object and kept (their non-empty voxels); the
+scene grid and the shader's buffers are made anew per sample.
 """
 
 from __future__ import annotations
@@ -52,9 +52,26 @@ def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size
     return voxels, light
 
 
-# Object voxels a data set keeps in memory per process (the latest object always): 128 objects at 100^3, 16 at
-# 200^3 (128 MB each). A count of 256 would allow 32 GB at 200^3; an evaluation of 60 such objects reached 7 GB.
+# Object voxels a data set keeps in memory per process, as their non-empty voxels (the latest object always): at
+# 200^3 an object is 128 MB dense but 4-10 MB stored so, and the 126 objects of three 42-object sets fit; kept dense,
+# only 16 did, and a training sample waited 1.3 s for its object's file most of the time.
 VOXEL_CACHE_BYTES = 2 * 2**30
+
+
+class _StoredVoxels:
+    """Object voxels (N, N, N, 4) kept as the flat indices and rows of their non-empty voxels; `dense()` rebuilds them."""
+
+    def __init__(self, rgba: np.ndarray):
+        rows = rgba.reshape(-1, 4)
+        self.shape = rgba.shape
+        self.flat = np.flatnonzero(rows.any(axis=1)).astype(np.int64)
+        self.rows = rows[self.flat]
+        self.nbytes = self.flat.nbytes + self.rows.nbytes
+
+    def dense(self) -> np.ndarray:
+        rgba = np.zeros(self.shape, dtype=self.rows.dtype)
+        rgba.reshape(-1, 4)[self.flat] = self.rows
+        return rgba
 
 
 class VoxelRenderSet(Dataset):
@@ -87,12 +104,13 @@ class VoxelRenderSet(Dataset):
         self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
         self.shading_grid_size = grid_size * shading_grid_factor  # the grid the shader draws from
         self._voxel_cache_bytes = voxel_cache_bytes
-        self._voxels: OrderedDict[str, np.ndarray] = OrderedDict()  # the objects read last, by voxel file
+        self._voxels: OrderedDict[str, _StoredVoxels] = OrderedDict()  # the objects read last, by voxel file
+        self._dense: tuple[str, np.ndarray] | None = None  # the latest object's voxels, dense (views come in runs)
 
     def __getstate__(self) -> dict:
         """For a loader worker process: everything but the voxel cache (each process keeps its own)."""
         state = dict(self.__dict__)
-        state["_voxels"] = OrderedDict()
+        state["_voxels"], state["_dense"] = OrderedDict(), None
         return state
 
     def check_samples(self, image_size: int) -> None:
@@ -127,15 +145,19 @@ class VoxelRenderSet(Dataset):
         return rgba
 
     def object_voxels(self, index: int) -> np.ndarray:
-        """The object voxels (N, N, N, 4) of a sample (cached per object)."""
+        """The object voxels (N, N, N, 4) of a sample (read once per object while the cache holds it)."""
         path = str(self.scene(index).voxels_path())
+        if self._dense is not None and self._dense[0] == path:
+            return self._dense[1]
         if path in self._voxels:
             self._voxels.move_to_end(path)
-            return self._voxels[path]
-        rgba = self._load_voxels(path)
-        self._voxels[path] = rgba
-        while len(self._voxels) > 1 and sum(v.nbytes for v in self._voxels.values()) > self._voxel_cache_bytes:
-            self._voxels.popitem(last=False)
+            rgba = self._voxels[path].dense()
+        else:
+            rgba = self._load_voxels(path)
+            self._voxels[path] = _StoredVoxels(rgba)
+            while len(self._voxels) > 1 and sum(v.nbytes for v in self._voxels.values()) > self._voxel_cache_bytes:
+                self._voxels.popitem(last=False)
+        self._dense = (path, rgba)
         return rgba
 
     def __len__(self) -> int:
