@@ -6,6 +6,9 @@ Run from the repository root:
     python -m benchmarks.true_colors data/novel30_textured_r200 --out data/true_novel30_textured_r200
     nvr eval --data data/true_novel30_textured_r200 --renderer nvr+ --report R
 
+`--true-on seen` (or `hidden`) gives only the voxels the source photo shows (or the others) the mesh's colors and
+keeps the photo's on the rest: which of the two the error comes from.
+
 Targets and source photos are hard links; voxels and splats are remade (the mesh from the record's category and
 seeds, as `nvr data recolor` remakes it). Rerun to resume. Prints per object the mean squared voxel color error
 (0-255) of the photo coloring on visible and on hidden voxels, and its mean signed error on visible ones (a bias
@@ -29,9 +32,12 @@ from renderer.scene import scene_from_dict
 from renderer.splat import splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
+TRUE_ON = ("all", "seen", "hidden")  # which voxels take the mesh's colors
 
-def true_color_copy(source: Path, out: Path) -> None:
-    """`out`: `source` with every object's voxels colored by its mesh, splats redrawn from them."""
+
+def true_color_copy(source: Path, out: Path, true_on: str = "all") -> None:
+    """`out`: `source` with the `true_on` voxels of every object colored by its mesh (the rest keep the photo's),
+    splats redrawn from them."""
     config = load_json(source / "config.json").get("config", {})
     resolution = int(config.get("resolution", 0))
     if config.get("setting") == "single":
@@ -46,7 +52,10 @@ def true_color_copy(source: Path, out: Path) -> None:
         record = load_json(record_file)
         obj = record["object"]
         truth = _voxelised_again(obj, resolution)
-        _print_color_error(record_file.stem, obj, truth, source)
+        visible = _print_color_error(record_file.stem, obj, truth, source)
+        if true_on != "all":
+            photo_colored = load_voxels(source / obj["voxels"])
+            truth = np.where((visible if true_on == "seen" else ~visible)[..., None], truth, photo_colored)
         save_voxels(out / obj["voxels"], truth)
         for rel in [obj["source_image"], obj["source_camera"]] + [s["target"] for s in record["samples"]]:
             _link_or_copy(source / rel, out / rel)
@@ -57,8 +66,9 @@ def true_color_copy(source: Path, out: Path) -> None:
     shutil.copyfile(source / "manifest.json", out / "manifest.json")
 
 
-def _print_color_error(name: str, obj: dict, truth: np.ndarray, source: Path) -> None:
-    """The photo coloring of `truth`'s occupancy (as the data set made it) against `truth`'s colors."""
+def _print_color_error(name: str, obj: dict, truth: np.ndarray, source: Path) -> np.ndarray:
+    """The photo coloring of `truth`'s occupancy (as the data set made it) against `truth`'s colors; returns the
+    voxels the photo shows."""
     pose = load_pose(source / obj["source_camera"])
     albedo, known = photo_albedo(load_image(source / obj["source_image"])[0],
                                  lit_photo_scene(pose, tuple(obj["floor_color"])), truth)
@@ -75,17 +85,20 @@ def _print_color_error(name: str, obj: dict, truth: np.ndarray, source: Path) ->
     shape = obj.get("params", {}).get("shape", obj.get("category", "?"))
     print(f"{name}  {shape}  {int(visible.sum())}  {squared[visible].mean() if visible.any() else 0:.0f}  "
           f"{squared[hidden].mean() if hidden.any() else 0:.0f}  ({', '.join(f'{b:.1f}' for b in bias)})", flush=True)
+    return colored.visible
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("source", type=Path, help="a photo-colored data set (default or textured setting)")
     parser.add_argument("--out", type=Path, required=True, help="the copy with the mesh's colors")
+    parser.add_argument("--true-on", choices=TRUE_ON, default="all",
+                        help="the voxels that take the mesh's colors: all, those the source photo shows, or the others")
     args = parser.parse_args()
     if args.source.resolve() == args.out.resolve():
         raise SystemExit("give another --out folder: the data set is copied, not changed")
     try:
-        true_color_copy(args.source, args.out)
+        true_color_copy(args.source, args.out, args.true_on)
     except InputError as exc:
         raise SystemExit(str(exc)) from None
 
