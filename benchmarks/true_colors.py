@@ -52,7 +52,7 @@ def true_color_copy(source: Path, out: Path, true_on: str = "all") -> None:
         record = load_json(record_file)
         obj = record["object"]
         truth = _voxelised_again(obj, resolution)
-        visible = _print_color_error(record_file.stem, obj, truth, source)
+        visible = _photo_coloring_visibility(record_file.stem, obj, truth, source)
         if true_on != "all":
             photo_colored = load_voxels(source / obj["voxels"])
             truth = np.where((visible if true_on == "seen" else ~visible)[..., None], truth, photo_colored)
@@ -66,9 +66,9 @@ def true_color_copy(source: Path, out: Path, true_on: str = "all") -> None:
     shutil.copyfile(source / "manifest.json", out / "manifest.json")
 
 
-def _print_color_error(name: str, obj: dict, truth: np.ndarray, source: Path) -> np.ndarray:
-    """The photo coloring of `truth`'s occupancy (as the data set made it) against `truth`'s colors; returns the
-    voxels the photo shows."""
+def _photo_coloring_visibility(name: str, obj: dict, truth: np.ndarray, source: Path) -> np.ndarray:
+    """The voxels the source photo shows, coloring `truth`'s occupancy from it as the data set did; prints that
+    coloring's error against `truth`'s colors."""
     pose = load_pose(source / obj["source_camera"])
     albedo, known = photo_albedo(load_image(source / obj["source_image"])[0],
                                  lit_photo_scene(pose, tuple(obj["floor_color"])), truth)
