@@ -272,6 +272,9 @@ def cmd_turntable(args: argparse.Namespace) -> None:
 # renderer.photo.HIDDEN_RULES, written out: importing renderer.photo here would add 0.2-0.3 s to every command;
 # DataConfig.check refuses a rule it does not know, so the two cannot drift silently.
 HIDDEN_VOXEL_RULES = ("blend", "ray")
+DELIGHT_SHADERS = ("path traced", "object voxels")  # renderer.dataset.DELIGHT_SHADERS that can still be made
+DELIGHT_HELP = ("how the source photo's light is divided out: two path-traced renders of the mesh (default), or the "
+                "voxel shader's light (the shipped models' training sets)")
 
 
 def cmd_data_generate(args: argparse.Namespace) -> None:
@@ -281,7 +284,7 @@ def cmd_data_generate(args: argparse.Namespace) -> None:
         setting=args.setting, split=args.split, objects=args.objects, views=args.views, size=args.size,
         spp=args.spp, denoise=not args.no_denoise, seed=args.seed,
         categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), resolution=args.res,
-        delight=not args.no_delight, hidden_rule=args.hidden_voxels,
+        delight=not args.no_delight, hidden_rule=args.hidden_voxels, delight_shader=args.delight_shader,
     )
     manifest = generate_dataset(args.out, config, shard=parse_shard(args.shard), workers=args.workers)
     print(f"wrote {manifest}")
@@ -291,7 +294,7 @@ def cmd_data_recolor(args: argparse.Namespace) -> None:
     from renderer.dataset import recolor_dataset
 
     manifest = recolor_dataset(args.data, args.out, workers=args.workers, hidden_rule=args.hidden_voxels,
-                               resolution=args.res)
+                               resolution=args.res, delight_shader=args.delight_shader)
     print(f"wrote {manifest}")
 
 
@@ -483,6 +486,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
                    help="voxels the source photo does not show: a blend of the colors seen around them, or the "
                         "paper's first voxel on the camera ray")
+    p.add_argument("--delight-shader", choices=DELIGHT_SHADERS, default=DELIGHT_SHADERS[0], help=DELIGHT_HELP)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--categories", default="chair",
                    help="comma-separated object categories: chair, table, sofa, stool, solids (random assemblies, "
@@ -503,6 +507,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=1, help="parallel processes")
     p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
                    help="the rule for voxels the source photo does not show (as for generate)")
+    p.add_argument("--delight-shader", choices=DELIGHT_SHADERS, default=DELIGHT_SHADERS[0], help=DELIGHT_HELP)
     p.add_argument("--res", type=int, default=None,
                    help="voxelise every object anew at this many voxels per side (its mesh remade from its record; "
                         "no path tracing); default: keep the set's voxels")

@@ -61,7 +61,7 @@ SPLITS = ("train", "test")
 TEST_ELEVATION_RANGE = (15.0, 45.0)
 TEST_ROTATION_STEP_DEG = 10.0
 FACING_ROTATION_RANGE = (-90.0, 90.0)  # the half of all rotations that faces the camera
-DELIGHT_SHADERS = ("object voxels", "camera grid")  # DataConfig.delight_shader: today's first
+DELIGHT_SHADERS = ("path traced", "object voxels", "camera grid")  # DataConfig.delight_shader: today's first
 
 
 @dataclass(frozen=True)
@@ -80,9 +80,10 @@ class DataConfig:
     resolution: int = DEFAULT_RESOLUTION
     delight: bool = True  # photo-colored voxels carry the source photo's colors with its light divided out
     hidden_rule: str = "blend"  # how photo coloring colors voxels the photo does not show (renderer.photo.HIDDEN_RULES)
-    # The voxel shader that divided the light out: its light is what is divided, so a set follows the shader it was
-    # made with. "object voxels": today's; "camera grid": before the shader drew the object's own voxels.
-    delight_shader: str = "object voxels"
+    # What the light divided out was computed with (a set's colors follow it): "path traced", renders of the mesh
+    # (renderer.photo.unmixed_albedo); "object voxels", the voxel shader (photo_albedo); "camera grid", the voxel
+    # shader before it drew the object's own voxels (no longer made).
+    delight_shader: str = "path traced"
 
     def check(self) -> None:
         """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
@@ -264,7 +265,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     from renderer.capture.pose import PhotoPose
     from renderer.objects import apply_appearance, generate_object, split_seeds
     from renderer.pathtrace.path_tracer import render_pathtraced
-    from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, photo_albedo
+    from renderer.photo import color_voxels_from_photo, is_mirror_symmetric
     from renderer.splat import splat_scene
     from renderer.transform import object_to_world
     from renderer.voxels import save_voxels, voxelize
@@ -294,7 +295,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         mirror = bool(is_mirror_symmetric(rgba[..., 3] > 0.5))
         photo, trusted = source.image, None
         if config.delight:
-            photo, trusted = photo_albedo(source.image, source_scene, rgba)
+            photo, trusted = _divided_light(source.image, source_scene, rgba, mesh, config.delight_shader, index)
         rgba = color_voxels_from_photo(
             rgba, object_to_world(source_scene.object), photo, source_camera, mirror=mirror, trusted=trusted,
             hidden_rule=config.hidden_rule).rgba
@@ -321,6 +322,18 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
                    "params": labeled.params},
         "samples": samples,
     }
+
+
+def _divided_light(photo: np.ndarray, scene: Scene, rgba: np.ndarray, mesh, delight_shader: str,
+                   seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """The photo's albedo and where it is known, the light divided out as `delight_shader` says (DataConfig)."""
+    from renderer.photo import photo_albedo, unmixed_albedo
+
+    if delight_shader == "path traced":
+        return unmixed_albedo(photo, scene, mesh, seed=seed)
+    if delight_shader == "object voxels":
+        return photo_albedo(photo, scene, rgba)
+    raise InputError(f"photo colors divided by the {delight_shader!r} shader can no longer be made")
 
 
 def parse_shard(text: str | None) -> tuple[int, int]:
@@ -383,10 +396,11 @@ def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_o
 
 
 def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True,
-                    hidden_rule: str = "blend", resolution: int | None = None) -> Path:
+                    hidden_rule: str = "blend", resolution: int | None = None,
+                    delight_shader: str = DELIGHT_SHADERS[0]) -> Path:
     """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, another
-    hidden_rule, or an older shader), as generation makes them with `hidden_rule`: photo-colored voxels recolored from their
-    source photos with the light divided out, splats redrawn from them. `resolution`: voxelise every object anew at
+    hidden_rule or delight_shader), as generation makes them with `hidden_rule` and `delight_shader`: photo-colored
+    voxels recolored from their source photos with the light divided out, splats redrawn from them. `resolution`: voxelise every object anew at
     that many voxels per side (its mesh remade from the record's category and seeds, as generation made it), so a set
     moves to finer voxels without path tracing again. Targets and source photos are hard links where the file system
     allows (else copies); rerun to resume. Returns the manifest path."""
@@ -400,40 +414,48 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     if config is None:
         raise InputError("config.json does not describe a data set", source)
     stored_resolution = config.resolution
-    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=DELIGHT_SHADERS[0],
+    recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=delight_shader,
                                     resolution=config.resolution if resolution is None else resolution)
     recolored.check()
+    if delight_shader not in DELIGHT_SHADERS[:2]:
+        raise InputError(f"photo colors divided by the {delight_shader!r} shader can no longer be made")
     if recolored == config:
-        raise InputError(f"its photo colors are already made by these rules (light divided out by today's shader, "
+        raise InputError(f"its photo colors are already made by these rules (light divided out: {delight_shader}, "
                          f"hidden voxels {hidden_rule}, {config.resolution}^3 voxels)", source)
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
     config = recolored
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
-    revoxelise = config.resolution != stored_resolution
+    remake_mesh = config.resolution != stored_resolution or (config.setting != "single" and delight_shader == "path traced")
     for name in todo:  # every record readable before anything is written
-        _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json", revoxelise)
+        _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json", remake_mesh)
     prepare_folder(out, config)
     bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"recolor {source.name}")
-    jobs = [(str(source), str(out), name, config.hidden_rule, config.resolution) for name in todo]
+    jobs = [(str(source), str(out), name, config.hidden_rule, config.resolution, delight_shader) for name in todo]
     for _ in _run_jobs(jobs, workers, _recolor_one):
         bar.update(1)
     bar.close()
     return write_manifest(out, config)
 
 
-def _voxelised_again(obj: dict[str, Any], resolution: int) -> np.ndarray:
-    """A record's object voxelised at `resolution`: its mesh remade as generation made it (category, seed, appearance
-    seed and split), single-colored voxels painted its color (photo-colored ones are colored by the caller)."""
+def _remade_mesh(obj: dict[str, Any]):
+    """A record's object mesh (trimesh.Trimesh), remade as generation made it (category, seed, appearance seed and
+    split)."""
     from renderer.objects import apply_appearance, generate_object
-    from renderer.voxels import voxelize
 
     appearance = obj["appearance"]
     labeled = generate_object(obj["category"], int(obj["seed"]))
-    mesh, _, _ = apply_appearance(labeled, obj["setting"], int(appearance["seed"]), appearance["split"])
-    rgba = voxelize(mesh, resolution=resolution)
+    return apply_appearance(labeled, obj["setting"], int(appearance["seed"]), appearance["split"])[0]
+
+
+def _voxelised_again(obj: dict[str, Any], resolution: int, mesh=None) -> np.ndarray:
+    """A record's object voxelised at `resolution` (its mesh remade unless given), single-colored voxels painted its
+    color (photo-colored ones are colored by the caller)."""
+    from renderer.voxels import voxelize
+
+    rgba = voxelize(_remade_mesh(obj) if mesh is None else mesh, resolution=resolution)
     if obj["setting"] == "single":
-        color = np.asarray(appearance["color"], dtype=np.float32)
+        color = np.asarray(obj["appearance"]["color"], dtype=np.float32)
         rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, color, 0.0)
     return rgba
 
@@ -442,12 +464,12 @@ RECORD_OBJECT_KEYS = ("index", "setting", "floor_color", "voxels", "source_image
                       "mirror_symmetry_used")
 
 
-def _check_record(record: Any, path: Path, revoxelise: bool = False) -> None:
-    """InputError naming `path` unless the record holds what recoloring an object reads (and, to `revoxelise` it,
+def _check_record(record: Any, path: Path, remake_mesh: bool = False) -> None:
+    """InputError naming `path` unless the record holds what recoloring an object reads (and, with `remake_mesh`,
     what remaking its mesh reads)."""
     obj = record.get("object") if isinstance(record, dict) else None
     samples = record.get("samples") if isinstance(record, dict) else None
-    keys = RECORD_OBJECT_KEYS + (("category", "seed", "appearance") if revoxelise else ())
+    keys = RECORD_OBJECT_KEYS + (("category", "seed", "appearance") if remake_mesh else ())
     missing = [key for key in keys if not isinstance(obj, dict) or key not in obj]
     if missing or not isinstance(samples, list) or not all(
             isinstance(s, dict) and all(k in s for k in ("scene", "target", "splat")) for s in samples):
@@ -455,19 +477,19 @@ def _check_record(record: Any, path: Path, revoxelise: bool = False) -> None:
         raise InputError(f"not a data set record: it lacks {what}", path)
 
 
-def _recolor_one(args: tuple[str, str, str, str, int]) -> int:
+def _recolor_one(args: tuple[str, str, str, str, int, str]) -> int:
     """Recolor one object of a data set into `out` (see recolor_dataset); its record is written last."""
-    source, out, name, hidden_rule, resolution = Path(args[0]), Path(args[1]), args[2], args[3], args[4]
+    source, out, name, hidden_rule, resolution, delight_shader = Path(args[0]), Path(args[1]), *args[2:]
     try:
-        return _recolor_object(source, out, name, hidden_rule, resolution)
+        return _recolor_object(source, out, name, hidden_rule, resolution, delight_shader)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"a malformed record or camera file ({type(exc).__name__}: {exc})",
                          source / "records" / f"{name}.json") from None
 
 
-def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolution: int) -> int:
+def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolution: int, delight_shader: str) -> int:
     from renderer.capture.pose import lit_photo_scene, load_pose
-    from renderer.photo import color_voxels_from_photo, photo_albedo
+    from renderer.photo import color_voxels_from_photo
     from renderer.splat import splat_scene
     from renderer.voxels import load_voxels, save_voxels
 
@@ -475,10 +497,11 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
     obj = record["object"]
     floor_color = tuple(float(c) for c in obj["floor_color"])
     rgba = load_voxels(source / obj["voxels"])
-    revoxelise = rgba.shape[0] != resolution
-    if revoxelise:
-        rgba = _voxelised_again(obj, resolution)
     recolor = obj["setting"] != "single"
+    revoxelise = rgba.shape[0] != resolution
+    mesh = _remade_mesh(obj) if revoxelise or (recolor and delight_shader == "path traced") else None
+    if revoxelise:
+        rgba = _voxelised_again(obj, resolution, mesh)
     if recolor:
         camera_file = source / obj["source_camera"]
         pose = load_pose(camera_file)
@@ -487,7 +510,7 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
         except InputError as exc:
             raise InputError(exc.problem, camera_file) from None
         photo = load_image(source / obj["source_image"])[0]
-        albedo, known = photo_albedo(photo, source_scene, rgba)
+        albedo, known = _divided_light(photo, source_scene, rgba, mesh, delight_shader, int(obj["index"]))
         rgba = color_voxels_from_photo(rgba, pose.object_to_world(), albedo, pose.camera,
                                        mirror=bool(obj["mirror_symmetry_used"]), trusted=known,
                                        hidden_rule=hidden_rule).rgba

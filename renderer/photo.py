@@ -18,13 +18,21 @@ takes one of two rules:
   voxel's. Kept for data sets made with it.
 
 A photo shows color times light. When the photo's light is known (the data generator's source images,
-a capture with the light given), `photo_albedo` divides out the light the voxel shader computes for the
-object under it, so that the voxels carry albedo, as mesh colors and paint do, rather than a shading the
-renderers would apply a second time.
+a capture with the light given), the light is divided out, so that the voxels carry albedo, as mesh colors and
+paint do, rather than a shading the renderers would apply a second time:
+- `unmixed_albedo`, with the object's mesh: a pixel of a diffuse object's photo is, to first order, linear in the
+  object's albedo, photo = base + albedo * slope. Two path-traced renders of the mesh, black and grey, give the
+  base (the floor's share of a silhouette pixel, its reflection) and the slope (the light the object receives, its
+  shadows and the light between its parts, exactly as the target images have them).
+- `photo_albedo`, from the voxels alone: the light the voxel shader computes for the object under it (its shadows
+  and bounce light are approximate, and pixels it does not cover fully are not used).
+On the generalisation set's textured photos the first halves the color error on the voxels the photo shows
+(docs/results.md).
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
@@ -46,6 +54,10 @@ MIRROR_IOU_THRESHOLD = 0.9
 # (deep shadow, where the photo holds little but noise) or that are not fully covered keep no color of their own.
 SHADING_GREY = 0.5
 MIN_SHADING = 0.02
+# Unmixing with path-traced renders: samples per pixel of each (denoised, as the data's photos are), and the least
+# slope (the light a white object would send back) at which a pixel's albedo is trusted.
+UNMIX_SPP = 16
+MIN_SLOPE = 0.05
 HIDDEN_RULES = ("blend", "ray")  # how voxels the photo does not show well are colored (see the module docstring)
 # The blend's Gaussians, in voxels: the narrowest whose weight of well-seen voxels reaches HIDDEN_MIN_WEIGHT
 # colors a voxel (a plane of well-seen voxels reaches it from 3.3 voxels away at 1.5, 6 at 3, ...); the widest
@@ -177,15 +189,43 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     shaded = shade_scene(scene, grey, scene.floor.color, cover_behind=False)
     shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
     known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
-    albedo = srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING)
-    if known.any() and not known.all():  # the nearest known albedo elsewhere: bilinear reads beside a known pixel
+    return _albedo_image(srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING), known), known
+
+
+def unmixed_albedo(photo_rgb: np.ndarray, scene: Scene, mesh, spp: int = UNMIX_SPP, seed: int = 0
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """A photo taken by `scene`'s camera of `mesh` (object coordinates, a trimesh.Trimesh), placed and lit as in
+    `scene`, with the light unmixed: the albedo (H, W, 3) sRGB in [0, 1], and (H, W) bool where it is known (the
+    object sends back at least MIN_SLOPE of the light and the photo did not clip), solving photo = base + albedo *
+    slope per pixel from two path-traced renders of the mesh, black and grey. Elsewhere as photo_albedo."""
+    from renderer.pathtrace.path_tracer import PathTracer, denoise_layers  # Mitsuba: loaded only when used
+
+    camera = Camera.from_scene(scene)
+    photo = _check_photo(photo_rgb, camera)
+
+    def render(albedo_linear: float) -> np.ndarray:
+        srgb = float(linear_to_srgb(albedo_linear))
+        colored = replace(scene, object=replace(scene.object, color=(srgb, srgb, srgb)))
+        return denoise_layers(PathTracer(colored, mesh).render_layers(spp, seed)).astype(np.float64)
+
+    base = render(0.0)
+    slope = (render(SHADING_GREY) - base) / SHADING_GREY
+    known = (slope.min(axis=2) >= MIN_SLOPE) & (photo.max(axis=2) < 1.0)
+    return _albedo_image((srgb_to_linear(photo) - base) / np.maximum(slope, MIN_SLOPE), known), known
+
+
+def _albedo_image(albedo_linear: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """sRGB float32 albedo in [0, 1] where `known`; elsewhere the nearest known pixel's (bilinear reads beside a
+    known pixel then mix no unknown one), 0 if none is known."""
+    albedo = albedo_linear
+    if known.any() and not known.all():
         from scipy import ndimage
 
         nearest = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
         albedo = albedo[nearest[0], nearest[1]]
     elif not known.any():
         albedo = np.zeros_like(albedo)
-    return np.clip(linear_to_srgb(np.clip(albedo, 0.0, 1.0)), 0.0, 1.0).astype(np.float32), known
+    return np.clip(linear_to_srgb(np.clip(albedo, 0.0, 1.0)), 0.0, 1.0).astype(np.float32)
 
 
 def _trusted_sources(source: np.ndarray, visible: np.ndarray, occupied: np.ndarray, matrix: np.ndarray, camera: Camera,

@@ -1,5 +1,5 @@
-"""Dividing a photo's light out (renderer.photo.photo_albedo): photos whose albedo is known, drawn by the voxel
-shader and by the path tracer, give it back; dark, empty and odd inputs stay finite."""
+"""Dividing a photo's light out (renderer.photo.photo_albedo, unmixed_albedo): photos whose albedo is known, drawn by
+the voxel shader and by the path tracer, give it back; dark, empty and odd inputs stay finite."""
 
 from dataclasses import replace
 
@@ -12,7 +12,7 @@ from renderer.capture.pose import pose_from_dict
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
 from renderer.pathtrace.path_tracer import render_pathtraced
-from renderer.photo import photo_albedo
+from renderer.photo import photo_albedo, unmixed_albedo
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 from renderer.shading.shader import shade_scene
 from renderer.voxels import voxelize
@@ -67,6 +67,57 @@ def test_a_path_traced_photo_of_a_grey_box_gives_back_its_albedo():
     assert known.sum() > 200
     found = np.median(srgb_to_linear(albedo[known].astype(np.float64)), axis=0)
     np.testing.assert_allclose(found, srgb_to_linear(np.float64(grey)), rtol=0.1)
+
+
+def two_colored_boxes() -> trimesh.Trimesh:
+    """Two boxes side by side on the floor, RED and BLUE, the blue one taller (it shadows the red one's side)."""
+    red = trimesh.creation.box([0.3, 0.4, 0.5])
+    red.apply_translation([-0.16, 0.2, 0.0])
+    red.visual.vertex_colors = [*(round(255 * c) for c in RED), 255]
+    blue = trimesh.creation.box([0.3, 0.7, 0.5])
+    blue.apply_translation([0.16, 0.35, 0.0])
+    blue.visual.vertex_colors = [*(round(255 * c) for c in BLUE), 255]
+    return trimesh.util.concatenate([red, blue])
+
+
+def test_unmixing_a_path_traced_photo_gives_back_each_albedo():
+    """The photo is the path tracer's, of the mesh in its own colors; the unmixing sees only black and grey renders.
+    Every known pixel's albedo is one of the two colors, or a mix of them where a pixel holds both, in shadow and at
+    the silhouette too, within the noise of 64 samples per pixel, denoised (largest where the light is faint): closer
+    than the voxel shader's light gets, on more pixels."""
+    mesh = two_colored_boxes()
+    scene = photo_scene(mesh="boxes.obj")
+    photo = render_pathtraced(scene, mesh, spp=64, seed=5, denoise=True).image
+    red, blue = srgb_to_linear(np.array([RED, BLUE], dtype=np.float64))
+
+    def off_the_two_colors(albedo: np.ndarray) -> np.ndarray:  # linear distance to the segment from red to blue
+        found = srgb_to_linear(albedo.astype(np.float64))
+        share = np.clip(((found - red) @ (blue - red)) / ((blue - red) @ (blue - red)), 0.0, 1.0)
+        return np.abs(found - (red + share[:, None] * (blue - red))).max(axis=1)
+
+    albedo, known = unmixed_albedo(photo, scene, mesh, spp=64, seed=5)
+    error = off_the_two_colors(albedo[known])
+    assert known.sum() > 300
+    assert np.median(error) < 0.015 and np.quantile(error, 0.9) < 0.08
+    found = srgb_to_linear(albedo[known].astype(np.float64))
+    assert (np.abs(found - red).max(axis=1) < 0.02).sum() > 50 and (np.abs(found - blue).max(axis=1) < 0.02).sum() > 50
+    shader_albedo, shader_known = photo_albedo(photo, scene, voxelize(mesh, resolution=50))
+    assert known.sum() > 1.2 * shader_known.sum()
+    assert np.median(off_the_two_colors(shader_albedo[shader_known])) > 2 * np.median(error)
+
+
+@pytest.mark.parametrize("case", ["black photo", "white photo", "light outside its box", "grazing camera"])
+def test_unmixing_hard_cases_give_finite_albedo(case):
+    mesh = two_colored_boxes()
+    scene = photo_scene(mesh="boxes.obj", light=(9.0, 0.3, -9.0) if case == "light outside its box" else (0.6, 2.6, 0.4),
+                        elevation=0.0 if case == "grazing camera" else 30.0, size=32)
+    photo = np.full((32, 32, 3), 1.0 if case == "white photo" else 0.0, dtype=np.float32)
+    albedo, known = unmixed_albedo(photo, scene, mesh, spp=4)
+    assert np.all(np.isfinite(albedo)) and albedo.min() >= 0.0 and albedo.max() <= 1.0
+    if case == "black photo":
+        assert np.all(albedo == 0.0)
+    if case == "white photo":
+        assert not known.any()  # clipped everywhere: no pixel says how bright the object is
 
 
 @pytest.mark.parametrize("case", ["empty", "black photo", "light outside its box", "grazing camera"])
@@ -126,6 +177,24 @@ def test_capture_divides_out_the_light_its_camera_file_names():
     off, note = captured_colors(photo, zoomed, rgba)
     assert "not the scene camera" in note
     np.testing.assert_array_equal(off, captured_colors(photo, replace(zoomed, light=None), rgba)[0])
+
+
+def test_capture_with_the_mesh_unmixes_the_light_from_a_path_traced_photo():
+    """With the object's mesh, capture divides the path tracer's light out: the voxels the photo shows get their own
+    box's color back (the mesh's colors, voxelised), closer than with the voxel shader's light (no mesh given)."""
+    mesh = two_colored_boxes()
+    rgba = voxelize(mesh, resolution=50)
+    light = (0.6, 2.6, 0.4)
+    pose = pose_from_dict({"elevation_deg": 30.0, "width": SIZE, "height": SIZE, "rotation_deg": 25.0,
+                           "light": list(light)})
+    scene = replace(photo_scene(light, mesh="boxes.obj"), floor=FloorSpec())  # capture knows no floor color
+    photo = render_pathtraced(scene, mesh, spp=64, seed=2, denoise=True).image
+    errors = []
+    for given in (mesh, None):
+        capture = capture_appearance(rgba, given, photo, None, pose, search=False)
+        seen = capture.visible & (rgba[..., 3] > 0.5)
+        errors.append(np.median(np.abs(capture.rgba[seen, :3] - rgba[seen, :3]).max(axis=1)))
+    assert errors[0] < 0.025 and errors[0] < 0.6 * errors[1]  # measured: 0.017 against 0.036
 
 
 @pytest.mark.parametrize("light", [[1.0, 2.0], [1.0, "up", 0.0], [1.0, float("nan"), 0.0]])

@@ -5,7 +5,8 @@ The pose comes from a camera file, from the automatic search (renderer/capture/a
 object's mask in the photo (renderer/capture/segment.py), or from both: the file's pose refined
 by the search. When the pose knows the photo's light and its camera is the scene camera (a square photo
 on the scene camera's orbit, as the data generator and the editor take them), the light is divided out of
-the colors (renderer.photo.photo_albedo), as the training data's are; otherwise they keep the photo's shading.
+the colors (renderer.photo.unmixed_albedo with the object's mesh, photo_albedo without), as the training data's are;
+otherwise they keep the photo's shading.
 """
 
 from __future__ import annotations
@@ -34,7 +35,13 @@ from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.limits import DEFAULT_RESOLUTION
-from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score, photo_albedo
+from renderer.photo import (
+    color_voxels_from_photo,
+    is_mirror_symmetric,
+    mirror_symmetry_score,
+    photo_albedo,
+    unmixed_albedo,
+)
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
@@ -209,8 +216,9 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     except InputError as exc:
         light_scene, light_note = None, f"{exc.problem}: colors keep its shading"
     try:
-        if light_scene is not None:
-            photo_rgb, known = photo_albedo(photo_rgb, light_scene, object_rgba)
+        if light_scene is not None:  # the mesh's path-traced light where there is a mesh (renderer/photo.py)
+            photo_rgb, known = (photo_albedo(photo_rgb, light_scene, object_rgba) if mesh is None
+                                else unmixed_albedo(photo_rgb, light_scene, mesh))
             trusted = known if trusted is None else trusted & known
         colors = color_voxels_from_photo(object_rgba, pose.object_to_world(), photo_rgb, pose.camera, mirror=mirror,
                                          trusted=trusted)
