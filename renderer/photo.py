@@ -196,8 +196,9 @@ def unmixed_albedo(photo_rgb: np.ndarray, scene: Scene, mesh, spp: int = UNMIX_S
                    ) -> tuple[np.ndarray, np.ndarray]:
     """A photo taken by `scene`'s camera of `mesh` (object coordinates, a trimesh.Trimesh), placed and lit as in
     `scene`, with the light unmixed: the albedo (H, W, 3) sRGB in [0, 1], and (H, W) bool where it is known (the
-    object sends back at least MIN_SLOPE of the light and the photo did not clip), solving photo = base + albedo *
-    slope per pixel from two path-traced renders of the mesh, black and grey. Elsewhere as photo_albedo."""
+    object sends back at least MIN_SLOPE of the light and the photo did not clip in every channel), solving
+    photo = base + albedo * slope per pixel from two path-traced renders of the mesh, black and grey. Elsewhere as
+    photo_albedo."""
     from renderer.pathtrace.path_tracer import PathTracer, denoise_layers  # Mitsuba: loaded only when used
 
     camera = Camera.from_scene(scene)
@@ -210,7 +211,9 @@ def unmixed_albedo(photo_rgb: np.ndarray, scene: Scene, mesh, spp: int = UNMIX_S
 
     base = render(0.0)
     slope = (render(SHADING_GREY) - base) / SHADING_GREY
-    known = (slope.min(axis=2) >= MIN_SLOPE) & (photo.max(axis=2) < 1.0)
+    # A channel that clipped still bounds its albedo from below, far closer than a neighbour's color (a bright
+    # orange's red clips under a strong light); a pixel that clipped in all three says nothing.
+    known = (slope.min(axis=2) >= MIN_SLOPE) & (photo.min(axis=2) < 1.0)
     return _albedo_image((srgb_to_linear(photo) - base) / np.maximum(slope, MIN_SLOPE), known), known
 
 

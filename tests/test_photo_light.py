@@ -104,6 +104,14 @@ def test_unmixing_a_path_traced_photo_gives_back_each_albedo():
     shader_albedo, shader_known = photo_albedo(photo, scene, voxelize(mesh, resolution=50))
     assert known.sum() > 1.2 * shader_known.sum()
     assert np.median(off_the_two_colors(shader_albedo[shader_known])) > 2 * np.median(error)
+    # A channel that clipped (a bright color under a strong light) keeps its pixels known, the clipped channel no
+    # darker than before; the other channels are unchanged.
+    clipped = photo.copy()
+    clipped[..., 0] = 1.0
+    albedo_clipped, known_clipped = unmixed_albedo(clipped, scene, mesh, spp=64, seed=5)
+    np.testing.assert_array_equal(known_clipped, known)
+    assert np.all(albedo_clipped[known, 0] >= albedo[known, 0])
+    np.testing.assert_array_equal(albedo_clipped[known, 1:], albedo[known, 1:])
 
 
 @pytest.mark.parametrize("case", ["black photo", "white photo", "light outside its box", "grazing camera"])
