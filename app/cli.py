@@ -510,7 +510,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--delight-shader", choices=DELIGHT_SHADERS, default=DELIGHT_SHADERS[0], help=DELIGHT_HELP)
     p.add_argument("--res", type=int, default=None,
                    help="voxelise every object anew at this many voxels per side (its mesh remade from its record; "
-                        "no path tracing); default: keep the set's voxels")
+                        "its targets kept); default: keep the set's voxels")
     p.set_defaults(func=cmd_data_recolor)
 
     p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")

@@ -400,10 +400,10 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
                     delight_shader: str = DELIGHT_SHADERS[0]) -> Path:
     """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, another
     hidden_rule or delight_shader), as generation makes them with `hidden_rule` and `delight_shader`: photo-colored
-    voxels recolored from their source photos with the light divided out, splats redrawn from them. `resolution`: voxelise every object anew at
-    that many voxels per side (its mesh remade from the record's category and seeds, as generation made it), so a set
-    moves to finer voxels without path tracing again. Targets and source photos are hard links where the file system
-    allows (else copies); rerun to resume. Returns the manifest path."""
+    voxels recolored from their source photos with the light divided out, splats redrawn from them. `resolution`:
+    voxelise every object anew at that many voxels per side (its mesh remade from the record's category and seeds, as
+    generation made it), so a set moves to finer voxels without rendering its targets again. Targets and source photos
+    are hard links where the file system allows (else copies); rerun to resume. Returns the manifest path."""
     from tqdm import tqdm
 
     source, out = Path(source), Path(out)
