@@ -272,7 +272,7 @@ def cmd_turntable(args: argparse.Namespace) -> None:
 # renderer.photo.HIDDEN_RULES, written out: importing renderer.photo here would add 0.2-0.3 s to every command;
 # DataConfig.check refuses a rule it does not know, so the two cannot drift silently.
 HIDDEN_VOXEL_RULES = ("blend", "ray")
-DELIGHT_SHADERS = ("path traced", "object voxels")  # renderer.dataset.DELIGHT_SHADERS that can still be made
+DELIGHT_SHADERS = ("path traced", "object voxels")  # renderer.dataset.MADE_DELIGHT_SHADERS, written out as above
 DELIGHT_HELP = ("how the source photo's light is divided out: two path-traced renders of the mesh (default), or the "
                 "voxel shader's light (the shipped models' training sets)")
 

@@ -12,7 +12,7 @@ keeps the photo's on the rest: which of the two the error comes from.
 Targets and source photos are hard links; voxels and splats are remade (the mesh from the record's category and
 seeds, as `nvr data recolor` remakes it). Rerun to resume. Prints per object the mean squared voxel color error
 (0-255) of the photo coloring on visible and on hidden voxels, and its mean signed error on visible ones (a bias
-there is the light division's, renderer.photo.photo_albedo).
+there is the light division's, made as the set's config says: renderer.dataset._divided_light).
 """
 
 from __future__ import annotations
@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from renderer.capture.pose import lit_photo_scene, load_pose
-from renderer.dataset import _link_or_copy, _voxelised_again
+from renderer.dataset import _divided_light, _link_or_copy, _remade_mesh, _voxelised_again
 from renderer.errors import InputError
 from renderer.io import load_image, load_json, save_json, save_png
-from renderer.photo import color_voxels_from_photo, photo_albedo
+from renderer.photo import color_voxels_from_photo
 from renderer.scene import scene_from_dict
 from renderer.splat import splat_scene
 from renderer.voxels import load_voxels, save_voxels
@@ -51,8 +51,10 @@ def true_color_copy(source: Path, out: Path, true_on: str = "all") -> None:
             continue
         record = load_json(record_file)
         obj = record["object"]
-        truth = _voxelised_again(obj, resolution)
-        visible = _photo_coloring_visibility(record_file.stem, obj, truth, source)
+        mesh = _remade_mesh(obj)
+        truth = _voxelised_again(obj, resolution, mesh)
+        visible = _photo_coloring_visibility(record_file.stem, obj, truth, mesh, source,
+                                             config.get("delight_shader", "object voxels"))
         if true_on != "all":
             photo_colored = load_voxels(source / obj["voxels"])
             truth = np.where((visible if true_on == "seen" else ~visible)[..., None], truth, photo_colored)
@@ -66,12 +68,14 @@ def true_color_copy(source: Path, out: Path, true_on: str = "all") -> None:
     shutil.copyfile(source / "manifest.json", out / "manifest.json")
 
 
-def _photo_coloring_visibility(name: str, obj: dict, truth: np.ndarray, source: Path) -> np.ndarray:
-    """The voxels the source photo shows, coloring `truth`'s occupancy from it as the data set did; prints that
-    coloring's error against `truth`'s colors."""
+def _photo_coloring_visibility(name: str, obj: dict, truth: np.ndarray, mesh, source: Path,
+                               delight_shader: str) -> np.ndarray:
+    """The voxels the source photo shows, coloring `truth`'s occupancy (of `mesh`) from it as the data set did
+    (its `delight_shader`); prints that coloring's error against `truth`'s colors."""
     pose = load_pose(source / obj["source_camera"])
-    albedo, known = photo_albedo(load_image(source / obj["source_image"])[0],
-                                 lit_photo_scene(pose, tuple(obj["floor_color"])), truth)
+    albedo, known = _divided_light(load_image(source / obj["source_image"])[0],
+                                   lit_photo_scene(pose, tuple(obj["floor_color"])), truth, mesh, delight_shader,
+                                   int(obj["index"]))
     colored = color_voxels_from_photo(truth, pose.object_to_world(), albedo, pose.camera,
                                       mirror=bool(obj["mirror_symmetry_used"]), trusted=known)
     stored = load_voxels(source / obj["voxels"])

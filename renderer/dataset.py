@@ -62,6 +62,7 @@ TEST_ELEVATION_RANGE = (15.0, 45.0)
 TEST_ROTATION_STEP_DEG = 10.0
 FACING_ROTATION_RANGE = (-90.0, 90.0)  # the half of all rotations that faces the camera
 DELIGHT_SHADERS = ("path traced", "object voxels", "camera grid")  # DataConfig.delight_shader: today's first
+MADE_DELIGHT_SHADERS = DELIGHT_SHADERS[:2]  # those a set can still be made with
 
 
 @dataclass(frozen=True)
@@ -102,8 +103,9 @@ class DataConfig:
         from renderer.photo import check_hidden_rule  # not at the top: it adds 0.2-0.3 s to importing this module
 
         check_hidden_rule(self.hidden_rule)
-        if self.delight_shader not in DELIGHT_SHADERS:
-            raise InputError(f"unknown delight shader {self.delight_shader!r} (choose from {', '.join(DELIGHT_SHADERS)})")
+        if self.delight_shader not in MADE_DELIGHT_SHADERS:
+            raise InputError(f"delight shader {self.delight_shader!r} is unknown or no longer made "
+                             f"(choose from {', '.join(MADE_DELIGHT_SHADERS)})")
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -326,14 +328,13 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
 
 def _divided_light(photo: np.ndarray, scene: Scene, rgba: np.ndarray, mesh, delight_shader: str,
                    seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """The photo's albedo and where it is known, the light divided out as `delight_shader` says (DataConfig)."""
+    """The photo's albedo and where it is known, the light divided out as `delight_shader` (one of
+    MADE_DELIGHT_SHADERS) says: with the mesh's path-traced light, or the voxel shader's for the voxels `rgba`."""
     from renderer.photo import photo_albedo, unmixed_albedo
 
     if delight_shader == "path traced":
         return unmixed_albedo(photo, scene, mesh, seed=seed)
-    if delight_shader == "object voxels":
-        return photo_albedo(photo, scene, rgba)
-    raise InputError(f"photo colors divided by the {delight_shader!r} shader can no longer be made")
+    return photo_albedo(photo, scene, rgba)
 
 
 def parse_shard(text: str | None) -> tuple[int, int]:
@@ -417,8 +418,6 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=delight_shader,
                                     resolution=config.resolution if resolution is None else resolution)
     recolored.check()
-    if delight_shader not in DELIGHT_SHADERS[:2]:
-        raise InputError(f"photo colors divided by the {delight_shader!r} shader can no longer be made")
     if recolored == config:
         raise InputError(f"its photo colors are already made by these rules (light divided out: {delight_shader}, "
                          f"hidden voxels {hidden_rule}, {config.resolution}^3 voxels)", source)

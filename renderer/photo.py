@@ -26,8 +26,8 @@ paint do, rather than a shading the renderers would apply a second time:
   shadows and the light between its parts, exactly as the target images have them).
 - `photo_albedo`, from the voxels alone: the light the voxel shader computes for the object under it (its shadows
   and bounce light are approximate, and pixels it does not cover fully are not used).
-On the generalisation set's textured photos the first halves the color error on the voxels the photo shows
-(docs/results.md).
+On the generalisation set's textured photos the first takes the color error on the voxels the photo shows from 708
+to 476 (0-255 squared; docs/results.md).
 """
 
 from __future__ import annotations

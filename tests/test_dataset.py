@@ -150,14 +150,20 @@ def test_a_set_made_by_older_color_rules_is_copied_as_generation_makes_it_now(re
         assert np.abs(by_shader - unmixed)[unmixed[..., 3] > 0].mean() > 2
 
 
+def test_a_retired_delight_shader_is_refused_before_anything_is_written(tmp_path):
+    with pytest.raises(InputError, match="'camera grid' is unknown or no longer made"):
+        generate_dataset(tmp_path / "d", replace(TINY, delight_shader="camera grid"), progress=False)
+    assert not (tmp_path / "d").exists()
+
+
 def test_the_command_line_offers_the_rules_a_set_can_be_made_with():
     """app.cli writes the choices out (importing renderer.photo there would slow every command): they must agree."""
     from app.cli import DELIGHT_SHADERS as CLI_DELIGHT
     from app.cli import HIDDEN_VOXEL_RULES
-    from renderer.dataset import DELIGHT_SHADERS
+    from renderer.dataset import MADE_DELIGHT_SHADERS
     from renderer.photo import HIDDEN_RULES
 
-    assert CLI_DELIGHT == DELIGHT_SHADERS[:2] and HIDDEN_VOXEL_RULES == HIDDEN_RULES
+    assert CLI_DELIGHT == MADE_DELIGHT_SHADERS and HIDDEN_VOXEL_RULES == HIDDEN_RULES
 
 
 @pytest.mark.parametrize("setting", ["default", "single"])
