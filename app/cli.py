@@ -285,6 +285,7 @@ def cmd_data_generate(args: argparse.Namespace) -> None:
         spp=args.spp, denoise=not args.no_denoise, seed=args.seed,
         categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), resolution=args.res,
         delight=not args.no_delight, hidden_rule=args.hidden_voxels, delight_shader=args.delight_shader,
+        photo_size=args.photo_size,
     )
     manifest = generate_dataset(args.out, config, shard=parse_shard(args.shard), workers=args.workers)
     print(f"wrote {manifest}")
@@ -294,7 +295,8 @@ def cmd_data_recolor(args: argparse.Namespace) -> None:
     from renderer.dataset import recolor_dataset
 
     manifest = recolor_dataset(args.data, args.out, workers=args.workers, hidden_rule=args.hidden_voxels,
-                               resolution=args.res, delight_shader=args.delight_shader)
+                               resolution=args.res, delight_shader=args.delight_shader,
+                               photo_size=args.photo_size)
     print(f"wrote {manifest}")
 
 
@@ -479,6 +481,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--setting", choices=["single", "default", "textured"], default="single")
     p.add_argument("--split", choices=["train", "test"], default="train")
     p.add_argument("--size", type=int, default=256, help="image side in pixels")
+    p.add_argument("--photo-size", type=int, default=0,
+                   help="side in pixels of the source photo that colors the voxels (default 0: --size)")
     p.add_argument("--spp", type=int, default=16, help="path tracing samples per pixel")
     p.add_argument("--no-denoise", action="store_true", help="keep the raw path-traced targets")
     p.add_argument("--no-delight", action="store_true",
@@ -511,6 +515,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--res", type=int, default=None,
                    help="voxelise every object anew at this many voxels per side (its mesh remade from its record; "
                         "its targets kept); default: keep the set's voxels")
+    p.add_argument("--photo-size", type=int, default=None,
+                   help="path trace every source photo again at this side in pixels (0: the images' size); "
+                        "default: keep the set's photos")
     p.set_defaults(func=cmd_data_recolor)
 
     p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")

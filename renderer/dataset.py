@@ -85,6 +85,12 @@ class DataConfig:
     # (renderer.photo.unmixed_albedo); "object voxels", the voxel shader (photo_albedo); "camera grid", the voxel
     # shader before it drew the object's own voxels (no longer made).
     delight_shader: str = "path traced"
+    photo_size: int = 0  # side of the source photo photo-colored voxels take their colors from (0: the images' size)
+
+    @property
+    def source_size(self) -> int:
+        """The source photo's side in pixels."""
+        return self.photo_size or self.size
 
     def check(self) -> None:
         """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
@@ -98,6 +104,10 @@ class DataConfig:
             value = getattr(self, "resolution" if name == "res" else name)
             if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
                 raise InputError(f"--{name} must be a whole number from {low} to {high}, got {value!r}")
+        if not (self.photo_size == 0 or (not isinstance(self.photo_size, bool) and isinstance(self.photo_size, int)
+                                         and MIN_IMAGE_SIZE <= self.photo_size <= MAX_IMAGE_SIZE)):
+            raise InputError(f"--photo-size must be 0 (the images' size) or a whole number from {MIN_IMAGE_SIZE} to "
+                             f"{MAX_IMAGE_SIZE}, got {self.photo_size!r}")
         if not self.categories:
             raise InputError("at least one object category is needed")
         from renderer.photo import check_hidden_rule  # not at the top: it adds 0.2-0.3 s to importing this module
@@ -119,6 +129,7 @@ class DataConfig:
         data.setdefault("delight", False)  # data sets made before the light was divided out
         data.setdefault("hidden_rule", "ray")  # and before hidden voxels took a blend of the colors around them
         data.setdefault("delight_shader", "camera grid")  # and before the shader drew the object's own voxels
+        data.setdefault("photo_size", 0)  # and before the source photo had a size of its own
         return cls(**data)
 
 
@@ -287,7 +298,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
 
     # Appearance source A: another view and light; the voxels take their colors from it.
     source_view = sample_source_view(object_rng(config, index, 1))
-    source_scene = view_scene(source_view, voxel_file, floor_color, config.size, single_color)
+    source_scene = view_scene(source_view, voxel_file, floor_color, config.source_size, single_color)
     source = render_pathtraced(source_scene, mesh, spp=config.spp, seed=index, denoise=config.denoise)
     source_camera = Camera.from_scene(source_scene)
     mirror = False
@@ -398,13 +409,14 @@ def _run_jobs(jobs: list, workers: int, work: Callable[[Any], int] = _generate_o
 
 def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progress: bool = True,
                     hidden_rule: str = "blend", resolution: int | None = None,
-                    delight_shader: str = DELIGHT_SHADERS[0]) -> Path:
+                    delight_shader: str = DELIGHT_SHADERS[0], photo_size: int | None = None) -> Path:
     """A copy in `out` of a data set whose photo colors were made by other rules (config delight false, another
     hidden_rule or delight_shader), as generation makes them with `hidden_rule` and `delight_shader`: photo-colored
     voxels recolored from their source photos with the light divided out, splats redrawn from them. `resolution`:
     voxelise every object anew at that many voxels per side (its mesh remade from the record's category and seeds, as
-    generation made it), so a set moves to finer voxels without rendering its targets again. Targets and source photos
-    are hard links where the file system allows (else copies); rerun to resume. Returns the manifest path."""
+    generation made it), so a set moves to finer voxels without rendering its targets again. `photo_size`: path trace
+    every source photo again at that side (0: the images'), as generation does. Targets and kept source photos are hard
+    links where the file system allows (else copies); rerun to resume. Returns the manifest path."""
     from tqdm import tqdm
 
     source, out = Path(source), Path(out)
@@ -416,21 +428,27 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
         raise InputError("config.json does not describe a data set", source)
     stored_resolution = config.resolution
     recolored = dataclasses.replace(config, delight=True, hidden_rule=hidden_rule, delight_shader=delight_shader,
-                                    resolution=config.resolution if resolution is None else resolution)
+                                    resolution=config.resolution if resolution is None else resolution,
+                                    photo_size=config.photo_size if photo_size is None else photo_size)
     recolored.check()
     if recolored == config:
         raise InputError(f"its photo colors are already made by these rules (light divided out: {delight_shader}, "
-                         f"hidden voxels {hidden_rule}, {config.resolution}^3 voxels)", source)
+                         f"hidden voxels {hidden_rule}, {config.resolution}^3 voxels, photos "
+                         f"{config.source_size}^2)", source)
     if source.resolve() == out.resolve():
         raise InputError("give another --out folder: the data set is copied, not changed in place", out)
+    new_photos = recolored.source_size != config.source_size
     config = recolored
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
-    remake_mesh = config.resolution != stored_resolution or (config.setting != "single" and delight_shader == "path traced")
+    remake_mesh = (config.resolution != stored_resolution or new_photos
+                   or (config.setting != "single" and delight_shader == "path traced"))
     for name in todo:  # every record readable before anything is written
         _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json", remake_mesh)
     prepare_folder(out, config)
     bar = tqdm(total=len(todo), unit="object", disable=not progress, desc=f"recolor {source.name}")
-    jobs = [(str(source), str(out), name, config.hidden_rule, config.resolution, delight_shader) for name in todo]
+    photos = (config.source_size, config.spp, config.denoise) if new_photos else None
+    jobs = [(str(source), str(out), name, config.hidden_rule, config.resolution, delight_shader, photos)
+            for name in todo]
     for _ in _run_jobs(jobs, workers, _recolor_one):
         bar.update(1)
     bar.close()
@@ -476,18 +494,21 @@ def _check_record(record: Any, path: Path, remake_mesh: bool = False) -> None:
         raise InputError(f"not a data set record: it lacks {what}", path)
 
 
-def _recolor_one(args: tuple[str, str, str, str, int, str]) -> int:
+def _recolor_one(args: tuple[str, str, str, str, int, str, tuple[int, int, bool] | None]) -> int:
     """Recolor one object of a data set into `out` (see recolor_dataset); its record is written last."""
-    source, out, name, hidden_rule, resolution, delight_shader = Path(args[0]), Path(args[1]), *args[2:]
+    source, out, name, hidden_rule, resolution, delight_shader, photos = Path(args[0]), Path(args[1]), *args[2:]
     try:
-        return _recolor_object(source, out, name, hidden_rule, resolution, delight_shader)
+        return _recolor_object(source, out, name, hidden_rule, resolution, delight_shader, photos)
     except (KeyError, TypeError, ValueError, AttributeError) as exc:
         raise InputError(f"a malformed record or camera file ({type(exc).__name__}: {exc})",
                          source / "records" / f"{name}.json") from None
 
 
-def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolution: int, delight_shader: str) -> int:
+def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolution: int, delight_shader: str,
+                    photos: tuple[int, int, bool] | None) -> int:
+    """`photos`: (side, spp, denoise) to path trace the source photo again with, or None to keep it."""
     from renderer.capture.pose import lit_photo_scene, load_pose
+    from renderer.pathtrace.path_tracer import render_pathtraced
     from renderer.photo import color_voxels_from_photo
     from renderer.splat import splat_scene
     from renderer.voxels import load_voxels, save_voxels
@@ -498,17 +519,27 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
     rgba = load_voxels(source / obj["voxels"])
     recolor = obj["setting"] != "single"
     revoxelise = rgba.shape[0] != resolution
-    mesh = _remade_mesh(obj) if revoxelise or (recolor and delight_shader == "path traced") else None
+    mesh = (_remade_mesh(obj) if revoxelise or photos is not None or (recolor and delight_shader == "path traced")
+            else None)
     if revoxelise:
         rgba = _voxelised_again(obj, resolution, mesh)
-    if recolor:
+    if recolor or photos is not None:
         camera_file = source / obj["source_camera"]
         pose = load_pose(camera_file)
+        if photos is not None:
+            pose = pose.at_size(photos[0], photos[0])
         try:
             source_scene = lit_photo_scene(pose, floor_color)
         except InputError as exc:
             raise InputError(exc.problem, camera_file) from None
-        photo = load_image(source / obj["source_image"])[0]
+        if photos is None:
+            photo = load_image(source / obj["source_image"])[0]
+        else:  # as generation renders it: the object's index is its seed
+            photo = render_pathtraced(source_scene, mesh, spp=photos[1], seed=int(obj["index"]),
+                                      denoise=photos[2]).image
+            save_png(out / obj["source_image"], photo)
+            save_json(out / obj["source_camera"], pose.to_dict())
+    if recolor:
         albedo, known = _divided_light(photo, source_scene, rgba, mesh, delight_shader, int(obj["index"]))
         rgba = color_voxels_from_photo(rgba, pose.object_to_world(), albedo, pose.camera,
                                        mirror=bool(obj["mirror_symmetry_used"]), trusted=known,
@@ -516,7 +547,8 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
     redrawn = recolor or revoxelise
     if redrawn:
         save_voxels(out / obj["voxels"], rgba)
-    links = [obj["source_image"], obj["source_camera"]] + [s["target"] for s in record["samples"]]
+    links = [s["target"] for s in record["samples"]]
+    links += [] if photos is not None else [obj["source_image"], obj["source_camera"]]
     links += [] if redrawn else [obj["voxels"]] + [s["splat"] for s in record["samples"]]
     for rel in links:
         _link_or_copy(source / rel, out / rel)

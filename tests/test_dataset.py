@@ -192,6 +192,27 @@ def test_a_set_moved_to_finer_voxels_equals_one_generated_at_them(setting, tmp_p
         recolor_dataset(moved, tmp_path / "again", progress=False, resolution=48)
 
 
+def test_a_set_with_larger_source_photos_equals_one_generated_with_them(tmp_path):
+    """`nvr data recolor --photo-size`: every source photo path traced again at that side, as generation with
+    --photo-size renders it, so the voxels, splats, photos and their cameras are generation's, byte for byte (no 8-bit
+    photo between them); the targets are linked."""
+    larger = replace(TINY, photo_size=48)
+    generate_dataset(tmp_path / "larger", larger, progress=False)
+    generate_dataset(tmp_path / "small", TINY, progress=False)
+    moved = recolor_dataset(tmp_path / "small", tmp_path / "moved", progress=False, photo_size=48).parent
+    assert manifest_of(moved)["config"] == larger.to_dict()
+    assert files_of(moved) == files_of(tmp_path / "larger")  # camera files included
+    for obj in manifest_of(moved)["objects"]:
+        assert Image.open(moved / obj["source_image"]).size == (48, 48)
+    for sample in manifest_of(moved)["samples"]:
+        assert (moved / sample["target"]).stat().st_ino == (tmp_path / "small" / sample["target"]).stat().st_ino
+    with pytest.raises(InputError, match="photos 48\\^2"):
+        recolor_dataset(moved, tmp_path / "again", progress=False, photo_size=48)
+    # The images' size again: the photos of the set generated without --photo-size.
+    back = recolor_dataset(moved, tmp_path / "back", progress=False, photo_size=0).parent
+    assert files_of(back) == files_of(tmp_path / "small")
+
+
 def test_sampling_protocol_ranges():
     rng = np.random.default_rng(0)
     views = sample_train_views(rng, 500)
@@ -214,6 +235,7 @@ def test_sampling_protocol_ranges():
         (["--objects", "0"], "--objects must be a whole number from 1 to 1000000, got 0"),
         (["--seed", "-1"], "--seed must be a whole number from 0 to 4294967295, got -1"),
         (["--size", "100000"], "--size must be a whole number from 16 to 2048, got 100000"),
+        (["--photo-size", "8"], "--photo-size must be 0 (the images' size) or a whole number from 16 to 2048, got 8"),
         (["--workers", "0"], "--workers must be a whole number from 1 to 256, got 0"),
         (["--workers", "-2"], "--workers must be a whole number from 1 to 256, got -2"),
         (["--out", "/proc/nvr-cannot-write-here"], "cannot create the output folder"),

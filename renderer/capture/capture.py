@@ -42,6 +42,7 @@ from renderer.photo import (
     photo_albedo,
     unmixed_albedo,
 )
+from renderer.resample import downscaled
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
@@ -245,17 +246,7 @@ def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:
 
 def _downscale(rgb: np.ndarray, alpha: np.ndarray | None, long_side: int) -> tuple[np.ndarray, np.ndarray | None]:
     """The photo (and alpha) with its long side at most `long_side`, by area averaging."""
-    h, w = rgb.shape[:2]
-    if max(h, w) <= long_side:
-        return rgb, alpha
-    factor = long_side / max(h, w)
-    size = (max(1, round(w * factor)), max(1, round(h * factor)))
-
-    def resize(channel: np.ndarray) -> np.ndarray:
-        return np.asarray(Image.fromarray(np.asarray(channel, dtype=np.float32)).resize(size, Image.Resampling.BOX))
-
-    small = np.stack([resize(rgb[..., c]) for c in range(3)], axis=-1)
-    return small, None if alpha is None else resize(alpha)
+    return downscaled(rgb, long_side), None if alpha is None else downscaled(alpha, long_side)
 
 
 def captured_scene(mesh_path: str | Path, voxels_path: str | Path, pose: PhotoPose, up: str = "y",

@@ -1,0 +1,24 @@
+"""Float images resized with Pillow's filters, per channel in 32-bit float mode ("F"): no 8-bit rounding, pixel
+centres aligned, and area averaging (BOX) when made smaller."""
+
+from __future__ import annotations
+
+import numpy as np
+from PIL import Image
+
+
+def resized(image: np.ndarray, size: tuple[int, int], resample: Image.Resampling = Image.Resampling.BOX) -> np.ndarray:
+    """`image` ((H, W) or (H, W, C) float) at `size` (width, height), float32."""
+    channels = image[..., None] if image.ndim == 2 else image
+    stacked = np.stack([np.asarray(Image.fromarray(np.asarray(channels[..., c], dtype=np.float32)).resize(size, resample))
+                        for c in range(channels.shape[2])], axis=-1)
+    return stacked[..., 0] if image.ndim == 2 else stacked
+
+
+def downscaled(image: np.ndarray, long_side: int) -> np.ndarray:
+    """`image` with its long side at most `long_side`, by area averaging (unchanged if it is already that small)."""
+    h, w = image.shape[:2]
+    if max(h, w) <= long_side:
+        return image
+    factor = long_side / max(h, w)
+    return resized(image, (max(1, round(w * factor)), max(1, round(h * factor))))
