@@ -87,6 +87,10 @@ class DataConfig:
     delight_shader: str = "path traced"
     photo_size: int = 0  # side of the source photo photo-colored voxels take their colors from (0: the images' size)
 
+    def __post_init__(self) -> None:
+        if self.photo_size == self.size:  # one config per set: a photo of the images' size is written 0
+            object.__setattr__(self, "photo_size", 0)
+
     @property
     def source_size(self) -> int:
         """The source photo's side in pixels."""
@@ -104,8 +108,8 @@ class DataConfig:
             value = getattr(self, "resolution" if name == "res" else name)
             if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
                 raise InputError(f"--{name} must be a whole number from {low} to {high}, got {value!r}")
-        if not (self.photo_size == 0 or (not isinstance(self.photo_size, bool) and isinstance(self.photo_size, int)
-                                         and MIN_IMAGE_SIZE <= self.photo_size <= MAX_IMAGE_SIZE)):
+        size = self.photo_size
+        if isinstance(size, bool) or not isinstance(size, int) or not (size == 0 or MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE):
             raise InputError(f"--photo-size must be 0 (the images' size) or a whole number from {MIN_IMAGE_SIZE} to "
                              f"{MAX_IMAGE_SIZE}, got {self.photo_size!r}")
         if not self.categories:

@@ -211,6 +211,8 @@ def test_a_set_with_larger_source_photos_equals_one_generated_with_them(tmp_path
     # The images' size again: the photos of the set generated without --photo-size.
     back = recolor_dataset(moved, tmp_path / "back", progress=False, photo_size=0).parent
     assert files_of(back) == files_of(tmp_path / "small")
+    with pytest.raises(InputError, match="already made by these rules"):  # the images' size, said as a number
+        recolor_dataset(back, tmp_path / "same", progress=False, photo_size=TINY.size)
 
 
 def test_sampling_protocol_ranges():
