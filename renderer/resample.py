@@ -22,3 +22,9 @@ def downscaled(image: np.ndarray, long_side: int) -> np.ndarray:
         return image
     factor = long_side / max(h, w)
     return resized(image, (max(1, round(w * factor)), max(1, round(h * factor))))
+
+
+def downscaled_mask(mask: np.ndarray, long_side: int, min_cover: float = 0.25) -> np.ndarray:
+    """A boolean mask with its long side at most `long_side`, set where at least `min_cover` of a pixel's area was:
+    a part half a new pixel wide keeps a line of pixels, where sampling the nearest pixel breaks it up."""
+    return downscaled(np.asarray(mask, dtype=np.float32), long_side) >= min_cover

@@ -42,7 +42,7 @@ from renderer.photo import (
     photo_albedo,
     unmixed_albedo,
 )
-from renderer.resample import downscaled
+from renderer.resample import downscaled, downscaled_mask
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
@@ -165,8 +165,8 @@ def segment_photo(photo_rgb: np.ndarray, alpha: np.ndarray | None = None, path: 
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     sh, sw = small_rgb.shape[:2]
     small_hints = photo_hints((sw, sh), (w, h), **hints)
-    if silhouette is not None:
-        small_hints = replace(small_hints, prior=mask_at_size(silhouette, (sw, sh)))
+    if silhouette is not None:  # thin parts kept (a metal chair base lost from a 1024^2 photo's prior was colored wood)
+        small_hints = replace(small_hints, prior=downscaled_mask(silhouette, SEGMENT_SIDE))
     return mask_at_size(object_mask(small_rgb, small_alpha, path, small_hints), (w, h))
 
 
