@@ -62,8 +62,8 @@ UNMIX_SPP = 16
 MIN_SLOPE = 0.05
 # A larger photo is unmixed at this many pixels a side (area averaged) and its albedo scaled back up, since the two
 # renders' cost grows with the pixels. (Scaling the renders' light up to the photo instead mixed the floor's light into
-# the silhouette's pixels and blurred thin parts' shadows: on 4 novel objects it colored the seen voxels worse than a
-# photo of half the side did.)
+# the silhouette's pixels and blurred thin parts' shadows: on 3 of 4 novel objects it colored the seen voxels worse
+# than a photo of half the side did.)
 UNMIX_MAX_SIDE = 512
 HIDDEN_RULES = ("blend", "ray")  # how voxels the photo does not show well are colored (see the module docstring)
 # The blend's Gaussians, in voxels: the narrowest whose weight of well-seen voxels reaches HIDDEN_MIN_WEIGHT
