@@ -592,6 +592,9 @@ def build_parser() -> argparse.ArgumentParser:
 def run(argv: list[str] | None = None) -> int:
     """Parse and run; returns the exit code (0, or 2 for a user error)."""
     args = build_parser().parse_args(argv)
+    from models.threads import limit_blas_threads
+
+    limit_blas_threads()
     try:
         args.func(args)
     except InputError as exc:

@@ -50,6 +50,9 @@ def build_parser() -> argparse.ArgumentParser:
 def run(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from app.editor.window import Window, WindowError
+    from models.threads import limit_blas_threads
+
+    limit_blas_threads()
 
     try:
         document, replay = _load_inputs(args)
