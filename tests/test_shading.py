@@ -77,9 +77,12 @@ def test_placing_the_geometry_is_placing_the_voxels(grid_size):
     turned = shaded(rgba, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), rotation_deg=90.0, scale=(0.5, 0.5, 0.5)),
                     light)
     turned_voxels = shaded(by_hand, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), scale=(0.5, 0.5, 0.5)), light)
+    # Equal but at a few silhouette pixels, within the rays' stopping tolerance: each ray starts at a depth found from
+    # runs of voxels along the crop's last axis, which the turn by hand lays out along another, so the two trace
+    # different steps to the same surface (0.3 % of the normals' values differ, by at most 0.009).
     for part in ("image", "coverage", "albedo", "normal", "visibility", "occlusion"):
-        np.testing.assert_allclose(getattr(turned, part), getattr(turned_voxels, part), rtol=0, atol=1e-4,
-                                   err_msg=part)
+        difference = np.abs(getattr(turned, part) - getattr(turned_voxels, part))
+        assert difference.max() < 0.015 and (difference > 1e-4).mean() < 0.005, part
     unturned = shaded(rgba, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), scale=(0.5, 0.5, 0.5)), light)
     assert np.abs(turned.albedo - unturned.albedo).max() > 0.5  # the turn shows
 
@@ -369,23 +372,40 @@ def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
 @pytest.mark.parametrize("shape, elevation, translation", [("ball", 30.0, (0.0, 0.0)), ("lattice", 30.0, (0.0, 0.0)),
                                                            ("lattice", 0.0, (0.0, 0.0)), ("lattice", 89.0, (0.0, 0.0)),
                                                            ("ball", 30.0, (1.1, 0.2))])
-def test_skipped_rays_are_rays_that_miss(shape, elevation, translation):
-    # The centre pass traces only the pixels whose ray may stop on the surface: tracing every pixel of the window
-    # instead must give the same hits, points and coverage, and the skip must leave out most of the window's misses.
-    spec = ObjectSpec(voxels="v.npz", translation=translation, scale=(0.6, 0.6, 0.6))
+def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, translation):
+    # The centre pass traces only the pixels whose ray may stop on the surface, each from the depth nearer than which
+    # no ray through its pixel can stop. Tracing every pixel of the window from those depths must give the same hits,
+    # points and coverage, and the skip must leave out most of the window's misses; tracing every ray from the crop's
+    # face (anywhere in its pixel) must find no hit nearer than its pixel's depth, and the same hits for nearly all.
+    spec = ObjectSpec(voxels="v.npz", translation=translation, scale=(0.6, 0.6, 0.45))  # a voxel step of two lengths
     geometry = geometry_of(ball() if shape == "ball" else lattice(), spec, elevation)
     camera = Camera(elevation, width=128, height=128)
     world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
     origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
     rows, cols = _pixel_window(geometry, camera)
-    every = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5)
-    skipping = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols)
+    candidates, nearest = _ray_candidates(geometry, camera, rows, cols)
+    every = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5, nearest)
+    skipping = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols, candidates, nearest)
     for full, fast in zip(every, skipping):
         np.testing.assert_array_equal(fast, full)
     hits = every[0] < kernels.FAR
     assert 0 < hits.sum() < hits.size
-    traced = _ray_candidates(geometry, camera, rows, cols)
-    assert np.all(traced[hits]) and traced[~hits].mean() < 0.6
+    assert np.all(candidates[hits]) and candidates[~hits].mean() < 0.6
+    assert np.isfinite(nearest[hits]).all() and (nearest[~candidates] > nearest[hits].min()).mean() > 0.3
+
+    axis = -(camera.world_to_camera()[2, :3] @ geometry.voxel_to_world[:3, :3])  # depth per crop voxel
+    for dv, du in ((0.5, 0.5), (0.02, 0.98), (0.98, 0.3)):
+        t_face, points_face, _ = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + dv,
+                                        cols[None, :] + du)
+        t_near, _, _ = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + dv, cols[None, :] + du,
+                              nearest)
+        face, near = t_face < kernels.FAR, t_near < kernels.FAR
+        depth = (points_face[face] - origin) @ axis
+        assert np.all(depth >= nearest[face] - 1e-9)
+        # Rays that graze a lattice's thin bars may step past a bar from one start and not the other (2.7 % of them
+        # at most here; their coverage is near 0): no more.
+        assert (face != near).sum() < 0.04 * face.sum() and face.sum() > 0.1 * face.size
+        assert np.median(np.abs(t_face - t_near)[face & near]) < 0.05
 
 
 @pytest.mark.parametrize("light", [(0.0, 1.0, 2.5), (0.3, 1.0, 2.0), (-0.5, 1.2, 2.2)])

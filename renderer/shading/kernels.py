@@ -99,12 +99,16 @@ def _gap(fields, level, thin, x, y, z):
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_to_ray, pixels, hits, points, deepest, cores,
-                  behind):
+def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_to_ray, depth_axis, pixels, nearest, hits,
+                  points, deepest, cores, behind):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
     nearest occupied voxel, fields[..., 0]) falls to the surface level: `level`, or `thin` above the part's core where that
     is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
-    direction is pixel_to_ray @ (u, v, 1), made unit. hits[i] = ray parameter (FAR if none),
+    direction is pixel_to_ray @ (u, v, 1), made unit. A ray starts a voxel before camera depth nearest[i] (or where it
+    enters the crop, if later; the depth of a crop point p is depth_axis . p, the origin's 0): nearer, it cannot stop
+    (mark_surface_pixels), so it skips the empty space there without sampling it (the demo chair's rays took 43
+    steps each from the crop's face, 36 of them more than 6 voxels before their hit).
+    hits[i] = ray parameter (FAR if none),
     points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
     far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
     the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one).
@@ -125,6 +129,9 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
         deepest[i] = FAR
         behind[i] = False
         t, t_end = _box_interval(origin[0], origin[1], origin[2], dx, dy, dz, n0, n1, n2)
+        rate = depth_axis[0] * dx + depth_axis[1] * dy + depth_axis[2] * dz  # depth per unit of t
+        if rate > 1e-12:
+            t = max(t, nearest[i] / rate - 1.0)
         previous = t
         for _ in range(256):
             if t > t_end:
@@ -218,36 +225,47 @@ def near_surface_cell_mask(fields, level, thin, slack):
 
 
 @njit(cache=True, parallel=True)
-def mark_surface_pixels(cells, shape, projection, row0, col0, mask):
+def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest):
     """mask[r, c] = True (image pixel row0 + r, col0 + c) where the pixel's centre falls in the image rectangle of
     one of `cells` (runs i, j, first k, last k of near_surface_cell_mask's cells, (K, 4) indices into a crop of
     `shape` voxels; the cells at the crop's faces reach to its faces, where samples are clamped): a superset of the
     pixels whose centre ray may stop in `trace_surface` (a run's box covers its cells').
-    `projection`: 3x4, crop point -> (u * depth, v * depth, depth)."""
+    nearest[p, r, c] = the least camera depth of the boxes of part p of `cells` whose rectangle reaches within half a
+    pixel of the pixel's centre (left as it was where none does); the least over the parts is a depth nearer the
+    camera than which no ray through any point of the pixel can stop. One part per thread, so no two threads write
+    the same value. `projection`: 3x4, crop point -> (u * depth, v * depth, depth)."""
     n0, n1, n2 = shape[0], shape[1], shape[2]
     rows, cols = mask.shape
-    for q in prange(cells.shape[0]):
-        i, j, k, k_last = cells[q, 0], cells[q, 1], cells[q, 2], cells[q, 3]
-        u0, u1, v0, v1 = 1e30, -1e30, 1e30, -1e30
-        for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
-            for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
-                for z in (0.0 if k == 0 else k + 0.5, n2 if k_last == n2 - 2 else k_last + 1.5):
-                    pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
-                    pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]
-                    pd = projection[2, 0] * x + projection[2, 1] * y + projection[2, 2] * z + projection[2, 3]
-                    if pd <= 1e-9:  # behind the camera: keep every pixel
-                        u0, u1, v0, v1 = -1e30, 1e30, -1e30, 1e30
-                    else:
-                        u0, u1 = min(u0, pu / pd), max(u1, pu / pd)
-                        v0, v1 = min(v0, pv / pd), max(v1, pv / pd)
-        # Pixel centres (c + 0.5, r + 0.5) inside [u0, u1] x [v0, v1], with a hundredth of a pixel to spare.
-        c0 = max(int(math.ceil(max(u0, -1e9) - 0.51)) - col0, 0)
-        c1 = min(int(math.floor(min(u1, 1e9) - 0.49)) - col0, cols - 1)
-        r0 = max(int(math.ceil(max(v0, -1e9) - 0.51)) - row0, 0)
-        r1 = min(int(math.floor(min(v1, 1e9) - 0.49)) - row0, rows - 1)
-        for r in range(r0, r1 + 1):
-            for c in range(c0, c1 + 1):
-                mask[r, c] = True
+    parts = nearest.shape[0]
+    for p in prange(parts):
+        for q in range(p * cells.shape[0] // parts, (p + 1) * cells.shape[0] // parts):
+            i, j, k, k_last = cells[q, 0], cells[q, 1], cells[q, 2], cells[q, 3]
+            u0, u1, v0, v1, d0 = 1e30, -1e30, 1e30, -1e30, 1e30
+            for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
+                for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
+                    for z in (0.0 if k == 0 else k + 0.5, n2 if k_last == n2 - 2 else k_last + 1.5):
+                        pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
+                        pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]
+                        pd = projection[2, 0] * x + projection[2, 1] * y + projection[2, 2] * z + projection[2, 3]
+                        d0 = min(d0, pd)  # depth is linear: a box's least is at a corner
+                        if pd <= 1e-9:  # behind the camera: keep every pixel
+                            u0, u1, v0, v1 = -1e30, 1e30, -1e30, 1e30
+                        else:
+                            u0, u1 = min(u0, pu / pd), max(u1, pu / pd)
+                            v0, v1 = min(v0, pv / pd), max(v1, pv / pd)
+            u0, u1, v0, v1 = max(u0, -1e9), min(u1, 1e9), max(v0, -1e9), min(v1, 1e9)
+            # Pixels any point of which (within half a pixel of the centre) is inside, with a hundredth to spare;
+            # of those, the ones whose centre is inside are marked.
+            c0, c1 = max(int(math.ceil(u0 - 1.01)) - col0, 0), min(int(math.floor(u1 + 0.01)) - col0, cols - 1)
+            r0, r1 = max(int(math.ceil(v0 - 1.01)) - row0, 0), min(int(math.floor(v1 + 0.01)) - row0, rows - 1)
+            for r in range(r0, r1 + 1):
+                centre_v = r + row0 + 0.5
+                inside_v = centre_v >= v0 - 0.01 and centre_v <= v1 + 0.01
+                for c in range(c0, c1 + 1):
+                    nearest[p, r, c] = min(nearest[p, r, c], d0)
+                    centre_u = c + col0 + 0.5
+                    if inside_v and centre_u >= u0 - 0.01 and centre_u <= u1 + 0.01:
+                        mask[r, c] = True
 
 
 @njit(cache=True, parallel=True)

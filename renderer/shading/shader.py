@@ -34,6 +34,7 @@ import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
+import numba
 import numpy as np
 from scipy import ndimage, special
 
@@ -270,8 +271,9 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     points_crop = np.zeros((0, 3), dtype=np.float64)
     if not geometry.empty:
         rows, cols = _pixel_window(geometry, camera)
+        candidates, nearest = _ray_candidates(geometry, camera, rows, cols)
         centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols,
-                                                             cover_behind)
+                                                             candidates, nearest, cover_behind)
         hit = centre_t < kernels.FAR
         edge = (hit ^ ndimage.binary_erosion(hit, border_value=0)) | (ndimage.binary_dilation(hit) & ~hit)
         edge |= hit & (centre_cover < 1.0)
@@ -282,7 +284,8 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
             offsets = (np.arange(SUBPIXELS) + 0.5) / SUBPIXELS
             sub_v = rows[er][:, None, None] + offsets[None, :, None]  # (edges, SUBPIXELS, 1)
             sub_u = cols[ec][:, None, None] + offsets[None, None, :]  # (edges, 1, SUBPIXELS): _trace broadcasts
-            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_voxel, origin, sub_v, sub_u, cover_behind)
+            sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_voxel, origin, sub_v, sub_u,
+                                             nearest[er, ec][:, None, None], cover_behind)
             sub_t, sub_p = sub_t.reshape(len(er), -1), sub_p.reshape(len(er), -1, 3)
             sub_hit = sub_t < kernels.FAR
             cover[er, ec] = sub_cover.reshape(len(er), -1).mean(axis=1)
@@ -394,36 +397,41 @@ def _crop_corners(geometry: ObjectGeometry) -> np.ndarray:
 
 
 def _trace_candidates(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray, origin: np.ndarray,
-                      rows: np.ndarray, cols: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`_trace` through the centres of the pixel window's pixels, skipping those whose ray cannot reach the surface
-    (about two in three of a chair's window): they miss (FAR, a zero point, no coverage) as `_trace` would find."""
+                      rows: np.ndarray, cols: np.ndarray, candidates: np.ndarray, nearest: np.ndarray,
+                      cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`_trace` through the centres of the pixel window's `candidates` (_ray_candidates), each from its `nearest`
+    depth; the other pixels (about two in three of a chair's window) miss (FAR, a zero point, no coverage) as `_trace` would find."""
     shape = (len(rows), len(cols))
     t, points, cover = np.full(shape, kernels.FAR, dtype=np.float64), np.zeros(shape + (3,)), np.zeros(shape, np.float32)
-    r, c = np.nonzero(_ray_candidates(geometry, camera, rows, cols))
+    r, c = np.nonzero(candidates)
     t[r, c], points[r, c], cover[r, c] = _trace(geometry, camera, world_to_voxel, origin, rows[r] + 0.5, cols[c] + 0.5,
-                                                cover_behind)
+                                                nearest[r, c], cover_behind)
     return t, points, cover
 
 
-def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """(rows, cols) bool: the pixels whose centre ray may stop on the surface (kernels.mark_surface_pixels)."""
-    mask = np.zeros((len(rows), len(cols)), dtype=bool)
+def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray,
+                    cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For the pixel window (rows, cols): which pixels' centre rays may stop on the surface (bool), and the camera
+    depth nearer than which no ray through the pixel can stop (kernels.mark_surface_pixels)."""
+    shape = (len(rows), len(cols))
     if min(geometry.occupied.shape) < 2:
-        mask[...] = True
-        return mask
+        return np.ones(shape, dtype=bool), np.zeros(shape)
+    mask, nearest = np.zeros(shape, dtype=bool), np.full((numba.get_num_threads(),) + shape, np.inf)
     voxel_to_camera = camera.world_to_camera()[:3] @ geometry.voxel_to_world
     crop_to_camera = voxel_to_camera + np.column_stack([np.zeros((3, 3)), voxel_to_camera[:, :3] @ geometry.offset])
     image = camera.intrinsics() @ np.diag([1.0, -1.0, -1.0])  # camera point -> (u, v, 1) * depth
     kernels.mark_surface_pixels(geometry.surface_cells, np.asarray(geometry.occupied.shape), image @ crop_to_camera,
-                                int(rows[0]), int(cols[0]), mask)
-    return mask
+                                int(rows[0]), int(cols[0]), mask, nearest)
+    return mask, nearest.min(axis=0)
 
 
 def _trace(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray, origin: np.ndarray,
-           v: np.ndarray, u: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v)
-    (`cover_behind`: see visible_surface)."""
-    u, v = np.broadcast_arrays(u, v)
+           v: np.ndarray, u: np.ndarray, nearest: np.ndarray | float = 0.0,
+           cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v), each ray
+    traced from about camera depth `nearest` on (_ray_candidates; 0: from where it enters the crop; `cover_behind`: see
+    visible_surface)."""
+    u, v, nearest = np.broadcast_arrays(u, v, nearest)
     count = u.size
     # The camera-space ray through (u, v) is ((u - cx) / f, -(v - cy) / f, -1): affine in (u, v, 1).
     (cx, cy), f = camera.principal_point, camera.focal_px
@@ -436,12 +444,18 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray,
     behind = np.zeros(count, dtype=bool)
     kernels.trace_surface(geometry.distance_and_core, SURFACE_LEVEL, THIN_LEVEL, COVERAGE_PROBE, COVERAGE_FULL,
                           cover_behind, origin,
-                          pixel_to_ray, np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64), t, points,
-                          deepest, cores, behind)
+                          pixel_to_ray, _depth_axis(geometry, camera),
+                          np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64),
+                          np.ascontiguousarray(nearest, dtype=np.float64).ravel(), t, points, deepest, cores, behind)
     level = np.maximum(SURFACE_LEVEL, cores + THIN_LEVEL)  # the surface level where each ray stopped
     cover = np.clip((level - deepest) / ((level - cores) * COVERAGE_FULL), 0.0, 1.0).astype(np.float32)
     cover[behind] = 1.0  # it grazed a part in front of another: no floor shows through
     return t.reshape(u.shape), points.reshape(u.shape + (3,)), cover.reshape(u.shape)
+
+
+def _depth_axis(geometry: ObjectGeometry, camera: Camera) -> np.ndarray:
+    """(3,): the camera depth (world units along the view axis) gained per unit step along each crop axis."""
+    return -(camera.world_to_camera()[2, :3] @ geometry.voxel_to_world[:3, :3])
 
 
 def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
