@@ -24,10 +24,11 @@ when those change:
     shade_pool      paint, merge factors of the finer grid                the voxel shader (networks that read it:
     shade_geometry  voxels, the shader's merge factors (paint keeps       renderer/shading/): the object voxels merged
                     occupancy)                                            for the finer grid (config.shading_grid_factor
-    shade_surface   placement                                             > 1), their geometry in the object's own frame
-    shade_colors    paint, placement                                      (placed where the object stands), the surface
-    shade_floor     as floor_light                                        the camera sees, its colors, the empty floor's
-    shade           paint, placement, floor color, light position         lighting, the shaded image and buffers
+    shade_placement shade_geometry, placement                             > 1), their geometry in the object's own frame,
+    shade_surface   placement                                             placed where the object stands, the surface
+    shade_colors    paint, placement                                      the camera sees, its colors, the empty floor's
+    shade_floor     as floor_light                                        lighting, the shaded image and buffers
+    shade           paint, placement, floor color, light position
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
                   reads them)
     light         all of the above and the light position                 image (render_from_latent)
@@ -35,9 +36,9 @@ when those change:
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
 runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
 networks that read the shader, like the shipped NVR+: shade_geometry only for another object or a scale across a
-merge threshold, shade_surface after any placement or camera edit, shade_colors after paint, placement or camera,
-shade_floor after an edit that reruns floor_light, and shade after all of these; for the others a light move reruns
-the light stage alone):
+merge threshold, shade_placement and shade_surface after any placement or camera edit, shade_colors after paint,
+placement or camera, shade_floor after an edit that reruns floor_light, and shade after all of these; for the others a
+light move reruns the light stage alone):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -381,10 +382,13 @@ class RenderEngine:
                                  lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
         else:  # the network's (shader_pool_factors are its merge factors on its own grid)
             pooled = self._network_pool(painted, keys)
-        shape = self._stage("shade_geometry", (keys.pool[0][0], n, factors),
-                            lambda: object_geometry(pooled.voxels, n, factors))
-        # This paint's colors (kept geometry may hold an earlier paint's), where the scene has the object.
-        geometry = placed(replace(shape, rgb=pooled.voxels[..., :3]), scene.object, scene.camera.elevation_deg)
+        shape_key = (keys.pool[0][0], n, factors)
+        shape = self._stage("shade_geometry", shape_key, lambda: object_geometry(pooled.voxels, n, factors))
+        # Where the scene has the object (its occluders moved: 4 ms of a light edit if redone), in this paint's colors
+        # (kept geometry may hold an earlier paint's).
+        where = self._stage("shade_placement", (shape_key, keys.placement),
+                            lambda: placed(shape, scene.object, scene.camera.elevation_deg))
+        geometry = replace(where, rgb=pooled.voxels[..., :3])
         traced = self._stage("shade_surface", keys.placement, lambda: visible_surface(geometry, self.output_size))
         surface = self._stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
