@@ -353,9 +353,9 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
     assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
-    assert reran["move"] == reran["slide"] == {"surface", "shade"}  # the geometry is placed: turns keep it too
-    assert reran["camera"] == {"surface", "floor", "shade"}
-    assert reran["paint"] == {"pool", "geometry", "surface", "shade"}
+    assert reran["move"] == reran["slide"] == {"placed", "surface", "shade"}  # the geometry is placed: turns keep it
+    assert reran["camera"] == {"placed", "surface", "floor", "shade"}
+    assert reran["paint"] == {"pool", "geometry", "placed", "surface", "shade"}
 
 
 def lattice(n: int = 40, bars: int = 4) -> np.ndarray:

@@ -3,13 +3,14 @@
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
     geometry   pool (the object's own voxels, in its own frame)            the same
-    surface    geometry, placement, elevation, image size                  the same, any placement or camera edit
+    placed     geometry, placement, elevation                              the same, any placement or camera edit
+    surface    placed, image size                                          the same
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
     shade      surface, floor                                              any of the above
 
 So a light move or a floor color reruns only `floor` and `shade`, an object move, turn or scale (within its merge
-factors) `surface` and `shade`, a camera tilt `surface`, `floor` and `shade`: the geometry stands at the floor's
-origin in the object's own frame and `placed` puts it in the scene (renderer.shading.shader).
+factors) `placed`, `surface` and `shade`, a camera tilt `placed`, `surface`, `floor` and `shade`: the geometry stands
+at the floor's origin in the object's own frame and `placed` puts it in the scene (renderer.shading.shader).
 The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
 compares voxel arrays.
 """
@@ -45,8 +46,8 @@ class StagedShader:
         factors = shader_pool_factors(n, o.scale, self.grid_size)
         merged, _ = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
         shape = self._stage("geometry", (voxels_key, factors), lambda: object_geometry(merged, n, factors))
-        geometry = placed(shape, o, elevation)
         placed_key = (voxels_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        geometry = self._stage("placed", placed_key, lambda: placed(shape, o, elevation))
         surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
