@@ -233,7 +233,8 @@ def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest):
     nearest[p, r, c] = the least camera depth of the boxes of part p of `cells` whose rectangle reaches within half a
     pixel of the pixel's centre (left as it was where none does); the least over the parts is a depth nearer the
     camera than which no ray through any point of the pixel can stop. One part per thread, so no two threads write
-    the same value. `projection`: 3x4, crop point -> (u * depth, v * depth, depth)."""
+    the same depth (the mask they may both set, to the same True). `projection`: 3x4, crop point -> (u * depth,
+    v * depth, depth)."""
     n0, n1, n2 = shape[0], shape[1], shape[2]
     rows, cols = mask.shape
     parts = nearest.shape[0]
