@@ -215,12 +215,13 @@ def test_shadow_maps_block_what_lies_between():
     assert np.all(seen == 1.0)
 
 
-def test_soft_shadow_of_a_plate_matches_the_area_light():
-    # A square plate at height 1 under a square light at height 3 (4 x 4 points): a floor point at x sees the
+@pytest.mark.parametrize("points", [3, 4])  # 3: the shader's LIGHT_POINTS
+def test_soft_shadow_of_a_plate_matches_the_area_light(points):
+    # A square plate at height 1 under a square light at height 3 (points x points): a floor point at x sees the
     # light but for the part of it whose rays cross the plate, which is exact per axis (similar triangles).
-    # Each light point read as a point (spread 0) steps by 1/16 and bands; read as its square of the light it is
-    # closer everywhere.
-    light_height, plate_height, light_side, plate_side, points = 3.0, 1.0, 1.0, 0.5, 4
+    # Each light point read as a point (spread 0) steps by 1/points^2 and bands; read as its square of the light it
+    # is closer everywhere.
+    light_height, plate_height, light_side, plate_side = 3.0, 1.0, 1.0, 0.5
     offsets = ((np.arange(points) + 0.5) / points - 0.5) * light_side
     lx, lz = np.meshgrid(offsets, offsets, indexing="ij")
     lights = np.stack([lx.ravel(), np.full(lx.size, light_height), lz.ravel()], axis=1)
