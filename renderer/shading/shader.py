@@ -66,7 +66,7 @@ BROAD_SCALE = 0.5  # the broad occupancy is stored at half resolution
 BLUR_TRUNCATE = 2.5  # gaussian kernels reach this many sigmas
 CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
 # Per side of the light square: shadow maps and the direct-light sum. 3 x 3 instead of 4 x 4 took a quarter off the
-# light stage (the maps are most of it) and moved the shipped NVR+'s MSE by 0.01-0.10 on the test sets and the novel
+# light stage (the maps are most of it) and moved the shipped NVR+'s MSE by 0.01-0.25 on the test sets and the novel
 # shapes (docs/results.md, "Edit latency").
 LIGHT_POINTS = 3
 SHADOW_MAP_SIZE = 96  # texels per side
