@@ -384,8 +384,8 @@ class RenderEngine:
             pooled = self._network_pool(painted, keys)
         shape_key = (keys.pool[0][0], n, factors)
         shape = self._stage("shade_geometry", shape_key, lambda: object_geometry(pooled.voxels, n, factors))
-        # Where the scene has the object (its occluders moved: 4 ms of a light edit if redone), in this paint's colors
-        # (kept geometry may hold an earlier paint's).
+        # Where the scene has the object (its occluders moved: 1.6-2 ms on the demo chair, which a light edit need not
+        # pay), in this paint's colors (kept geometry may hold an earlier paint's).
         where = self._stage("shade_placement", (shape_key, keys.placement),
                             lambda: placed(shape, scene.object, scene.camera.elevation_deg))
         geometry = replace(where, rgb=pooled.voxels[..., :3])
