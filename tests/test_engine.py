@@ -521,3 +521,17 @@ def test_a_saved_refiner_renders_the_same_after_loading(scene, tmp_path, resolut
     # The preview while dragging is the shaded image the full render corrects.
     preview = loaded.preview(scene.with_changes(object=replace(scene.object, translation=(0.2, 0.1))))
     assert preview.shape == (64, 64, 3) and np.all(np.isfinite(preview))
+
+
+@pytest.mark.parametrize("resolution", REFINERS)
+def test_compiled_image_passes_equal_torch_in_the_engine(scene, resolution):
+    """On the CPU the engine joins the splat branch's inputs and applies the correction in compiled passes
+    (models/engine/image_passes.py); with torch's operations instead the images are the same."""
+    model = refiner(config=REFINERS[resolution])
+    live, with_torch = engine(model), engine(model)
+    assert live._passes_on_cpu
+    with_torch._passes_on_cpu = False
+    for edited in (scene, EDITS["light"][0](scene), EDITS["move"][0](scene)):
+        image = live.render(edited)
+        np.testing.assert_allclose(image, with_torch.render(edited), rtol=0, atol=1e-5)
+        assert np.abs(image - _shaded_image(edited, 128)).max() > 1e-2  # the correction is not nothing

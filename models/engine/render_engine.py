@@ -80,9 +80,11 @@ import numpy as np
 import torch
 
 from models.engine.cropped_encoder import Background, CroppedVoxelEncoder, CropPlan
+from models.engine.image_passes import apply_correction, join_and_pool
 from models.engine.light_merge import split_light_merge
 from models.engine.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, use_onednn_convolutions
 from models.engine.paint_replay import PaintReplay
+from models.networks.config import IMAGE_CHANNELS
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
 from models.threads import set_threads
@@ -192,6 +194,8 @@ class RenderEngine:
         self.dtype = PRECISIONS[self.precision]
         self._reads_floor_light = reads_floor_light(model.architecture, self.config)
         self._reads_shading = reads_shading(model.architecture, self.config)
+        # NVR+ correcting the shaded image on the CPU: its image inputs and output in compiled passes, not torch's
+        self._passes_on_cpu = self._reads_shading and self.device.type == "cpu"
         inference = prepare_for_inference(model)
         if self.device.type == "cpu":
             inference = use_onednn_convolutions(inference)
@@ -257,24 +261,35 @@ class RenderEngine:
         painted, floor, paint_key = self._painted(scene)
         keys = self._keys(scene, painted, floor, paint_key)
         latent = self._latent(scene, painted, floor, keys)
-        # The shader's buffers as a tensor, made only if a stage that reads them reruns.
-        shading = functools.cache(lambda: self._image_tensor(self._shading(scene, painted, floor, keys))
-                                  if self._reads_shading else None)
+        # The shader's buffers (S, S, SHADING_CHANNELS), made only if a stage that reads them reruns.
+        buffers = functools.cache(lambda: self._shading(scene, painted, floor, keys) if self._reads_shading else None)
         features = None
         if self.kind == "nvr+":
             splat = self._splat(scene, painted, floor, keys)
             floor_light = self._floor_light(scene, floor, keys) if self._reads_floor_light else None
-            features = self._stage("splat_branch", keys.splat_branch, lambda: self.model.encode_splat(
-                self._image_tensor(splat), None if floor_light is None else self._image_tensor(floor_light), shading()))
+            features = self._stage("splat_branch", keys.splat_branch,
+                                   lambda: self._encode_splat(splat, floor_light, buffers()))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
         light = light.to(self.device, self.dtype)
         key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
 
         def render() -> np.ndarray:
-            shaded = None if shading() is None else shading()[:, :3]
+            if self._passes_on_cpu:  # the correction applied in one compiled pass (models/engine/image_passes.py)
+                correction = self.model.correction_from_latent(latent, light, features)
+                return apply_correction(_to_array(correction), buffers()[..., :IMAGE_CHANNELS])
+            shaded = None if buffers() is None else self._image_tensor(buffers())[:, :IMAGE_CHANNELS]
             return _to_image(self.model.render_from_latent(latent, light, features, shaded))
 
         return self._stage("light", key, render)
+
+    def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None, buffers: np.ndarray | None
+                      ) -> torch.Tensor:
+        """The splat branch's features; its inputs joined and area-averaged in one compiled pass on the CPU."""
+        inputs = [image for image in (splat, floor_light, buffers) if image is not None]
+        if self._passes_on_cpu:
+            return self.model.encode_joined(self._image_tensor(join_and_pool(inputs, self.config.correction_downsampling)))
+        return self.model.encode_splat(*(None if image is None else self._image_tensor(image)
+                                         for image in (splat, floor_light, buffers)))
 
     # --- stages ---------------------------------------------------------------------------
 
@@ -522,6 +537,11 @@ def _file_stamp(path: Path) -> tuple:
     except OSError:
         return (str(path), None, None)  # the loader reports the missing file
     return (str(path.resolve()), stat.st_mtime_ns, stat.st_size)
+
+
+def _to_array(batch: torch.Tensor) -> np.ndarray:
+    """The first image of a (B, C, H, W) CPU batch as a float32 (H, W, C) array (no copy from channels-last float32)."""
+    return batch[0].permute(1, 2, 0).float().contiguous().numpy()
 
 
 def _to_image(batch: torch.Tensor) -> np.ndarray:

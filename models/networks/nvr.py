@@ -25,7 +25,8 @@ Input/output convention (the one place it is written down):
 Stages, so a live engine can cache what an edit does not change:
 `encode_voxels(voxels) -> latent` does not depend on the light, nor does
 `encode_splat(splat, floor_light) -> features` unless it reads the lit floor;
-`render_from_latent(latent, light, splat_features)` is everything from the light merge on;
+`render_from_latent(latent, light, splat_features)` is everything from the light merge on (NVR+:
+`correction_from_latent`, then `apply_correction` to the shaded image);
 `forward(voxels, light, splat, floor_light)` composes them.
 """
 
@@ -223,8 +224,8 @@ class NVRPlus(_VoxelRenderer):
 
     def encode_splat(self, splat: torch.Tensor, floor_light: torch.Tensor | None = None,
                      shading: torch.Tensor | None = None) -> torch.Tensor:
-        """Features (B, splat_channels, S, S) of the splatted image, and of the lit floor and the shader's
-        buffers if the config reads them."""
+        """Features (B, splat_channels, N, N), N = config.network_size, of the splatted image, and of the lit floor
+        and the shader's buffers if the config reads them."""
         s = self.config.output_size
         _check_shape("splat", splat, (IMAGE_CHANNELS, s, s))
         inputs = [splat]
@@ -245,25 +246,41 @@ class NVRPlus(_VoxelRenderer):
             # One pool over the joined channels: on the engine's channels-last inputs at 256^2 it took 1.5 ms against
             # 6.7 for a pool per input (Intel Xeon, 2 threads).
             joined = F.avg_pool2d(joined, factor)
+        return self.encode_joined(joined)
+
+    def encode_joined(self, joined: torch.Tensor) -> torch.Tensor:
+        """encode_splat after its inputs are joined along the channels (splat, lit floor, shader buffers, as read)
+        and area-averaged to (B, C, N, N), N = config.network_size: for a caller that joins them itself."""
         return self.splat_encoder(joined)
+
+    def correction_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
+                               splat_features: torch.Tensor | None) -> torch.Tensor:
+        """What the U-Net draws from a cached latent, the light and cached splat features, before it is applied:
+        (B, 3, S, S) logits of the image, or with shading_input gain and offset (B, 6, N, N), N = config.network_size
+        (apply_correction)."""
+        if splat_features is None:
+            raise ValueError("NVRPlus needs splat features (encode_splat)")
+        return self.rerender(self.to_features(self._features(latent, light)) + splat_features)
+
+    def apply_correction(self, correction: torch.Tensor, shaded: torch.Tensor | None) -> torch.Tensor:
+        """The image (B, 3, S, S) from correction_from_latent's output and, with shading_input, the shaded image
+        (B, 3, S, S) it corrects: shaded * exp(gain) + offset, gain and offset upsampled bilinearly to S."""
+        if not self.config.shading_input:
+            return torch.sigmoid(correction)
+        if shaded is None:
+            raise ValueError("this network corrects the shaded image (config.shading_input): pass shaded")
+        if self.config.correction_downsampling > 1:
+            correction = F.interpolate(correction, scale_factor=self.config.correction_downsampling, mode="bilinear",
+                                       align_corners=False)
+        gain, offset = correction[:, :IMAGE_CHANNELS], correction[:, IMAGE_CHANNELS:]
+        # exp of a dense copy (clone keeps the layout): on a strided channel slice it is not vectorised, 10x slower
+        return torch.addcmul(offset, shaded, gain.clone().exp())
 
     def render_from_latent(self, latent: torch.Tensor, light: torch.Tensor,
                            splat_features: torch.Tensor | None = None, shaded: torch.Tensor | None = None) -> torch.Tensor:
         """Image (B, 3, S, S) from a cached latent, the light and cached splat features; with shading_input
         also the shaded image (B, 3, S, S) the output corrects."""
-        if splat_features is None:
-            raise ValueError("NVRPlus needs splat features (encode_splat)")
-        features = self.to_features(self._features(latent, light)) + splat_features
-        out = self.rerender(features)
-        if not self.config.shading_input:
-            return torch.sigmoid(out)
-        if shaded is None:
-            raise ValueError("this network corrects the shaded image (config.shading_input): pass shaded")
-        if self.config.correction_downsampling > 1:
-            out = F.interpolate(out, scale_factor=self.config.correction_downsampling, mode="bilinear", align_corners=False)
-        gain, offset = out[:, :IMAGE_CHANNELS], out[:, IMAGE_CHANNELS:]
-        # exp of a dense copy (clone keeps the layout): on a strided channel slice it is not vectorised, 10x slower
-        return torch.addcmul(offset, shaded, gain.clone().exp())
+        return self.apply_correction(self.correction_from_latent(latent, light, splat_features), shaded)
 
     def forward(self, voxels: torch.Tensor, light: torch.Tensor, splat: torch.Tensor | None = None,
                 floor_light: torch.Tensor | None = None, shading: torch.Tensor | None = None) -> torch.Tensor:
