@@ -12,6 +12,7 @@ straight grid ray too, and "which side of a voxel face a point lies on" can be r
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from renderer.errors import InputError
 from renderer.transform import OBJECT_BOX_MIN, OBJECT_SIZE
@@ -97,11 +98,22 @@ class Shell:
 
     def facing_mask(self, viewpoint_grid: np.ndarray) -> np.ndarray:
         """(K,) bool over the shell's voxels: those `facing` returns."""
-        seen = np.zeros(len(self.voxels), dtype=bool)
-        for i, (axis, side) in enumerate(self.SIDES):
-            face = self.coords[:, axis] + (side > 0)  # the face's coordinate, as facing_exposed computes it
-            seen |= self.faces[:, i] & ((viewpoint_grid[axis] - face) * side > 0)
+        seen = np.empty(len(self.voxels), dtype=bool)
+        _facing(self.coords, self.faces, np.asarray(viewpoint_grid, dtype=np.float64), seen)
         return seen
+
+
+@njit(cache=True)
+def _facing(coords, faces, viewpoint, seen):
+    """seen[m]: an exposed face of shell voxel m (faces[m, i] on Shell.SIDES[i]) has `viewpoint` on its outer side;
+    one pass over the shell (six numpy passes took 2.2 ms of a 200^3 chair's splat layout)."""
+    for m in range(coords.shape[0]):
+        any_side = False
+        for axis in range(3):
+            for s, side in enumerate((-1, 1)):
+                face = coords[m, axis] + (side > 0)  # the face's coordinate, as facing_exposed computes it
+                any_side |= faces[m, 2 * axis + s] and (viewpoint[axis] - face) * side > 0
+        seen[m] = any_side
 
 
 def voxel_centers_at(indices: np.ndarray, resolution: int) -> np.ndarray:
