@@ -215,6 +215,20 @@ def test_shadow_maps_block_what_lies_between():
     assert np.all(seen == 1.0)
 
 
+def test_shadow_maps_of_light_points_at_other_heights_are_each_points_own():
+    # The maps keep 1 / height per occluder for the first point's height; a point at another height (and an
+    # occluder above it) must give the map it gives alone.
+    occluders = np.random.default_rng(3).uniform([-0.5, 0.0, -0.5], [0.5, 2.5, 0.5], (500, 3))
+    lights = np.array([[0.1, 3.0, -0.2], [0.3, 2.0, 0.1], [-0.2, 3.0, 0.0]])
+    maps, bounds = np.empty((3, 32, 32), dtype=np.float32), np.zeros((3, 3))
+    kernels.build_shadow_maps(occluders, 0.02, lights, 32, maps, bounds)
+    for k in range(3):
+        alone, alone_bounds = np.empty((1, 32, 32), dtype=np.float32), np.zeros((1, 3))
+        kernels.build_shadow_maps(occluders, 0.02, lights[k:k + 1], 32, alone, alone_bounds)
+        np.testing.assert_array_equal(maps[k], alone[0])
+        np.testing.assert_array_equal(bounds[k], alone_bounds[0])
+
+
 @pytest.mark.parametrize("points", [3, 4])  # 3: the shader's LIGHT_POINTS
 def test_soft_shadow_of_a_plate_matches_the_area_light(points):
     # A square plate at height 1 under a square light at height 3 (points x points): a floor point at x sees the
