@@ -261,14 +261,16 @@ class RenderEngine:
         painted, floor, paint_key = self._painted(scene)
         keys = self._keys(scene, painted, floor, paint_key)
         latent = self._latent(scene, painted, floor, keys)
-        # The shader's buffers (S, S, SHADING_CHANNELS), made only if a stage that reads them reruns.
+        # The shader's buffers (S, S, SHADING_CHANNELS), and as a tensor (off the compiled passes), made only if a
+        # stage that reads them reruns.
         buffers = functools.cache(lambda: self._shading(scene, painted, floor, keys) if self._reads_shading else None)
+        buffers_tensor = functools.cache(lambda: None if buffers() is None else self._image_tensor(buffers()))
         features = None
         if self.kind == "nvr+":
             splat = self._splat(scene, painted, floor, keys)
             floor_light = self._floor_light(scene, floor, keys) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
-                                   lambda: self._encode_splat(splat, floor_light, buffers()))
+                                   lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
         light = light.to(self.device, self.dtype)
         key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
@@ -277,19 +279,20 @@ class RenderEngine:
             if self._passes_on_cpu:  # the correction applied in one compiled pass (models/engine/image_passes.py)
                 correction = self.model.correction_from_latent(latent, light, features)
                 return apply_correction(_to_array(correction), buffers()[..., :IMAGE_CHANNELS])
-            shaded = None if buffers() is None else self._image_tensor(buffers())[:, :IMAGE_CHANNELS]
+            shaded = None if buffers_tensor() is None else buffers_tensor()[:, :IMAGE_CHANNELS]
             return _to_image(self.model.render_from_latent(latent, light, features, shaded))
 
         return self._stage("light", key, render)
 
-    def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None, buffers: np.ndarray | None
+    def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
+                      buffers: Callable[[], np.ndarray | None], buffers_tensor: Callable[[], torch.Tensor | None]
                       ) -> torch.Tensor:
-        """The splat branch's features; its inputs joined and area-averaged in one compiled pass on the CPU."""
-        inputs = [image for image in (splat, floor_light, buffers) if image is not None]
+        """The splat branch's features; on the CPU its inputs joined and area-averaged in one compiled pass."""
         if self._passes_on_cpu:
+            inputs = [image for image in (splat, floor_light, buffers()) if image is not None]
             return self.model.encode_joined(self._image_tensor(join_and_pool(inputs, self.config.correction_downsampling)))
-        return self.model.encode_splat(*(None if image is None else self._image_tensor(image)
-                                         for image in (splat, floor_light, buffers)))
+        return self.model.encode_splat(self._image_tensor(splat),
+                                       None if floor_light is None else self._image_tensor(floor_light), buffers_tensor())
 
     # --- stages ---------------------------------------------------------------------------
 
