@@ -235,6 +235,25 @@ def test_every_object_voxel_of_the_grid_lies_in_the_object_window(elevation, rot
     assert (full[box] < empty_row).any() == (translation[0] < 2.0)  # the object is in the grid unless moved out
 
 
+@pytest.mark.parametrize("box, kinds", [
+    ([(30, 90), (40, 110), (20, 100)], {"object", "empty", "ground"}),
+    ([(0, 128), (100, 128), (0, 128)], {"empty", "ground"}),
+    ([(5, 9), (5, 9), (5, 9)], {"empty"}),
+])
+def test_sample_indices_over_a_box_are_the_whole_grids_there(box, kinds):
+    rgba = sphere_voxels()
+    spec = ObjectSpec(translation=(0.1, -0.2), rotation_deg=35.0, scale=(1.0, 1.2, 0.9))
+    factors = pool_factors(rgba.shape[0], spec.scale)
+    empty_row = pool_voxels(rgba, factors)[..., 0].size
+    full = sample_indices(rgba.shape[0], factors, spec, 25.0)
+    window = object_window(rgba.shape[0], factors, spec, 25.0)
+    for known in (None, window):
+        part = sample_indices(rgba.shape[0], factors, spec, 25.0, box=box, window=known)
+        np.testing.assert_array_equal(part, full[tuple(slice(*span) for span in box)])
+    found = {"object": (part < empty_row).any(), "empty": (part == empty_row).any(), "ground": (part > empty_row).any()}
+    assert {kind for kind, present in found.items() if present} == kinds
+
+
 def test_occupied_spans_bound_the_true_entries():
     mask = np.zeros((6, 7, 8), dtype=bool)
     assert occupied_spans(mask) is None
