@@ -389,34 +389,42 @@ def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
                                                            ("ball", 30.0, (1.1, 0.2))])
 def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, translation):
     # The centre pass traces only the pixels whose ray may stop on the surface, each from the depth nearer than which
-    # no ray through its pixel can stop. Tracing every pixel of the window from those depths must give the same hits,
-    # points and coverage, and the skip must leave out most of the window's misses; tracing every ray from the crop's
-    # face (anywhere in its pixel) must find no hit nearer than its pixel's depth, and the same hits for nearly all.
+    # no ray through its pixel can stop to the depth past which none can. Tracing every pixel of the window from those
+    # depths, with or without the far one, must give the same hits, points and coverage, and the skip must leave out
+    # most of the window's misses; tracing every ray from the crop's face (anywhere in its pixel) must find no hit
+    # nearer than its pixel's depth, and the same hits for nearly all; a far depth changes no ray anywhere in a pixel.
     spec = ObjectSpec(voxels="v.npz", translation=translation, scale=(0.6, 0.6, 0.45))  # a voxel step of two lengths
     geometry = geometry_of(ball() if shape == "ball" else lattice(), spec, elevation)
     camera = Camera(elevation, width=128, height=128)
     world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
     origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
     rows, cols = _pixel_window(geometry, camera)
-    candidates, nearest = _ray_candidates(geometry, camera, rows, cols)
+    candidates, nearest, farthest = _ray_candidates(geometry, camera, rows, cols)
     every = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5, nearest)
-    skipping = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols, candidates, nearest)
-    for full, fast in zip(every, skipping):
+    bounded = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5, nearest,
+                     farthest)
+    skipping = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols, candidates, nearest, farthest)
+    for full, far, fast in zip(every, bounded, skipping):
+        np.testing.assert_array_equal(far, full)
         np.testing.assert_array_equal(fast, full)
     hits = every[0] < kernels.FAR
     assert 0 < hits.sum() < hits.size
     assert np.all(candidates[hits]) and candidates[~hits].mean() < 0.6
     assert np.isfinite(nearest[hits]).all() and (nearest[~candidates] > nearest[hits].min()).mean() > 0.3
+    assert np.all(farthest[hits] >= nearest[hits]) and np.isfinite(farthest[candidates & ~hits]).any()  # misses bounded
 
     axis = -(camera.world_to_camera()[2, :3] @ geometry.voxel_to_world[:3, :3])  # depth per crop voxel
     for dv, du in ((0.5, 0.5), (0.02, 0.98), (0.98, 0.3)):
         t_face, points_face, _ = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + dv,
                                         cols[None, :] + du)
-        t_near, _, _ = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + dv, cols[None, :] + du,
-                              nearest)
+        from_near = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + dv, cols[None, :] + du, nearest)
+        for full, far in zip(from_near, _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + dv,
+                                               cols[None, :] + du, nearest, farthest)):
+            np.testing.assert_array_equal(far, full)
+        t_near = from_near[0]
         face, near = t_face < kernels.FAR, t_near < kernels.FAR
         depth = (points_face[face] - origin) @ axis
-        assert np.all(depth >= nearest[face] - 1e-9)
+        assert np.all(depth >= nearest[face] - 1e-9) and np.all(depth <= farthest[face] + 1e-9)
         # Rays that graze a lattice's thin bars may step past a bar from one start and not the other (2.7 % of them
         # at most here; their coverage is near 0): no more.
         assert (face != near).sum() < 0.04 * face.sum() and face.sum() > 0.1 * face.size

@@ -99,15 +99,17 @@ def _gap(fields, level, thin, x, y, z):
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
-def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_to_ray, depth_axis, pixels, nearest, hits,
-                  points, deepest, cores, behind):
+def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_to_ray, depth_axis, pixels, nearest,
+                  farthest, hits, points, deepest, cores, behind):
     """Sphere-trace the rays through `pixels` (N, 2: u, v) from `origin` to where `distance` (voxels to the
     nearest occupied voxel, fields[..., 0]) falls to the surface level: `level`, or `thin` above the part's core where that
     is more (a part thinner than a voxel or two never reaches `level`, and would break up). A pixel's ray
     direction is pixel_to_ray @ (u, v, 1), made unit. A ray starts a voxel before camera depth nearest[i] (or where it
     enters the crop, if later; the depth of a crop point p is depth_axis . p, the origin's 0): nearer, it cannot stop
     (mark_surface_pixels), so it skips the empty space there without sampling it (the demo chair's rays took 43
-    steps each from the crop's face, 36 of them more than 6 voxels before their hit).
+    steps each from the crop's face, 36 of them more than 6 voxels before their hit). It ends a voxel past camera
+    depth farthest[i] (or where it leaves the crop, if sooner): further, it cannot stop either, so a ray that misses
+    stops marching there.
     hits[i] = ray parameter (FAR if none),
     points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
     far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
@@ -132,6 +134,7 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
         rate = depth_axis[0] * dx + depth_axis[1] * dy + depth_axis[2] * dz  # depth per unit of t
         if rate > 1e-12:
             t = max(t, nearest[i] / rate - 1.0)
+            t_end = min(t_end, farthest[i] / rate + 1.0)
         previous = t
         for _ in range(256):
             if t > t_end:
@@ -225,30 +228,30 @@ def near_surface_cell_mask(fields, level, thin, slack):
 
 
 @njit(cache=True, parallel=True)
-def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest):
+def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest, farthest):
     """mask[r, c] = True (image pixel row0 + r, col0 + c) where the pixel's centre falls in the image rectangle of
     one of `cells` (runs i, j, first k, last k of near_surface_cell_mask's cells, (K, 4) indices into a crop of
     `shape` voxels; the cells at the crop's faces reach to its faces, where samples are clamped): a superset of the
     pixels whose centre ray may stop in `trace_surface` (a run's box covers its cells').
     nearest[p, r, c] = the least camera depth of the boxes of part p of `cells` whose rectangle reaches within half a
     pixel of the pixel's centre (left as it was where none does); the least over the parts is a depth nearer the
-    camera than which no ray through any point of the pixel can stop. One part per thread, so no two threads write
-    the same depth (the mask they may both set, to the same True). `projection`: 3x4, crop point -> (u * depth,
-    v * depth, depth)."""
+    camera than which no ray through any point of the pixel can stop. farthest[p, r, c] likewise the greatest depth:
+    beyond it no such ray can stop. One part per thread, so no two threads write the same depth (the mask they may
+    both set, to the same True). `projection`: 3x4, crop point -> (u * depth, v * depth, depth)."""
     n0, n1, n2 = shape[0], shape[1], shape[2]
     rows, cols = mask.shape
     parts = nearest.shape[0]
     for p in prange(parts):
         for q in range(p * cells.shape[0] // parts, (p + 1) * cells.shape[0] // parts):
             i, j, k, k_last = cells[q, 0], cells[q, 1], cells[q, 2], cells[q, 3]
-            u0, u1, v0, v1, d0 = 1e30, -1e30, 1e30, -1e30, 1e30
+            u0, u1, v0, v1, d0, d1 = 1e30, -1e30, 1e30, -1e30, 1e30, -1e30
             for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
                 for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
                     for z in (0.0 if k == 0 else k + 0.5, n2 if k_last == n2 - 2 else k_last + 1.5):
                         pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
                         pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]
                         pd = projection[2, 0] * x + projection[2, 1] * y + projection[2, 2] * z + projection[2, 3]
-                        d0 = min(d0, pd)  # depth is linear: a box's least is at a corner
+                        d0, d1 = min(d0, pd), max(d1, pd)  # depth is linear: a box's least and most are at corners
                         if pd <= 1e-9:  # behind the camera: keep every pixel
                             u0, u1, v0, v1 = -1e30, 1e30, -1e30, 1e30
                         else:
@@ -264,6 +267,7 @@ def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest):
                 inside_v = centre_v >= v0 - 0.01 and centre_v <= v1 + 0.01
                 for c in range(c0, c1 + 1):
                     nearest[p, r, c] = min(nearest[p, r, c], d0)
+                    farthest[p, r, c] = max(farthest[p, r, c], d1)
                     centre_u = c + col0 + 0.5
                     if inside_v and centre_u >= u0 - 0.01 and centre_u <= u1 + 0.01:
                         mask[r, c] = True

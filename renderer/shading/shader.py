@@ -278,9 +278,9 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     points_crop = np.zeros((0, 3), dtype=np.float64)
     if not geometry.empty:
         rows, cols = _pixel_window(geometry, camera)
-        candidates, nearest = _ray_candidates(geometry, camera, rows, cols)
+        candidates, nearest, farthest = _ray_candidates(geometry, camera, rows, cols)
         centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols,
-                                                             candidates, nearest, cover_behind)
+                                                             candidates, nearest, farthest, cover_behind)
         hit = centre_t < kernels.FAR
         edge = (hit ^ ndimage.binary_erosion(hit, border_value=0)) | (ndimage.binary_dilation(hit) & ~hit)
         edge |= hit & (centre_cover < 1.0)
@@ -292,7 +292,8 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
             sub_v = rows[er][:, None, None] + offsets[None, :, None]  # (edges, SUBPIXELS, 1)
             sub_u = cols[ec][:, None, None] + offsets[None, None, :]  # (edges, 1, SUBPIXELS): _trace broadcasts
             sub_t, sub_p, sub_cover = _trace(geometry, camera, world_to_voxel, origin, sub_v, sub_u,
-                                             nearest[er, ec][:, None, None], cover_behind)
+                                             nearest[er, ec][:, None, None], farthest[er, ec][:, None, None],
+                                             cover_behind)
             sub_t, sub_p = sub_t.reshape(len(er), -1), sub_p.reshape(len(er), -1, 3)
             sub_hit = sub_t < kernels.FAR
             cover[er, ec] = sub_cover.reshape(len(er), -1).mean(axis=1)
@@ -405,40 +406,43 @@ def _crop_corners(geometry: ObjectGeometry) -> np.ndarray:
 
 def _trace_candidates(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray, origin: np.ndarray,
                       rows: np.ndarray, cols: np.ndarray, candidates: np.ndarray, nearest: np.ndarray,
-                      cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """`_trace` through the centres of the pixel window's `candidates` (_ray_candidates), each from its `nearest`
-    depth; the other pixels (about two in three of a chair's window) miss (FAR, a zero point, no coverage) as `_trace` would find."""
+                      farthest: np.ndarray, cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`_trace` through the centres of the pixel window's `candidates` (_ray_candidates), each between its `nearest` and
+    `farthest` depths; the other pixels (about two in three of a chair's window) miss (FAR, a zero point, no coverage)
+    as `_trace` would find."""
     shape = (len(rows), len(cols))
     t, points, cover = np.full(shape, kernels.FAR, dtype=np.float64), np.zeros(shape + (3,)), np.zeros(shape, np.float32)
     r, c = np.nonzero(candidates)
     t[r, c], points[r, c], cover[r, c] = _trace(geometry, camera, world_to_voxel, origin, rows[r] + 0.5, cols[c] + 0.5,
-                                                nearest[r, c], cover_behind)
+                                                nearest[r, c], farthest[r, c], cover_behind)
     return t, points, cover
 
 
 def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray,
-                    cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                    cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For the pixel window (rows, cols): which pixels' centre rays may stop on the surface (bool), and the camera
-    depth nearer than which no ray through the pixel can stop (kernels.mark_surface_pixels)."""
+    depths nearer and farther than which no ray through the pixel can stop (kernels.mark_surface_pixels)."""
     shape = (len(rows), len(cols))
     if min(geometry.occupied.shape) < 2:
-        return np.ones(shape, dtype=bool), np.zeros(shape)
-    mask, nearest = np.zeros(shape, dtype=bool), np.full((numba.get_num_threads(),) + shape, np.inf)
+        return np.ones(shape, dtype=bool), np.zeros(shape), np.full(shape, np.inf)
+    threads = numba.get_num_threads()
+    mask, nearest, farthest = (np.zeros(shape, dtype=bool), np.full((threads,) + shape, np.inf),
+                               np.full((threads,) + shape, -np.inf))
     voxel_to_camera = camera.world_to_camera()[:3] @ geometry.voxel_to_world
     crop_to_camera = voxel_to_camera + np.column_stack([np.zeros((3, 3)), voxel_to_camera[:, :3] @ geometry.offset])
     image = camera.intrinsics() @ np.diag([1.0, -1.0, -1.0])  # camera point -> (u, v, 1) * depth
     kernels.mark_surface_pixels(geometry.surface_cells, np.asarray(geometry.occupied.shape), image @ crop_to_camera,
-                                int(rows[0]), int(cols[0]), mask, nearest)
-    return mask, nearest.min(axis=0)
+                                int(rows[0]), int(cols[0]), mask, nearest, farthest)
+    return mask, nearest.min(axis=0), farthest.max(axis=0)
 
 
 def _trace(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray, origin: np.ndarray,
-           v: np.ndarray, u: np.ndarray, nearest: np.ndarray | float = 0.0,
+           v: np.ndarray, u: np.ndarray, nearest: np.ndarray | float = 0.0, farthest: np.ndarray | float = np.inf,
            cover_behind: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ray parameter, crop point and coverage of the first surface hit through pixel coordinates (u, v), each ray
-    traced from about camera depth `nearest` on (_ray_candidates; 0: from where it enters the crop; `cover_behind`: see
-    visible_surface)."""
-    u, v, nearest = np.broadcast_arrays(u, v, nearest)
+    traced from about camera depth `nearest` to about `farthest` (_ray_candidates; 0 and inf: from where it enters the
+    crop to where it leaves; `cover_behind`: see visible_surface)."""
+    u, v, nearest, farthest = np.broadcast_arrays(u, v, nearest, farthest)
     count = u.size
     # The camera-space ray through (u, v) is ((u - cx) / f, -(v - cy) / f, -1): affine in (u, v, 1).
     (cx, cy), f = camera.principal_point, camera.focal_px
@@ -453,7 +457,8 @@ def _trace(geometry: ObjectGeometry, camera: Camera, world_to_voxel: np.ndarray,
                           cover_behind, origin,
                           pixel_to_ray, _depth_axis(geometry, camera),
                           np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64),
-                          np.ascontiguousarray(nearest, dtype=np.float64).ravel(), t, points, deepest, cores, behind)
+                          np.ascontiguousarray(nearest, dtype=np.float64).ravel(),
+                          np.ascontiguousarray(farthest, dtype=np.float64).ravel(), t, points, deepest, cores, behind)
     level = np.maximum(SURFACE_LEVEL, cores + THIN_LEVEL)  # the surface level where each ray stopped
     cover = np.clip((level - deepest) / ((level - cores) * COVERAGE_FULL), 0.0, 1.0).astype(np.float32)
     cover[behind] = 1.0  # it grazed a part in front of another: no floor shows through
