@@ -1,9 +1,9 @@
-"""The network's image inputs and output on the CPU, each in one compiled pass (numba, cached on disk).
+"""The network's image inputs and output on the CPU, in a few compiled passes (numba, cached on disk).
 
 NVR+ joins its splat branch's inputs along the channels and area-averages them, and at the end upsamples its
 correction and applies it to the shaded image. In torch that is a concatenation, a pool, an upsampling, an exp, a
 multiply-add, a clamp and a copy into the image layout, each a pass over 256^2 images: 2.5 ms of a light edit
-(torch's profiler, 2-core Intel Xeon with AVX512-BF16, fp32), against 0.8 ms for these passes. Same arithmetic, in
+(torch's profiler, 2-core Intel Xeon with AVX512-BF16, fp32), against 0.95 ms for these passes. Same arithmetic, in
 float32 (numpy's exp for the gain).
 """
 
@@ -48,14 +48,14 @@ def apply_correction(correction: np.ndarray, shaded: np.ndarray) -> np.ndarray:
     """The (S, S, 3) float32 image in [0, 1]: shaded (S, S, 3) * exp(gain) + offset, gain and offset the channels 0-2
     and 3-5 of `correction` (N, N, 6) upsampled bilinearly to S as torch's interpolate does (align_corners=False);
     what NVRPlus.apply_correction computes, then clamped for display (NaN as 0)."""
-    size = shaded.shape[0]
-    scale = correction.shape[0] / size
-    out = np.empty((size, shaded.shape[1], 3), dtype=np.float32)
-    _upsample(correction, 0, scale, out)  # the gain
+    size, scale = shaded.shape[0], correction.shape[0] / shaded.shape[0]
+    gain, offset = (np.empty((size, shaded.shape[1], 3), dtype=np.float32) for _ in range(2))
+    _upsample(correction, 0, scale, gain)
+    _upsample(correction, 3, scale, offset)
     with np.errstate(over="ignore"):  # a gain too large for float32 is inf: its pixel saturates, clamped below
-        np.exp(out, out=out)  # numpy's exp is vectorised; a compiled loop calls a scalar exp per value, 10x slower
-    _correct(correction, shaded, scale, out)
-    return out
+        np.exp(gain, out=gain)  # numpy's exp is vectorised; a compiled loop calls a scalar exp per value, 10x slower
+    _correct(shaded, gain, offset, gain)
+    return gain
 
 
 @njit(cache=True)
@@ -78,28 +78,24 @@ def _lerp(a, b, weight):
 
 
 @njit(cache=True, parallel=True)
-def _upsample(correction, first, scale, out):
-    """out[r, c, k] = channel first + k of `correction` upsampled bilinearly, k < 3."""
-    r0s, r1s, wrs = _sources(out.shape[0], scale, correction.shape[0])
-    c0s, c1s, wcs = _sources(out.shape[1], scale, correction.shape[1])
+def _upsample(image, first, scale, out):
+    """out[..., k] (S, S, C) = channel first + k of `image` (N, N, more) upsampled bilinearly, scale = N / S."""
+    r0s, r1s, wrs = _sources(out.shape[0], scale, image.shape[0])
+    c0s, c1s, wcs = _sources(out.shape[1], scale, image.shape[1])
     for r in prange(out.shape[0]):
-        top, bottom, wr = correction[r0s[r]], correction[r1s[r]], wrs[r]
+        top, bottom, wr = image[r0s[r]], image[r1s[r]], wrs[r]
         for c in range(out.shape[1]):
             c0, c1, wc = c0s[c], c1s[c], wcs[c]
-            for k in range(first, first + 3):
-                out[r, c, k - first] = _lerp(_lerp(top[c0, k], top[c1, k], wc), _lerp(bottom[c0, k], bottom[c1, k], wc), wr)
+            for k in range(out.shape[2]):
+                i = first + k
+                out[r, c, k] = _lerp(_lerp(top[c0, i], top[c1, i], wc), _lerp(bottom[c0, i], bottom[c1, i], wc), wr)
 
 
 @njit(cache=True, parallel=True)
-def _correct(correction, shaded, scale, gain):
-    """gain[r, c, k] (exp(gain) on entry) becomes shaded * exp(gain) + offset, clamped to [0, 1] (NaN as 0)."""
-    r0s, r1s, wrs = _sources(gain.shape[0], scale, correction.shape[0])
-    c0s, c1s, wcs = _sources(gain.shape[1], scale, correction.shape[1])
-    for r in prange(gain.shape[0]):
-        top, bottom, wr = correction[r0s[r]], correction[r1s[r]], wrs[r]
-        for c in range(gain.shape[1]):
-            c0, c1, wc = c0s[c], c1s[c], wcs[c]
+def _correct(shaded, gain, offset, out):
+    """out = shaded * gain + offset (gain already exp'd), clamped to [0, 1] (NaN as 0); out may be gain."""
+    for r in prange(out.shape[0]):
+        for c in range(out.shape[1]):
             for k in range(3):
-                offset = _lerp(_lerp(top[c0, 3 + k], top[c1, 3 + k], wc), _lerp(bottom[c0, 3 + k], bottom[c1, 3 + k], wc), wr)
-                value = shaded[r, c, k] * gain[r, c, k] + offset
-                gain[r, c, k] = min(value, np.float32(1.0)) if value > 0.0 else np.float32(0.0)
+                value = shaded[r, c, k] * gain[r, c, k] + offset[r, c, k]
+                out[r, c, k] = min(value, np.float32(1.0)) if value > 0.0 else np.float32(0.0)

@@ -276,7 +276,7 @@ class RenderEngine:
         key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
 
         def render() -> np.ndarray:
-            if self._passes_on_cpu:  # the correction applied in one compiled pass (models/engine/image_passes.py)
+            if self._passes_on_cpu:  # the correction applied in compiled passes (models/engine/image_passes.py)
                 correction = self.model.correction_from_latent(latent, light, features)
                 return apply_correction(_to_array(correction), buffers()[..., :IMAGE_CHANNELS])
             shaded = None if buffers_tensor() is None else buffers_tensor()[:, :IMAGE_CHANNELS]
@@ -381,14 +381,11 @@ class RenderEngine:
         if not self.crop:
             return _Placement(sample_indices(n, factors, scene.object, elevation, g, within), None)
         window = object_window(n, factors, scene.object, elevation, g, within)
-        if any(lo >= hi for lo, hi in window):
-            return _Placement(None, None)
-        spans = changed_spans(sample_indices(n, factors, scene.object, elevation, g, within, window, window),
-                              pooled.voxels, ground_mask(elevation, g), window)
-        if spans is None:
-            return _Placement(None, None)
-        plan = self.encoder.plan(spans)
-        if plan is None:
+        spans = None if any(lo >= hi for lo, hi in window) else changed_spans(
+            sample_indices(n, factors, scene.object, elevation, g, within, window, window), pooled.voxels,
+            ground_mask(elevation, g), window)
+        plan = None if spans is None else self.encoder.plan(spans)
+        if plan is None:  # the object changes nothing in the grid
             return _Placement(None, None)
         box = [(crop.start, crop.stop) for crop in plan.grid]
         return _Placement(sample_indices(n, factors, scene.object, elevation, g, within, box, window), plan)
