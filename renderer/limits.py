@@ -14,7 +14,7 @@ MAX_IMAGE_SIZE = 2048
 
 # Object voxels per side: 256^3 RGBA floats are 268 MB, the largest grid a CPU edit loop can hold. Meshes are
 # voxelised at DEFAULT_RESOLUTION unless a scene or a command says otherwise: at 200^3 against 100^3 the shipped NVR+
-# lost a fifth of its error on the test split (docs/results.md, "Why NVR+ is still far from the paper", item 5).
+# lost a fifth of its error on the test split (docs/results.md, "Design choices").
 MIN_RESOLUTION = 4
 MAX_RESOLUTION = 256
 DEFAULT_RESOLUTION = 200

@@ -67,7 +67,7 @@ BLUR_TRUNCATE = 2.5  # gaussian kernels reach this many sigmas
 CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
 # Per side of the light square: shadow maps and the direct-light sum. 3 x 3 instead of 4 x 4 took a quarter off the
 # light stage (the maps are most of it) and moved the shipped NVR+'s MSE by 0.01-0.25 on the test sets and the novel
-# shapes (docs/results.md, "Edit latency").
+# shapes (docs/results.md, "Design choices").
 LIGHT_POINTS = 3
 SHADOW_MAP_SIZE = 96  # texels per side
 # Radius of the sphere around each occupied voxel centre that the shadow maps draw, in voxels. The hull is fatter
@@ -183,7 +183,7 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
 
     The object's own voxels, not a camera-aligned grid resampled from them: nothing is skipped or doubled where a grid
     would be turned against them (thin bars keep their width and place), and a turn or a camera tilt redoes no voxel
-    work (docs/results.md, "The shader draws the object's own voxels")."""
+    work (docs/results.md, "Design choices")."""
     merged = np.asarray(merged)
     if merged.ndim != 4 or merged.shape[3] != 4:
         raise InputError(f"merged object voxels must be (D, H, W, 4), got {merged.shape}")
