@@ -79,10 +79,12 @@ def test_placing_the_geometry_is_placing_the_voxels(grid_size):
     turned_voxels = shaded(by_hand, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), scale=(0.5, 0.5, 0.5)), light)
     # Equal but at a few silhouette pixels, within the rays' stopping tolerance: each ray starts at a depth found from
     # runs of voxels along the crop's last axis, which the turn by hand lays out along another, so the two trace
-    # different steps to the same surface (0.3 % of the normals' values differ, by at most 0.009).
+    # different steps to the same surface. The normals, averaged over a disc of the surface 16 voxels across, move
+    # most: 0.5 % of their values differ, by at most 0.024.
     for part in ("image", "coverage", "albedo", "normal", "visibility", "occlusion"):
         difference = np.abs(getattr(turned, part) - getattr(turned_voxels, part))
-        assert difference.max() < 0.015 and (difference > 1e-4).mean() < 0.005, part
+        largest, share = (0.03, 0.007) if part == "normal" else (0.015, 0.005)
+        assert difference.max() < largest and (difference > 1e-4).mean() < share, part
     unturned = shaded(rgba, ObjectSpec(voxels="v.npz", translation=(0.2, -0.1), scale=(0.5, 0.5, 0.5)), light)
     assert np.abs(turned.albedo - unturned.albedo).max() > 0.5  # the turn shows
 
@@ -439,6 +441,42 @@ def test_a_face_with_nothing_before_it_sees_the_whole_light(light):
     face = ndimage.binary_erosion((out.normal[..., 2] > 0.95) & (out.coverage >= 1.0), iterations=2)
     assert face.sum() > 40
     assert out.visibility[face].min() > 0.95
+
+
+def leaning_slab(n: int, lean_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Voxels of a slab a third of the box thick whose faces lean back by `lean_deg` from vertical, and the unit
+    normal of its front face (towards +z, tilted up)."""
+    normal = np.array([0.0, np.sin(np.radians(lean_deg)), np.cos(np.radians(lean_deg))])
+    centre = (np.arange(n) + 0.5) / n - 0.5
+    x, y, z = np.meshgrid(centre, centre, centre, indexing="ij")
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    inside = np.abs(y * normal[1] + z * normal[2]) <= 1.0 / 6.0
+    rgba[inside, :3], rgba[inside, 3] = 0.8, 1.0
+    return rgba, normal
+
+
+@pytest.mark.parametrize("lean", [5.0, 12.0])
+def test_a_slanted_face_has_one_normal_across_its_voxel_steps(lean):
+    # A face leaning a few degrees off a voxel axis is a staircase of voxels with long treads; its normals must be
+    # the plane's everywhere, not tilt up at every step (bands of light across a leaning chair back).
+    rgba, normal = leaning_slab(64, lean)
+    out = shaded(rgba, ObjectSpec(voxels="v.npz", scale=(0.6, 0.6, 0.6)), np.array([0.0, 2.5, 1.5]), elevation=10.0,
+                 size=128, grid_size=2 * GRID_SIZE)
+    face = ndimage.binary_erosion((out.normal[..., 2] > 0.8) & (out.coverage >= 1.0), iterations=3)
+    assert face.sum() > 500
+    angles = np.degrees(np.arccos(np.clip(out.normal[face] @ normal, -1.0, 1.0)))
+    assert np.quantile(angles, 0.95) < 3.0
+
+
+def test_normals_stay_sharp_up_to_a_cubes_edges():
+    # Averaging normals over the surface must not round an edge between faces: the front face's normals are +z up to
+    # two pixels (about two voxels) from its top and side edges.
+    out = shaded(cube(48), ObjectSpec(voxels="v.npz", scale=(0.5, 0.5, 0.5)), np.array([0.5, 2.5, 1.5]), elevation=10.0,
+                 size=128, grid_size=2 * GRID_SIZE)
+    front = (out.normal[..., 2] > 0.5) & (out.coverage >= 1.0)
+    face = ndimage.binary_erosion(front, iterations=2)
+    assert face.sum() > 300
+    assert np.quantile(out.normal[face, 2], 0.02) > np.cos(np.radians(6.0))
 
 
 def test_the_composite_lays_the_object_over_the_lit_floor_by_its_coverage():
