@@ -143,7 +143,7 @@ def _store(volume, axis, o, p, k, value):
 
 @njit(cache=True, parallel=True)
 def block_mean2(occupied):
-    """The mean of every 2 x 2 x 2 block of a bool volume (float32, half size rounded up; missing voxels past an
+    """The mean of every 2 x 2 x 2 block of a bool or float volume (float32, half size rounded up; missing voxels past an
     odd side count as empty, as if the volume were padded with zeros)."""
     n0, n1, n2 = occupied.shape
     h0, h1, h2 = (n0 + 1) // 2, (n1 + 1) // 2, (n2 + 1) // 2

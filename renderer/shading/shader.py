@@ -217,7 +217,8 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     smooth = filters.gaussian_blur(distance, extra, BLUR_TRUNCATE) if extra > 0.0 else distance
     gradient = np.empty(smooth.shape + (3,), dtype=np.float32)
     kernels.field_gradient(smooth, gradient)
-    coarse = _block_mean2(smooth)
+    # Averaged over 2^3 blocks; an odd side's last voxel repeated, so no block mixes in zeros past the crop's edge.
+    coarse = filters.block_mean2(np.pad(smooth, [(0, n % 2) for n in smooth.shape], mode="edge"))
     coarse_gradient = np.empty(coarse.shape + (3,), dtype=np.float32)
     kernels.field_gradient(coarse, coarse_gradient)
     core = filters.minimum_filter(distance, CORE_SIZE)
@@ -229,13 +230,6 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
         coarse_gradient=coarse_gradient,
         broad=_broad(solid), voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=_box(occluders))
-
-
-def _block_mean2(volume: np.ndarray) -> np.ndarray:
-    """The mean of every 2 x 2 x 2 block of a float volume (half size rounded up; an odd side's last voxel repeated)."""
-    padded = np.pad(volume, [(0, n % 2) for n in volume.shape], mode="edge")
-    h0, h1, h2 = (n // 2 for n in padded.shape)
-    return np.ascontiguousarray(padded.reshape(h0, 2, h1, 2, h2, 2).mean(axis=(1, 3, 5), dtype=np.float32))
 
 
 def _box(points: np.ndarray) -> np.ndarray:
