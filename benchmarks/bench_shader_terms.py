@@ -1,7 +1,7 @@
 """What each term of the voxel shader buys: MSE and DSSIM on the test split with one term taken out.
 
 Run from the repository root after making the test split (docs/results.md says how):
-    python -m benchmarks.bench_shader_terms [--data data/test_single data/test_default data/test_textured] [--every 1]
+    python -m benchmarks.bench_shader_terms [--data DIR...] [--every 1]   # default: the test split of docs/results.md
 Prints a Markdown table: the full shader, then each ablation, per setting.
 """
 
@@ -45,12 +45,14 @@ ABLATIONS = {
                                       "FLOOR_OCCLUSION_WEIGHTS": np.zeros(4, np.float32)}),
     "no light bounced from the floor": (shader, {"FLOOR_BOUNCE": 0.0}),
     "less smooth normals (from the surface's own field)": (shader, {"NORMAL_SIGMA": shader.DISTANCE_SIGMA}),
+    "normals not averaged over the tangent plane's disc": (shader, {"NORMAL_RINGS": 0}),
 }
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--data", nargs="+", default=["data/test_single", "data/test_default", "data/test_textured"])
+    parser.add_argument("--data", nargs="+",
+                        default=["data/test_single_r200", "data/test_default_r200_p512", "data/test_textured_r200_p512"])
     parser.add_argument("--every", type=int, default=1, help="use every N-th sample")
     parser.add_argument("--shading-grid", type=int, default=256,
                         help="shade the object voxels merged as for this grid (renderer.grid.shader_pool_factors)")
