@@ -330,8 +330,8 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     color_voxels = np.full((len(points_crop), 3), -1, dtype=np.int64)
     occlusion = np.ones(len(points_crop), dtype=np.float32)
     if len(points_crop):
-        kernels.surface_normals_and_voxels(geometry.gradient, geometry.coarse_gradient, geometry.occupied, points_crop, normals_crop, color_voxels,
-                                           NORMAL_DISC, NORMAL_RINGS, NORMAL_AGREE)
+        kernels.surface_normals_and_voxels(geometry.gradient, geometry.coarse_gradient, geometry.occupied, points_crop,
+                                           normals_crop, color_voxels, NORMAL_DISC, NORMAL_RINGS, NORMAL_AGREE)
         occlusion = _surface_occlusion(geometry, points_crop, normals_crop)
     linear = geometry.voxel_to_world[:3, :3]
     points_world = (points_crop + geometry.offset) @ linear.T + geometry.voxel_to_world[:3, 3]
