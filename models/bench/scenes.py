@@ -66,13 +66,13 @@ def data_scenes(folders: list[str | Path], count: int) -> list[BenchScene]:
             seen.add(sample["object"])
             record = objects[sample["object"]]
             scene = scene_from_dict(sample["scene"], folder / "manifest.json")
-            scenes.append(BenchScene(f"{folder.name}/{sample['id']}", scene, _rebuilt_mesh(record, folder)))
+            scenes.append(BenchScene(f"{folder.name}/{sample['id']}", scene, rebuilt_mesh(record, folder)))
     if not scenes:
         raise InputError("no samples with object records found", folders[0] if folders else None)
     return scenes
 
 
-def _rebuilt_mesh(record: dict, folder: Path) -> trimesh.Trimesh:
+def rebuilt_mesh(record: dict, folder: Path) -> trimesh.Trimesh:
     """The colored mesh of a data set's object, from the category, seed and appearance in its record."""
     appearance = record["appearance"]
     mesh, floor, _ = apply_appearance(generate_object(record["category"], record["seed"]), appearance["setting"],
