@@ -22,7 +22,14 @@ from renderer.scene import (
     Scene,
 )
 from renderer.shading import kernels, object_geometry, placed, repaint_surface, shade, shade_scene, visible_surface
-from renderer.shading.shader import FLOOR_SHADOW_STEP, _pixel_window, _ray_candidates, _trace, _trace_candidates
+from renderer.shading.shader import (
+    COLOR_SPREAD,
+    FLOOR_SHADOW_STEP,
+    _pixel_window,
+    _ray_candidates,
+    _trace,
+    _trace_candidates,
+)
 from renderer.shading.staged import StagedShader
 
 FLOOR = (0.6, 0.6, 0.6)
@@ -534,6 +541,57 @@ def test_a_repainted_surface_is_the_surface_of_the_painted_object():
     np.testing.assert_array_equal(shade(second, repainted, light, FLOOR).image, shade(second, fresh, light, FLOOR).image)
     blue = np.all(np.isclose(repainted.images.albedo_srgb, (0.1, 0.5, 0.9)), axis=-1)
     assert 0 < blue.sum() < repainted.pixels.shape[0]  # part of the ball was painted blue, and it shows
+
+
+def gaussian_mean_colors(rgb, occupied, index, sides, sigma):
+    """The Gaussian-weighted mean color (no truncation) of the occupied voxels around voxel `index`."""
+    cells = np.argwhere(occupied)
+    d2 = ((((cells - np.asarray(index)) * np.asarray(sides)) ** 2).sum(axis=1))
+    weights = np.exp(-d2 / (2.0 * sigma**2))
+    return (weights[:, None] * rgb[tuple(cells.T)]).sum(axis=0) / weights.sum()
+
+
+@pytest.mark.parametrize("sides", [(1.0, 1.0, 1.0), (2.0, 1.0, 0.5)])
+def test_filtered_colors_average_the_voxels_around_by_their_distance(sides):
+    """A plate half red, half blue: the color of a voxel on the seam is the Gaussian mean of the plate's voxels
+    around it (weights by world distance, anisotropic voxels too); far from the seam it stays pure; spread 0 takes
+    the voxel's own color; no voxel gives grey."""
+    occupied = np.zeros((12, 12, 3), dtype=bool)
+    occupied[:, :, 1] = True
+    rgb = np.zeros((14, 14, 5, 3), dtype=np.float32)  # indexed at crop index + (1, 1, 1)
+    rgb[1:7, 1:13, 2] = (0.9, 0.1, 0.1)
+    rgb[7:13, 1:13, 2] = (0.1, 0.2, 0.9)
+    sigma = 0.5  # world units: a weight beyond the kernel's reach (2.8 sigmas) is below 4e-4 of the centre's
+    voxels = np.array([[5, 6, 1], [6, 6, 1], [0, 6, 1], [11, 3, 1], [-1, -1, -1]], dtype=np.int64)
+    spread = np.array([sigma, sigma, sigma, 0.0, sigma])
+    out = np.empty((len(voxels), 3), dtype=np.float32)
+    kernels.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, np.asarray(sides), spread, out)
+    crop_rgb = rgb[1:13, 1:13, 1:4]
+    for row in (0, 1):
+        expected = gaussian_mean_colors(crop_rgb, occupied, voxels[row], sides, sigma)
+        np.testing.assert_allclose(out[row], expected, atol=2e-3)
+        if sides[0] == 1.0:
+            assert 0.11 < out[row, 0] < 0.89  # a mix of the two halves
+    far = gaussian_mean_colors(crop_rgb, occupied, voxels[2], sides, sigma)
+    np.testing.assert_allclose(out[2], far, atol=2e-3)
+    np.testing.assert_allclose(out[3], (0.1, 0.2, 0.9))
+    np.testing.assert_array_equal(out[4], (0.5, 0.5, 0.5))
+
+
+def test_a_points_color_is_averaged_over_its_pixels_footprint():
+    """The spread of each visible point's color is COLOR_SPREAD times the side of a pixel at the point's depth: the
+    world distance between two points that project one pixel apart there."""
+    spec, elevation = ObjectSpec(voxels="v.npz", scale=(0.8, 0.8, 0.8)), 30.0
+    surface = visible_surface(geometry_of(cube(24), spec, elevation), SIZE)
+    camera = Camera(elevation, width=SIZE, height=SIZE)
+    right = camera.camera_to_world()[:3, 0]
+    step = 1e-3
+    for i in np.linspace(0, len(surface.points) - 1, 5).astype(int):
+        point = surface.points[i]
+        u0, _, _ = camera.project(point)
+        u1, _, _ = camera.project(point + step * right)
+        pixel_side = step / float(u1 - u0)
+        assert surface.color_spread[i] == pytest.approx(COLOR_SPREAD * pixel_side, rel=1e-3)
 
 
 def test_an_object_reaching_up_to_the_light_reads_only_the_floor_in_view(monkeypatch):

@@ -354,6 +354,55 @@ def surface_normals_and_voxels(gradient, coarse, occupied, points, normals, voxe
                             voxels[i, 0], voxels[i, 1], voxels[i, 2] = a, b, c
 
 
+@njit(cache=True, inline="always")
+def _axis_weights(sigma, side):
+    """The reach along an axis of voxel side `side` (the voxels whose weight is above 0.02, 2.8 sigmas, at most 2)
+    and the Gaussian weights of the voxels one and two steps away."""
+    if sigma <= 0.0:
+        return 0, 0.0, 0.0
+    return (min(int(2.8 * sigma / side), 2), math.exp(-0.5 * (side / sigma) ** 2),
+            math.exp(-0.5 * (2.0 * side / sigma) ** 2))
+
+
+@njit(cache=True, inline="always")
+def _step_weight(step, one, two):
+    return 1.0 if step == 0 else one if abs(step) == 1 else two
+
+
+@njit(cache=True, parallel=True)
+def filtered_colors(rgb, rgb_offset, occupied, voxels, sides, spread, out):
+    """out[i] = the colors of the occupied voxels around crop index voxels[i] averaged with Gaussian weights of
+    standard deviation spread[i] (world units; `sides`: a voxel's side along each crop axis) out to 2.8 of them and
+    at most 2 voxels; 0.5 grey where voxels[i] is -1. Spread 0 takes the voxel's own color. `rgb` holds the colors
+    at crop index + `rgb_offset`. A weight is a product of one per axis: 6 exponentials a point."""
+    n0, n1, n2 = occupied.shape
+    m0, m1, m2 = rgb.shape[0], rgb.shape[1], rgb.shape[2]
+    for i in prange(voxels.shape[0]):
+        ci, cj, ck = voxels[i, 0], voxels[i, 1], voxels[i, 2]
+        if ci < 0:
+            out[i, 0], out[i, 1], out[i, 2] = 0.5, 0.5, 0.5
+            continue
+        ri, i1, i2 = _axis_weights(spread[i], sides[0])
+        rj, j1, j2 = _axis_weights(spread[i], sides[1])
+        rk, k1, k2 = _axis_weights(spread[i], sides[2])
+        r, g, b, total = 0.0, 0.0, 0.0, 0.0
+        for a in range(max(ci - ri, 0), min(ci + ri + 1, n0)):
+            wa = _step_weight(a - ci, i1, i2)
+            x = a + rgb_offset[0]
+            for e in range(max(cj - rj, 0), min(cj + rj + 1, n1)):
+                wae = wa * _step_weight(e - cj, j1, j2)
+                y = e + rgb_offset[1]
+                for c in range(max(ck - rk, 0), min(ck + rk + 1, n2)):
+                    z = c + rgb_offset[2]
+                    if occupied[a, e, c] and 0 <= x < m0 and 0 <= y < m1 and 0 <= z < m2:
+                        w = wae * _step_weight(c - ck, k1, k2)
+                        r, g, b, total = r + w * rgb[x, y, z, 0], g + w * rgb[x, y, z, 1], b + w * rgb[x, y, z, 2], total + w
+        if total > 0.0:
+            out[i, 0], out[i, 1], out[i, 2] = r / total, g / total, b / total
+        else:
+            out[i, 0], out[i, 1], out[i, 2] = 0.5, 0.5, 0.5
+
+
 @njit(cache=True, parallel=True)
 def occlusion_along(field, scale, points, directions, distances, weights, out):
     """out[i] = sum_k weights[k] * field(scale * (points[i] + distances[k] * directions[i])): how much
