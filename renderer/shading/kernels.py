@@ -366,6 +366,7 @@ def _axis_weights(sigma, side):
 
 @njit(cache=True, inline="always")
 def _step_weight(step, one, two):
+    """The weight of a voxel `step` voxels from the centre along one axis (0, +-1 or +-2), from `_axis_weights`."""
     return 1.0 if step == 0 else one if abs(step) == 1 else two
 
 
