@@ -100,7 +100,6 @@ FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object poi
 # weighted by a Gaussian of COLOR_SPREAD pixel sides at its depth, not its voxel's color alone. On every third
 # textured test image the NVR+ scored MSE 23.8 instead of 25.1 (0.3: 24.7, 0.5: 23.9, 0.75: 23.9, 0.9: 24.1).
 COLOR_SPREAD = 0.6
-GREY_ALBEDO = np.float32(srgb_to_linear(0.5))  # where no voxel gives a point its color
 SUBPIXELS = 2  # rays per side at silhouette pixels (3 gave the same error on the test split, MSE within 0.2, the surface stage taking 1.3x as long)
 # A ray covers its pixel by how deep it goes into the part it meets: not at all when it only touches
 # SURFACE_LEVEL, fully when within COVERAGE_PROBE voxels past the surface it gets COVERAGE_FULL of the
@@ -350,10 +349,8 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
 
     floor, floor_points = _floor_points(camera)
     floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_voxel)
-    if colors:
-        srgb, albedo = _surface_colors(geometry, color_voxels, color_spread)
-    else:
-        srgb, albedo = np.full((len(pixels), 3), 0.5, dtype=np.float32), np.full((len(pixels), 3), GREY_ALBEDO)
+    lookup = color_voxels if colors else np.full_like(color_voxels, -1)  # -1: no voxel, grey
+    srgb, albedo = _surface_colors(geometry, lookup, color_spread)
     images = _surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
                           color_voxels=color_voxels, color_spread=color_spread, albedo=albedo, occlusion=occlusion,
