@@ -5,8 +5,8 @@ Run from the repository root after making the test split (docs/results.md says h
 Prints a Markdown table per setting: the MSE (0-255) of each renderer split into what each region adds to it (the
 columns sum to the whole): the object's inside, a band of BAND pixels either side of its silhouette (thin parts lie
 wholly in it), the floor within NEAR pixels of the object (its shadow and reflection), and the rest. Regions follow the
-shader's coverage. `--mesh-coverage` also compares that coverage with the mesh's own, rasterised at 8 x 8 samples a
-pixel (PIL's polygon fill: the product has no mesh rasteriser): the mean squared difference, how far the shader's
+shader's coverage. `--mesh-coverage` also compares that coverage with the mesh's own, 8 x 8 rays a pixel cast at the
+mesh (renderer.capture.silhouette, the photo capture's silhouettes): the mean squared difference, how far the shader's
 silhouette lies outside the mesh's on average (pixels; negative: inside), and the shader's silhouette-band error when
 its edge pixels are mixed by the mesh's coverage instead of its own (each side's color taken from the nearest pixel
 wholly on that side): how much of that band is the silhouette's place and how much the shading near it.
@@ -23,8 +23,6 @@ import models.engine  # noqa: F401 - before torch, so OMP_WAIT_POLICY is set whe
 
 # isort: split
 import numpy as np
-import trimesh
-from PIL import Image, ImageDraw
 from scipy import ndimage
 
 from models.bench.scenes import rebuilt_mesh
@@ -32,11 +30,12 @@ from models.engine.render_engine import RenderEngine
 from models.threads import limit_blas_threads
 from models.training.data import read_manifest
 from renderer.camera import Camera
+from renderer.capture.pose import PhotoPose
+from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.io import load_image
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import Scene, scene_from_dict
 from renderer.shading import shade_scene
-from renderer.transform import object_to_world
 
 BAND = 2  # pixels either side of the silhouette
 NEAR = 25  # pixels of floor around the object
@@ -53,17 +52,11 @@ def regions(coverage: np.ndarray) -> dict[str, np.ndarray]:
     return {"object": inside, "silhouette band": band, "floor near": near, "floor far": ~(inside | band | near)}
 
 
-def mesh_coverage(mesh: trimesh.Trimesh, scene: Scene, size: int) -> np.ndarray:
-    """The share of each pixel (H, W) the mesh covers, seen by the scene's camera."""
-    camera = Camera.from_scene(scene, size)
-    placement = object_to_world(scene.object)
-    u, v, _ = camera.project(np.asarray(mesh.vertices) @ placement[:3, :3].T + placement[:3, 3])
-    corners = np.stack([u, v], axis=1) * SUPERSAMPLING
-    canvas = Image.new("L", (size * SUPERSAMPLING,) * 2, 0)
-    draw = ImageDraw.Draw(canvas)
-    for face in np.asarray(mesh.faces):
-        draw.polygon([tuple(corners[i]) for i in face], fill=255)
-    fine = np.asarray(canvas, dtype=np.float32) / 255.0
+def mesh_coverage(silhouettes: SilhouetteRenderer, scene: Scene, size: int) -> np.ndarray:
+    """The share of each pixel (H, W) the mesh covers, seen by the scene's camera: SUPERSAMPLING^2 rays a pixel."""
+    o = scene.object
+    camera = Camera.from_scene(scene, size * SUPERSAMPLING)
+    fine = silhouettes.mask(PhotoPose(camera, o.rotation_deg, o.translation, o.scale)).astype(np.float32)
     return fine.reshape(size, SUPERSAMPLING, size, SUPERSAMPLING).mean(axis=(1, 3))
 
 
@@ -102,7 +95,7 @@ def main() -> None:
         manifest = read_manifest(folder)
         setting = manifest["config"]["setting"]
         records = {o["id"]: o for o in manifest["objects"]}
-        meshes: dict[str, trimesh.Trimesh] = {}
+        silhouettes: dict[str, SilhouetteRenderer] = {}
         for sample in manifest["samples"][::args.every]:
             scene = scene_from_dict(sample["scene"], folder / "manifest.json")
             target, _ = load_image(folder / sample["target"])
@@ -114,9 +107,9 @@ def main() -> None:
                 squared = (((image - target) * 255.0) ** 2).mean(axis=2)
                 errors[(setting, name)].append({r: float(squared[m].sum()) / squared.size for r, m in masks.items()})
             if args.mesh_coverage:
-                if sample["object"] not in meshes:
-                    meshes = {sample["object"]: rebuilt_mesh(records[sample["object"]], folder)}
-                truth = mesh_coverage(meshes[sample["object"]], scene, size)
+                if sample["object"] not in silhouettes:  # one object's views follow each other
+                    silhouettes = {sample["object"]: SilhouetteRenderer(rebuilt_mesh(records[sample["object"]], folder))}
+                truth = mesh_coverage(silhouettes[sample["object"]], scene, size)
                 band = masks["silhouette band"]
                 band_error = [float(((((image - target) * 255.0) ** 2).mean(axis=2)[band]).sum()) / band.size
                               for image in (recomposited(shaded.image, shaded.coverage, coverage)
