@@ -310,7 +310,12 @@ def surface_normals_and_voxels(gradient, coarse, occupied, points, normals, voxe
     averaged over a disc of `radius` voxels in the point's tangent plane (`rings` rings of 8 samples), each sample
     weighted by how far its normal agrees with the centre's beyond cosine `agree`: a slanted flat face's voxel steps
     average out, an edge between faces stays sharp."""
-    n0, n1, n2 = occupied.shape
+    disc = np.empty((max(rings, 0) * 8, 2))  # the samples' offsets along t and b, the same for every point
+    for ring in range(1, rings + 1):
+        r = radius * ring / rings
+        for k in range(8):
+            angle = (k + 0.5 * ring) * (math.pi / 4.0)
+            disc[(ring - 1) * 8 + k, 0], disc[(ring - 1) * 8 + k, 1] = math.cos(angle) * r, math.sin(angle) * r
     for i in prange(points.shape[0]):
         x, y, z = points[i, 0], points[i, 1], points[i, 2]
         ax, ay, az = _field_normal(gradient, x, y, z)
@@ -325,33 +330,44 @@ def surface_normals_and_voxels(gradient, coarse, occupied, points, normals, voxe
             tn = math.sqrt(tx * tx + ty * ty + tz * tz)
             tx, ty, tz = tx / tn, ty / tn, tz / tn
             bx, by, bz = ay * tz - az * ty, az * tx - ax * tz, ax * ty - ay * tx
-            for ring in range(1, rings + 1):
-                r = radius * ring / rings
-                for k in range(8):
-                    angle = (k + 0.5 * ring) * (math.pi / 4.0)
-                    ca, sa = math.cos(angle) * r, math.sin(angle) * r
-                    qx, qy, qz = _field_normal(coarse, 0.5 * (x + ca * tx + sa * bx), 0.5 * (y + ca * ty + sa * by),
-                                               0.5 * (z + ca * tz + sa * bz))
-                    w = (qx * ax + qy * ay + qz * az - agree) / (1.0 - agree)
-                    if w > 0.0:
-                        w = w * w
-                        sx, sy, sz = sx + w * qx, sy + w * qy, sz + w * qz
+            for sample in range(disc.shape[0]):
+                ca, sa = disc[sample, 0], disc[sample, 1]
+                qx, qy, qz = _field_normal(coarse, 0.5 * (x + ca * tx + sa * bx), 0.5 * (y + ca * ty + sa * by),
+                                           0.5 * (z + ca * tz + sa * bz))
+                w = (qx * ax + qy * ay + qz * az - agree) / (1.0 - agree)
+                if w > 0.0:
+                    w = w * w
+                    sx, sy, sz = sx + w * qx, sy + w * qy, sz + w * qz
         norm = math.sqrt(sx * sx + sy * sy + sz * sz)
         if norm > 1e-9:
             normals[i, 0], normals[i, 1], normals[i, 2] = sx / norm, sy / norm, sz / norm
         else:
             normals[i, 0], normals[i, 1], normals[i, 2] = 0.0, 0.0, 0.0
-        best = 1e30
         voxels[i, 0], voxels[i, 1], voxels[i, 2] = -1, -1, -1
         ci, cj, ck = int(x), int(y), int(z)
-        for a in range(max(ci - 2, 0), min(ci + 3, n0)):
-            for b in range(max(cj - 2, 0), min(cj + 3, n1)):
-                for c in range(max(ck - 2, 0), min(ck + 3, n2)):
-                    if occupied[a, b, c]:
-                        d2 = (a + 0.5 - x) ** 2 + (b + 0.5 - y) ** 2 + (c + 0.5 - z) ** 2
-                        if d2 < best:
-                            best = d2
-                            voxels[i, 0], voxels[i, 1], voxels[i, 2] = a, b, c
+        # The 3^3 voxels around the point's cell first: any voxel beyond them is at least 1.5 voxels away along an
+        # axis, so a voxel found nearer than that is the nearest of the 5^3 (the same one, as ties cannot arise).
+        best = _nearest_occupied(occupied, x, y, z, ci, cj, ck, 1, voxels[i])
+        if best >= 2.25:
+            _nearest_occupied(occupied, x, y, z, ci, cj, ck, 2, voxels[i])
+
+
+@njit(cache=True, inline="always")
+def _nearest_occupied(occupied, x, y, z, ci, cj, ck, reach, out):
+    """Writes to `out` the index of the occupied voxel nearest (x, y, z) among those within `reach` voxels of voxel
+    (ci, cj, ck) along each axis, the first in index order among equals (left as it was if none); returns its
+    squared distance (1e30 if none)."""
+    n0, n1, n2 = occupied.shape
+    best = 1e30
+    for a in range(max(ci - reach, 0), min(ci + reach + 1, n0)):
+        for b in range(max(cj - reach, 0), min(cj + reach + 1, n1)):
+            for c in range(max(ck - reach, 0), min(ck + reach + 1, n2)):
+                if occupied[a, b, c]:
+                    d2 = (a + 0.5 - x) ** 2 + (b + 0.5 - y) ** 2 + (c + 0.5 - z) ** 2
+                    if d2 < best:
+                        best = d2
+                        out[0], out[1], out[2] = a, b, c
+    return best
 
 
 @njit(cache=True, inline="always")
