@@ -393,6 +393,19 @@ def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
     return rgba
 
 
+def test_ray_candidates_leave_out_the_inside_of_a_solid():
+    # A ray stops on the surface, never deep inside a part, so no cell wholly inside the ball is a candidate
+    # (kernels.near_surface_cell_mask): every candidate cell lies near the sphere of its 20-voxel radius.
+    geometry = geometry_of(ball(), ObjectSpec(voxels="v.npz"), 30.0)
+    centre = np.argwhere(geometry.occupied).mean(axis=0) + 0.5
+    cells = geometry.surface_cells
+    assert len(cells) > 0
+    for k in (2, 3):  # a run's first and last cell; a cell spans voxel centres i..i+1, its middle at i + 1
+        middles = np.column_stack([cells[:, 0], cells[:, 1], cells[:, k]]) + 1.0
+        radii = np.linalg.norm(middles - centre, axis=1)
+        assert radii.min() > 20.0 - 3.0 and radii.max() < 20.0 + 3.0
+
+
 @pytest.mark.parametrize("shape, elevation, translation", [("ball", 30.0, (0.0, 0.0)), ("lattice", 30.0, (0.0, 0.0)),
                                                            ("lattice", 0.0, (0.0, 0.0)), ("lattice", 89.0, (0.0, 0.0)),
                                                            ("ball", 30.0, (1.1, 0.2))])

@@ -188,42 +188,50 @@ def _reaches_again(fields, level, thin, origin, dx, dy, dz, t, t_end):
 
 @njit(cache=True, parallel=True)
 def _cell_bounds(fields):
-    """Per cell (voxel centres i..i+1, j..j+1, k..k+1): the least distance (fields[..., 0]) and the most core
-    (fields[..., 1]) of its eight corners, by a pairwise min and max along each axis in turn."""
+    """Per cell (voxel centres i..i+1, j..j+1, k..k+1), (n0, n1, n2 - 1, 4): the least and the most distance
+    (fields[..., 0]) and the least and the most core (fields[..., 1]) of its eight corners, by a pairwise min and max
+    along each axis in turn."""
     n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
-    least = np.empty((n0, n1, n2 - 1), dtype=fields.dtype)
-    most = np.empty((n0, n1, n2 - 1), dtype=fields.dtype)
+    bounds = np.empty((n0, n1, n2 - 1, 4), dtype=fields.dtype)
     for i in prange(n0):
         for j in range(n1):
             for k in range(n2 - 1):
-                least[i, j, k] = min(fields[i, j, k, 0], fields[i, j, k + 1, 0])
-                most[i, j, k] = max(fields[i, j, k, 1], fields[i, j, k + 1, 1])
+                for c in range(2):
+                    a, b = fields[i, j, k, c], fields[i, j, k + 1, c]
+                    bounds[i, j, k, 2 * c], bounds[i, j, k, 2 * c + 1] = min(a, b), max(a, b)
     for i in prange(n0):
         for j in range(n1 - 1):
             for k in range(n2 - 1):
-                least[i, j, k] = min(least[i, j, k], least[i, j + 1, k])
-                most[i, j, k] = max(most[i, j, k], most[i, j + 1, k])
+                for c in range(0, 4, 2):
+                    bounds[i, j, k, c] = min(bounds[i, j, k, c], bounds[i, j + 1, k, c])
+                    bounds[i, j, k, c + 1] = max(bounds[i, j, k, c + 1], bounds[i, j + 1, k, c + 1])
     for j in prange(n1 - 1):  # in place along i, ascending: each thread its own j, so i + 1 is not yet updated
         for i in range(n0 - 1):
             for k in range(n2 - 1):
-                least[i, j, k] = min(least[i, j, k], least[i + 1, j, k])
-                most[i, j, k] = max(most[i, j, k], most[i + 1, j, k])
-    return least, most
+                for c in range(0, 4, 2):
+                    bounds[i, j, k, c] = min(bounds[i, j, k, c], bounds[i + 1, j, k, c])
+                    bounds[i, j, k, c + 1] = max(bounds[i, j, k, c + 1], bounds[i + 1, j, k, c + 1])
+    return bounds
 
 
 @njit(cache=True, parallel=True)
-def near_surface_cell_mask(fields, level, thin, slack):
+def near_surface_cell_mask(fields, level, thin, slack, depth):
     """(n0 - 1, n1 - 1, n2 - 1) bool: the cells (voxel centres i..i+1, j..j+1, k..k+1) where a ray of
-    `trace_surface` may stop. A ray stops only at a sample whose gap is below HIT_GAP; a sample in a cell
-    interpolates its eight corners, so its distance is at least their least and its core at most their most: its
-    gap is at least least - max(level, most + thin). Marked where that bound is under HIT_GAP + `slack`. It reads
-    the geometry alone, so the shader finds these once per object shape, not per placement or camera ray."""
-    least_of, most_of = _cell_bounds(fields)  # valid for i < n0 - 1 and j < n1 - 1
+    `trace_surface` may stop. A ray stops only at a sample whose gap is below HIT_GAP, and never deeper inside than
+    the last interval of its bisection, a few hundredths of a voxel; a sample in a cell interpolates its eight
+    corners, so its distance lies between their least and most and its core likewise: its gap is at least
+    least distance - max(level, most core + thin) and at most most distance - max(level, least core + thin). Marked
+    where the first is under HIT_GAP + `slack` and the second at least -`depth`: not the cells wholly inside a part,
+    which a ray reaches only through the surface's (the inside of a chair's seat held four in five marked cells). It
+    reads the geometry alone, so the shader finds these once per object shape, not per placement or camera ray."""
+    bounds = _cell_bounds(fields)  # valid for i < n0 - 1 and j < n1 - 1
     mask = np.empty((fields.shape[0] - 1, fields.shape[1] - 1, fields.shape[2] - 1), dtype=np.bool_)
     for i in prange(mask.shape[0]):
         for j in range(mask.shape[1]):
             for k in range(mask.shape[2]):
-                mask[i, j, k] = least_of[i, j, k] - max(level, most_of[i, j, k] + thin) < HIT_GAP + slack
+                least_d, most_d, least_c, most_c = bounds[i, j, k, 0], bounds[i, j, k, 1], bounds[i, j, k, 2], bounds[i, j, k, 3]
+                mask[i, j, k] = (least_d - max(level, most_c + thin) < HIT_GAP + slack
+                                 and most_d - max(level, least_c + thin) >= -depth)
     return mask
 
 

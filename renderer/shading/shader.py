@@ -114,6 +114,7 @@ COVERAGE_PROBE = 4.0
 # openings a ray passes through keep their empty pixels and stay open.
 SPECK_PIXELS = 40
 CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still mark its pixels as ray candidates
+CANDIDATE_DEPTH = 0.25  # voxels of gap inside the surface a cell's points must reach to count (a ray stops within 0.1)
 CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (more: fewer boxes, more pixels traced)
 
 
@@ -253,7 +254,7 @@ def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
     if min(distance_and_core.shape[:3]) < 2:
         return np.zeros((0, 4), dtype=np.int64)
     cells = filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
-                                                                    CANDIDATE_SLACK))
+                                                                    CANDIDATE_SLACK, CANDIDATE_DEPTH))
     # A run starts where the cell before it (along k) is not marked or the run so far is CELL_RUN long.
     follows = np.zeros(len(cells), dtype=bool)
     follows[1:] = (cells[1:, 0] == cells[:-1, 0]) & (cells[1:, 1] == cells[:-1, 1]) & (cells[1:, 2] == cells[:-1, 2] + 1)
