@@ -3,6 +3,8 @@ and hard cases; its compiled kernels against plain numpy and scipy."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -214,14 +216,34 @@ def test_shadow_maps_block_what_lies_between():
     occluders = np.array([[0.0, 1.0, 0.0]])
     maps = np.empty((1, 16, 16), dtype=np.float32)
     bounds = np.zeros((1, 3))
-    kernels.build_shadow_maps(occluders, 0.05, lights, 16, maps, bounds)
+    kernels.build_shadow_maps(occluders, 0.05, 0.0, lights, 16, maps, bounds)
     receivers = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
     seen = np.empty(3)
     kernels.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
     assert seen[0] < 0.01 and seen[1] == 1.0 and seen[2] == 1.0  # the last lies between occluder and light
-    kernels.build_shadow_maps(np.zeros((0, 3)), 0.05, lights, 16, maps, bounds)
+    kernels.build_shadow_maps(np.zeros((0, 3)), 0.05, 0.0, lights, 16, maps, bounds)
     kernels.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
     assert np.all(seen == 1.0)
+
+
+def test_occluders_spaced_wider_than_texels_cover_their_footprint():
+    # A layer of occluders 0.04 apart at 1 below a light point, on a map of texels about 0.01 across: as points
+    # they leave texels between them uncovered (light would pass a solid layer); each covering its block's square
+    # (footprint: half its diagonal) they cover every texel whose centre lies over the layer.
+    grid = np.arange(-0.5, 0.5 + 1e-9, 0.04)
+    x, z = np.meshgrid(grid, grid, indexing="ij")
+    layer = np.stack([x.ravel(), np.full(x.size, 1.0), z.ravel()], axis=1)
+    layer = np.vstack([layer, [[0.53, 1.0, 0.0]]])  # one beyond: the texels do not line up with the layer's cells
+    lights = np.array([[0.0, 2.0, 0.0]])
+    uncovered = []
+    for footprint in (0.0, 0.04 / np.sqrt(2.0)):
+        maps, bounds = np.empty((1, 96, 96), dtype=np.float32), np.zeros((1, 3))
+        kernels.build_shadow_maps(layer, 0.002, footprint, lights, 96, maps, bounds)
+        a0, b0, texel = bounds[0]
+        centres = (np.arange(96) + 0.5) * texel
+        over = (np.abs(a0 + centres)[:, None] < 0.49) & (np.abs(b0 + centres)[None, :] < 0.49)  # height 1: a = x
+        uncovered.append(int((maps[0][over] >= kernels.FAR).sum()))
+    assert uncovered[0] > 1000 and uncovered[1] == 0
 
 
 def test_shadow_maps_of_light_points_at_other_heights_are_each_points_own():
@@ -230,10 +252,10 @@ def test_shadow_maps_of_light_points_at_other_heights_are_each_points_own():
     occluders = np.random.default_rng(3).uniform([-0.5, 0.0, -0.5], [0.5, 2.5, 0.5], (500, 3))
     lights = np.array([[0.1, 3.0, -0.2], [0.3, 2.0, 0.1], [-0.2, 3.0, 0.0]])
     maps, bounds = np.empty((3, 32, 32), dtype=np.float32), np.zeros((3, 3))
-    kernels.build_shadow_maps(occluders, 0.02, lights, 32, maps, bounds)
+    kernels.build_shadow_maps(occluders, 0.02, 0.0, lights, 32, maps, bounds)
     for k in range(3):
         alone, alone_bounds = np.empty((1, 32, 32), dtype=np.float32), np.zeros((1, 3))
-        kernels.build_shadow_maps(occluders, 0.02, lights[k:k + 1], 32, alone, alone_bounds)
+        kernels.build_shadow_maps(occluders, 0.02, 0.0, lights[k:k + 1], 32, alone, alone_bounds)
         np.testing.assert_array_equal(maps[k], alone[0])
         np.testing.assert_array_equal(bounds[k], alone_bounds[0])
 
@@ -253,7 +275,7 @@ def test_soft_shadow_of_a_plate_matches_the_area_light(points):
     plate = np.stack([ox.ravel(), np.full(ox.size, plate_height), oz.ravel()], axis=1)
     maps = np.empty((len(lights), 96, 96), dtype=np.float32)
     bounds = np.zeros((len(lights), 3))
-    kernels.build_shadow_maps(plate, 0.005, lights, 96, maps, bounds)
+    kernels.build_shadow_maps(plate, 0.005, 0.0, lights, 96, maps, bounds)
     nearest = maps.reshape(len(lights), -1).min(axis=1).astype(np.float64)
     xs = np.linspace(-1.5, 1.5, 301)
     receivers = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
@@ -271,6 +293,39 @@ def test_soft_shadow_of_a_plate_matches_the_area_light(points):
     soft = errors[light_side / points]
     assert soft.max() < 0.09 and soft.mean() < 0.6 * errors[0.0].mean()
     assert errors[0.0].max() > 0.12  # the test can tell: points alone band
+
+
+def test_shadow_occluders_stand_for_blocks_of_fine_voxels():
+    # At 200^3 each occluder is the mean centre of the occupied voxels of a 2^3 block (OCCLUDER_CELLS); at 100^3
+    # each voxel casts its own. A slanted plate's floor shadow must not change by more than a penumbra's rounding.
+    def slanted_plate(n):
+        rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+        i = np.arange(n // 5, 4 * n // 5)
+        x, z = np.meshgrid(i, i, indexing="ij")
+        y = n // 2 + (x - n // 2) // 3  # a plate leaning 18 degrees, one voxel thick
+        rgba[x, y, z] = (0.7, 0.7, 0.7, 1.0)
+        return rgba
+
+    spec, light = ObjectSpec(), (0.3, 3.0, 0.2)
+    coarse = geometry_of(slanted_plate(100), spec, 30.0, 2 * GRID_SIZE)
+    assert len(coarse.occluders) == int((slanted_plate(100)[..., 3] > 0).sum())
+    rgba = slanted_plate(200)
+    geometry = geometry_of(rgba, spec, 30.0, 2 * GRID_SIZE)
+    found = np.argwhere(rgba[..., 3] > 0)
+    blocks: dict[tuple, list] = {}
+    for index in found:
+        blocks.setdefault(tuple(index // 2), []).append(index)
+    means = np.array([np.mean(members, axis=0) for _, members in sorted(blocks.items())])
+    to_world = geometry.voxel_to_world
+    np.testing.assert_allclose(geometry.occluders, (means + 0.5) @ to_world[:3, :3].T + to_world[:3, 3], atol=1e-9)
+
+    one_per_voxel = replace(geometry, occluders=(found + 0.5) @ to_world[:3, :3].T + to_world[:3, 3],
+                            occluder_block=1.0)
+    surface = visible_surface(geometry, SIZE)
+    seen = [shade(g, surface, light, FLOOR).visibility[surface.floor] for g in (geometry, one_per_voxel)]
+    shadowed = (seen[0] < 0.99) | (seen[1] < 0.99)
+    assert shadowed.sum() > 200  # the plate casts a shadow in view
+    assert np.abs(seen[0] - seen[1])[shadowed].mean() < 0.02
 
 
 def test_distance_transform_matches_scipy():
