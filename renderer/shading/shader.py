@@ -80,17 +80,17 @@ CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
 # shapes (docs/results.md, "Design choices").
 LIGHT_POINTS = 3
 SHADOW_MAP_SIZE = 96  # texels per side
-# Radius of the sphere around each occupied voxel centre that the shadow maps draw, in voxels. The hull is fatter
+# Radius of the sphere around each occluder that the shadow maps draw, in sides of the block it stands for. The hull is fatter
 # than the mesh, and a thin part's band of voxels most of all: 0.75 (the drawn surface's distance) cast lattices'
 # floor shadows twice too dark; 0.2 gave a lower shader MSE than 0.75 or 0.4 on every test setting and the novel
 # set (0 lower still on the novel set, but one test object's MSE rose from 15 to 18).
 OCCLUDER_RADIUS = 0.2
 # Each occluder stands for the occupied voxels of a block, at their mean centre, the blocks about 1 / OCCLUDER_CELLS of
 # the object box on a side (2^3 of the product's 200^3 voxels; an object voxelised at 100^3 or merged in pairs casts
-# from its own voxels). The 200^3 voxels themselves cast no better shadows at four times the occluders: on every third
-# image the NVR+ erred 12.07 / 8.44 / 21.12 -> 11.98 / 8.43 / 21.06 on the single / default / textured test sets and
-# 24.04 / 24.90 -> 23.24 / 24.37 on the novel shapes with these blocks (its data's shadows were cast by 100^3 voxels);
-# blocks of 3^3 and 4^3 voxels erred more (12.63 / 8.89 / 21.33 and 17.11 / 12.00 / 22.88).
+# from its own voxels), and covers its block's square in the maps. The 200^3 voxels themselves, four times the
+# occluders, cast no better shadows for the NVR+, whose data's shadows 100^3 voxels cast: on every third image it
+# erred 12.07 / 8.44 / 21.12 -> 12.01 / 8.46 / 21.09 on the single / default / textured test sets and 24.04 / 24.90 ->
+# 23.31 / 24.42 on the novel shapes with these blocks; the shade stage took 7.1 ms instead of 9.2 (docs/results.md).
 OCCLUDER_CELLS = 100
 SHADOW_NORMAL_OFFSET = 1.0  # voxels along the normal an object point is moved before the shadow maps are read
 SHADOW_GRAZING_OFFSET = 1.5  # voxels more, times the sine of the angle between the normal and the light
