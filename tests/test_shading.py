@@ -204,9 +204,17 @@ def test_grid_interpolation_matches_scipy_beyond_the_edges_too(shape):
     rng = np.random.default_rng(1)
     values = rng.random(shape)
     a, b = rng.uniform(-2.0, shape[0] + 1.0, 300), rng.uniform(-2.0, shape[1] + 1.0, 300)
-    got = np.empty(300)
-    kernels.interpolate_grid(values, a, b, got)
-    np.testing.assert_allclose(got, ndimage.map_coordinates(values, [a, b], order=1, mode="nearest"), atol=1e-12)
+    # Samples 0.5 apart from (1, -3) at points (x, 0, z); only those in the box from (1, -3) to a sample past the
+    # grid's far edges are interpolated.
+    x0, z0, step = 1.0, -3.0, 0.5
+    x1, z1 = x0 + shape[0] * step, z0 + shape[1] * step
+    points = np.stack([x0 + a * step, np.zeros(300), z0 + b * step], axis=1)
+    got = np.full(300, -1.0)
+    kernels.interpolate_grid(values, x0, z0, step, points, x1, z1, got)
+    inside = (points[:, 0] >= x0) & (points[:, 0] <= x1) & (points[:, 2] >= z0) & (points[:, 2] <= z1)
+    expected = np.where(inside, ndimage.map_coordinates(values, [a, b], order=1, mode="nearest"), -1.0)
+    assert inside.sum() > 20 and (~inside).sum() > 20  # both kinds of point are there
+    np.testing.assert_allclose(got, expected, atol=1e-12)
 
 
 def test_shadow_maps_block_what_lies_between():

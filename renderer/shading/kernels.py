@@ -45,17 +45,31 @@ def sample(field, x, y, z):
 
 
 @njit(cache=True, parallel=True)
-def interpolate_grid(values, a, b, out):
-    """out[i] = the 2D grid `values` interpolated linearly at index coordinates (a[i], b[i]), clamped to its edges
-    (scipy.ndimage.map_coordinates with order 1 and mode "nearest", which took 1 ms of a light edit)."""
+def interpolate_grid(values, x0, z0, step, points, x1, z1, out):
+    """For each point (N, 3) whose x and z lie in [x0, x1] x [z0, z1]: out[i] = the 2D grid `values` of samples `step`
+    apart from (x0, z0) interpolated linearly at the point, clamped to the grid's edges (as
+    scipy.ndimage.map_coordinates with order 1 and mode "nearest"); the other points' out[i] is left as it is. One
+    pass over the floor's points, where numpy's mask, gather and scatter took 0.6 ms of a light edit."""
     n0, n1 = values.shape
-    for i in prange(a.shape[0]):
-        x, y = min(max(a[i], 0.0), n0 - 1.0), min(max(b[i], 0.0), n1 - 1.0)
-        i0, j0 = int(math.floor(x)), int(math.floor(y))
+    for i in prange(points.shape[0]):
+        x, z = points[i, 0], points[i, 2]
+        if x < x0 or x > x1 or z < z0 or z > z1:
+            continue
+        a, b = min(max((x - x0) / step, 0.0), n0 - 1.0), min(max((z - z0) / step, 0.0), n1 - 1.0)
+        i0, j0 = int(math.floor(a)), int(math.floor(b))
         i1, j1 = min(i0 + 1, n0 - 1), min(j0 + 1, n1 - 1)
-        fx, fy = x - i0, y - j0
-        out[i] = ((values[i0, j0] * (1.0 - fy) + values[i0, j1] * fy) * (1.0 - fx)
-                  + (values[i1, j0] * (1.0 - fy) + values[i1, j1] * fy) * fx)
+        fa, fb = a - i0, b - j0
+        out[i] = ((values[i0, j0] * (1.0 - fb) + values[i0, j1] * fb) * (1.0 - fa)
+                  + (values[i1, j0] * (1.0 - fb) + values[i1, j1] * fb) * fa)
+
+
+@njit(cache=True, parallel=True)
+def mark_within_xz(points, x0, z0, x1, z1, out):
+    """out[i] = whether point i's x and z lie in [x0, x1] x [z0, z1] (numpy's four comparisons over the floor's points
+    took 0.3 ms of an object move)."""
+    for i in prange(points.shape[0]):
+        x, z = points[i, 0], points[i, 2]
+        out[i] = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
 
 
 @njit(cache=True, inline="always")

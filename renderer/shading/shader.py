@@ -168,6 +168,7 @@ class VisibleSurface:
     depth: np.ndarray  # (N,) distance along the view axis
     floor: np.ndarray  # (H, W) bool
     floor_points: np.ndarray  # (F, 3) world points of the floor pixels, row-major over `floor`
+    floor_extent: np.ndarray  # (2, 2): their least and greatest x and z, [[x, z], [x, z]]
     floor_occlusion: np.ndarray  # (F,) ambient light reaching the floor point, 0..1
     images: SurfaceImages  # the same per pixel: what a shaded image shows that does not depend on the light
 
@@ -379,14 +380,15 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     depth = (points_world - camera.position) @ _view_axis(camera)
     color_spread = COLOR_SPREAD * np.maximum(depth, 0.0) / camera.focal_px  # a pixel's side at the point's depth
 
-    floor, floor_points = _floor_points(camera)
+    floor, floor_points, floor_extent = _floor_points(camera)
     floor_occlusion = _floor_occlusion(geometry, floor_points, world_to_voxel)
     lookup = color_voxels if colors else np.full_like(color_voxels, -1)  # -1: no voxel, grey
     srgb, albedo = _surface_colors(geometry, lookup, color_spread)
     images = _surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
                           color_voxels=color_voxels, color_spread=color_spread, albedo=albedo, occlusion=occlusion,
-                          depth=depth, floor=floor, floor_points=floor_points, floor_occlusion=floor_occlusion,
+                          depth=depth, floor=floor, floor_points=floor_points, floor_extent=floor_extent,
+                          floor_occlusion=floor_occlusion,
                           images=images)
 
 
@@ -569,17 +571,19 @@ def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=8)
-def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """The floor mask and the world points (F, 3) where the floor pixels' centre rays meet y = 0 (cached,
-    read-only: an object move keeps the camera)."""
+def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The floor mask, the world points (F, 3) where the floor pixels' centre rays meet y = 0, and their least and
+    greatest x and z ((2, 2): [[x, z] least, [x, z] greatest]; zeros if there are none) (cached, read-only: an
+    object move keeps the camera)."""
     floor = cached_floor_mask(camera)
     rows, cols = np.nonzero(floor)
     origin, dirs = camera.pixel_rays(cols + 0.5, rows + 0.5)
     t = -origin[1] / dirs[:, 1]
     points = origin + t[:, None] * dirs
-    for array in (floor, points):
+    extent = _box(points)[:, [0, 2]]
+    for array in (floor, points, extent):
         array.flags.writeable = False
-    return floor, points
+    return floor, points, extent
 
 
 def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_to_voxel: np.ndarray) -> np.ndarray:
@@ -590,8 +594,8 @@ def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_t
     # Only floor points under the crop box (its world bounds in x and z) can be occluded.
     world = _crop_corners(geometry)
     (x0, _, z0), (x1, _, z1) = world.min(axis=0), world.max(axis=0)
-    x, z = floor_points[:, 0], floor_points[:, 2]
-    near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
+    near = np.empty(len(floor_points), dtype=bool)
+    kernels.mark_within_xz(floor_points, x0, z0, x1, z1, near)
     if not near.any():
         return occlusion
     crop = floor_points[near] @ world_to_voxel[:3, :3].T + world_to_voxel[:3, 3] - geometry.offset
@@ -642,7 +646,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     size = surface.size
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
-                         _floor_visibility(surface.floor_points, geometry, lights, maps, bounds, nearest, 0.25 * voxel))
+                         _floor_visibility(surface, geometry, lights, maps, bounds, nearest, 0.25 * voxel))
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
@@ -657,11 +661,12 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                        visibility=visibility, occlusion=images.occlusion)
 
 
-def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
+def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
                       bounds: np.ndarray, nearest: np.ndarray, bias: float) -> np.ndarray:
-    """Share of the light each floor point sees. The shadow maps are read on a grid of FLOOR_SHADOW_STEP
+    """Share of the light each of the surface's floor points sees. The shadow maps are read on a grid of FLOOR_SHADOW_STEP
     over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
     points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
+    floor_points = surface.floor_points
     seen = np.ones(len(floor_points))
     if not len(floor_points):
         return seen
@@ -674,14 +679,13 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
     cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
     (x0, z0), (x1, z1) = cast[:, [0, 2]].min(axis=0) - FLOOR_SHADOW_STEP, cast[:, [0, 2]].max(axis=0) + FLOOR_SHADOW_STEP
-    x, z = floor_points[:, 0], floor_points[:, 2]
+    (x_min, z_min), (x_max, z_max) = surface.floor_extent
     # No wider than the floor the camera sees (on the same grid of samples): an object whose top comes near the
     # light's height casts a box that grows without bound, and nothing clips a large object to a grid.
-    x0 += max(math.floor((float(x.min()) - x0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
-    z0 += max(math.floor((float(z.min()) - z0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
-    x1, z1 = min(x1, float(x.max()) + FLOOR_SHADOW_STEP), min(z1, float(z.max()) + FLOOR_SHADOW_STEP)
-    near = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)
-    if not near.any():
+    x0 += max(math.floor((float(x_min) - x0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
+    z0 += max(math.floor((float(z_min) - z0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
+    x1, z1 = min(x1, float(x_max) + FLOOR_SHADOW_STEP), min(z1, float(z_max) + FLOOR_SHADOW_STEP)
+    if x0 > x1 or z0 > z1:
         return seen
     xs = np.arange(x0, x1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
     zs = np.arange(z0, z1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
@@ -689,10 +693,7 @@ def _floor_visibility(floor_points: np.ndarray, geometry: ObjectGeometry, lights
     samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
     on_grid = np.empty(len(samples))
     kernels.light_visibility(samples, bias, lights, maps, bounds, nearest, LIGHT_SIZE / LIGHT_POINTS, on_grid)
-    interpolated = np.empty(int(near.sum()))
-    kernels.interpolate_grid(on_grid.reshape(gx.shape), (x[near] - x0) / FLOOR_SHADOW_STEP,
-                             (z[near] - z0) / FLOOR_SHADOW_STEP, interpolated)
-    seen[near] = interpolated
+    kernels.interpolate_grid(on_grid.reshape(gx.shape), x0, z0, FLOOR_SHADOW_STEP, floor_points, x1, z1, seen)
     return seen
 
 
