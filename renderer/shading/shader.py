@@ -92,9 +92,15 @@ OCCLUDER_RADIUS = 0.2
 # erred 12.07 / 8.44 / 21.12 -> 12.01 / 8.46 / 21.09 on the single / default / textured test sets and 24.04 / 24.90 ->
 # 23.31 / 24.42 on the novel shapes with these blocks; the shade stage took 7.1 ms instead of 9.2 (docs/results.md).
 OCCLUDER_CELLS = 100
-SHADOW_NORMAL_OFFSET = 1.0  # voxels along the normal an object point is moved before the shadow maps are read
-SHADOW_GRAZING_OFFSET = 1.5  # voxels more, times the sine of the angle between the normal and the light
-SHADOW_BIAS = 0.5  # voxels nearer the light an occluder must be than the moved point to shadow it
+# The shadow maps' offsets and biases below are in sides of an occluder's block (OCCLUDER_CELLS), to which the maps
+# know an occluder's place. In sides of the 200^3 voxels, half as far, the NVR+ erred 1-4 % more on every third image
+# (single / default / textured test chairs 12.01 / 8.46 / 21.09 against 11.57 / 8.39 / 20.67, novel single-colored
+# shapes 23.31 against 22.57), and the voxel shader up to 2 % more; 1.5 times as far as here, within 0.06 of here on
+# the test chairs.
+SHADOW_NORMAL_OFFSET = 1.0  # how far along the normal an object point is moved before the shadow maps are read
+SHADOW_GRAZING_OFFSET = 1.5  # how much further, times the sine of the angle between the normal and the light
+SHADOW_BIAS = 0.5  # how much nearer the light an occluder must be than the moved point to shadow it
+FLOOR_SHADOW_BIAS = 0.25  # the same for a floor point
 FLOOR_SHADOW_STEP = 0.025  # world units between the floor points the shadow maps are read at
 OCCLUSION_DISTANCES = np.array([1.5, 3.0, 6.0, 12.0], dtype=np.float32)  # voxels along the normal
 OCCLUSION_WEIGHTS = np.array([0.35, 0.3, 0.25, 0.2], dtype=np.float32)
@@ -638,7 +644,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
     maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
     bounds = np.zeros((len(lights), 3))
-    block = geometry.occluder_block * voxel  # an occluder's block's side in the world
+    block = geometry.occluder_block * voxel  # the side of an occluder's block in the world
     kernels.build_shadow_maps(geometry.occluders, OCCLUDER_RADIUS * block, block / math.sqrt(2.0), lights,
                               SHADOW_MAP_SIZE, maps, bounds)
     nearest = maps.reshape(len(lights), -1).min(axis=1).astype(np.float64)  # each map's occluder nearest the light
@@ -646,11 +652,12 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     size = surface.size
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
-                         _floor_visibility(surface, geometry, lights, maps, bounds, nearest, 0.25 * voxel))
+                         _floor_visibility(surface, geometry, lights, maps, bounds, nearest,
+                                           FLOOR_SHADOW_BIAS * block))
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
-        radiance, seen = _object_radiance(surface, light_position, lights, maps, bounds, nearest, voxel, floor_color)
+        radiance, seen = _object_radiance(surface, light_position, lights, maps, bounds, nearest, block, floor_color)
     r, c = surface.pixels[:, 0], surface.pixels[:, 1]
     kernels.composite(from_light, from_ambient, floor, visibility, surface.images.floor_occlusion,
                       np.full(3, AMBIENT_RADIANCE, dtype=np.float32), r, c, radiance, surface.coverage[r, c], image)
@@ -698,8 +705,9 @@ def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights:
 
 
 def _object_radiance(surface: VisibleSurface, light_position, lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray,
-                     nearest: np.ndarray, voxel: float, floor_color) -> tuple[np.ndarray, np.ndarray]:
-    """Linear radiance (N, 3) of the visible object points and the share of the light each sees."""
+                     nearest: np.ndarray, block: float, floor_color) -> tuple[np.ndarray, np.ndarray]:
+    """Linear radiance (N, 3) of the visible object points and the share of the light each sees (`block`: the side of
+    an occluder's block in the world)."""
     points, normals = surface.points, surface.normals
     form = np.empty(len(points))
     form_below = np.empty(len(points))
@@ -712,8 +720,8 @@ def _object_radiance(surface: VisibleSurface, light_position, lights: np.ndarray
     # (there the depth the maps hold changes fastest across a texel).
     receivers = np.empty((len(facing), 3))
     kernels.shadow_receivers(points, normals, facing, np.asarray(light_position, dtype=np.float64),
-                             voxel * SHADOW_NORMAL_OFFSET, voxel * SHADOW_GRAZING_OFFSET, receivers)
-    kernels.light_visibility(receivers, SHADOW_BIAS * voxel, lights, maps, bounds, nearest, 0.0, seen_facing)
+                             block * SHADOW_NORMAL_OFFSET, block * SHADOW_GRAZING_OFFSET, receivers)
+    kernels.light_visibility(receivers, SHADOW_BIAS * block, lights, maps, bounds, nearest, 0.0, seen_facing)
     seen[facing] = seen_facing
     direct = LIGHT_RADIANCE * seen * form
     # Ambient from the sky above the horizon, and light the floor below sends back up (the floor there
