@@ -27,6 +27,8 @@ from renderer.shading import kernels, object_geometry, placed, repaint_surface, 
 from renderer.shading.shader import (
     COLOR_SPREAD,
     FLOOR_SHADOW_STEP,
+    _any_in_3x3,
+    _differs_from_a_neighbour,
     _pixel_window,
     _ray_candidates,
     _trace,
@@ -215,6 +217,16 @@ def test_grid_interpolation_matches_scipy_beyond_the_edges_too(shape):
     expected = np.where(inside, ndimage.map_coordinates(values, [a, b], order=1, mode="nearest"), -1.0)
     assert inside.sum() > 20 and (~inside).sum() > 20  # both kinds of point are there
     np.testing.assert_allclose(got, expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(30, 41), (1, 7), (6, 1)])
+def test_mask_neighbourhoods_match_scipy(shape):
+    rng = np.random.default_rng(2)
+    for density in (0.1, 0.5, 0.9):
+        mask = rng.random(shape) < density
+        edge = (mask ^ ndimage.binary_erosion(mask, border_value=0)) | (ndimage.binary_dilation(mask) & ~mask)
+        np.testing.assert_array_equal(_differs_from_a_neighbour(mask), edge)
+        np.testing.assert_array_equal(_any_in_3x3(mask), ndimage.maximum_filter(mask, size=3, mode="constant", cval=True))
 
 
 def test_shadow_maps_block_what_lies_between():

@@ -346,7 +346,7 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
         centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols,
                                                              candidates, nearest, farthest, cover_behind)
         hit = centre_t < kernels.FAR
-        edge = (hit ^ ndimage.binary_erosion(hit, border_value=0)) | (ndimage.binary_dilation(hit) & ~hit)
+        edge = _differs_from_a_neighbour(hit)
         edge |= hit & (centre_cover < 1.0)
         cover = centre_cover
         point = centre_p
@@ -426,13 +426,29 @@ def _close_specks(cover: np.ndarray, size: int) -> np.ndarray:
     labels, count = ndimage.label(partial, structure=np.ones((3, 3), dtype=bool))
     if count == 0:
         return cover
-    near_empty = ndimage.maximum_filter(cover <= 0.0, size=3, mode="constant", cval=True)  # the image's edge counts as empty
+    near_empty = _any_in_3x3(cover <= 0.0)  # the image's edge counts as empty
     open_group = np.zeros(count + 1, dtype=bool)
     open_group[labels[near_empty & partial]] = True
     area = np.bincount(labels.ravel(), minlength=count + 1)
     speck = ~open_group & (area <= SPECK_PIXELS * (size / 256) ** 2)
     speck[0] = False
     return np.where(speck[labels], np.float32(1.0), cover)
+
+
+def _differs_from_a_neighbour(mask: np.ndarray) -> np.ndarray:
+    """Where `mask` (2D bool) differs from one of its 4 neighbours, outside the array counting as False: the pixels
+    on either side of its edge (scipy's erosion and dilation took 0.6 ms of an object move; slices, a tenth)."""
+    padded = np.pad(mask, 1)
+    return ((mask != padded[:-2, 1:-1]) | (mask != padded[2:, 1:-1]) | (mask != padded[1:-1, :-2])
+            | (mask != padded[1:-1, 2:]))
+
+
+def _any_in_3x3(mask: np.ndarray) -> np.ndarray:
+    """Whether `mask` (2D bool) holds anywhere in each pixel's 3 x 3 neighbourhood, outside the array counting as
+    True (scipy.ndimage.maximum_filter of size 3 with mode "constant", cval True; as two passes of slices)."""
+    padded = np.pad(mask, 1, constant_values=True)
+    rows = padded[:-2] | padded[1:-1] | padded[2:]
+    return rows[:, :-2] | rows[:, 1:-1] | rows[:, 2:]
 
 
 def _surface_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
