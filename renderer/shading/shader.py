@@ -80,10 +80,10 @@ CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
 # shapes (docs/results.md, "Design choices").
 LIGHT_POINTS = 3
 SHADOW_MAP_SIZE = 96  # texels per side
-# Radius of the sphere around each occluder that the shadow maps draw, in sides of the block it stands for. The hull is fatter
-# than the mesh, and a thin part's band of voxels most of all: 0.75 (the drawn surface's distance) cast lattices'
-# floor shadows twice too dark; 0.2 gave a lower shader MSE than 0.75 or 0.4 on every test setting and the novel
-# set (0 lower still on the novel set, but one test object's MSE rose from 15 to 18).
+# Radius of the sphere around each occluder that the shadow maps draw, in sides of the block it stands for. The hull
+# is fatter than the mesh, and a thin part's band of voxels most of all: 0.75 (the drawn surface's distance) cast
+# lattices' floor shadows twice too dark; 0.2 gave a lower shader MSE than 0.75 or 0.4 on every test setting and the
+# novel set (0 lower still on the novel set, but one test object's MSE rose from 15 to 18).
 OCCLUDER_RADIUS = 0.2
 # Each occluder stands for the occupied voxels of a block, at their mean centre, the blocks about 1 / OCCLUDER_CELLS of
 # the object box on a side (2^3 of the product's 200^3 voxels; an object voxelised at 100^3 or merged in pairs casts
@@ -272,7 +272,8 @@ def _block_centroids(found: np.ndarray, blocks: np.ndarray) -> np.ndarray:
     linear = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
     counts = np.bincount(linear, minlength=int(np.prod(dims)))
     held = np.flatnonzero(counts)
-    sums = np.stack([np.bincount(linear, weights=found[:, axis], minlength=len(counts))[held] for axis in range(3)], axis=1)
+    sums = np.stack([np.bincount(linear, weights=found[:, axis], minlength=len(counts))[held] for axis in range(3)],
+                    axis=1)
     return sums / counts[held, None]
 
 
@@ -686,8 +687,8 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
 
 def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
                       bounds: np.ndarray, nearest: np.ndarray, bias: float) -> np.ndarray:
-    """Share of the light each of the surface's floor points sees. The shadow maps are read on a grid of FLOOR_SHADOW_STEP
-    over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
+    """Share of the light each of the surface's floor points sees. The shadow maps are read on a grid of
+    FLOOR_SHADOW_STEP over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
     points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
     floor_points = surface.floor_points
     seen = np.ones(len(floor_points))
