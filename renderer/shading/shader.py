@@ -438,7 +438,7 @@ def _close_specks(cover: np.ndarray, size: int) -> np.ndarray:
 
 def _differs_from_a_neighbour(mask: np.ndarray) -> np.ndarray:
     """Where `mask` (2D bool) differs from one of its 4 neighbours, outside the array counting as False: the pixels
-    on either side of its edge (scipy's erosion and dilation took 0.6 ms of an object move; slices, a tenth)."""
+    on either side of its edge (scipy's erosion and dilation took 0.49 ms on a 160 x 120 window, the slices 0.03)."""
     padded = np.pad(mask, 1)
     return ((mask != padded[:-2, 1:-1]) | (mask != padded[2:, 1:-1]) | (mask != padded[1:-1, :-2])
             | (mask != padded[1:-1, 2:]))
