@@ -105,7 +105,7 @@ class _Geometry:
         self.points = points.astype(np.float32)
         self.view = (to_camera / np.linalg.norm(to_camera, axis=-1, keepdims=True)).astype(np.float32)
         self.cos_view = np.clip(self.view[..., 1], 1e-4, 1.0)
-        self.view_fresnel = _schlick(self.cos_view)
+        self.view_fresnel = coat_reflectance(self.cos_view)
         self.view_masking = _smith_g1(self.cos_view)
         self.row_weights = _linear_weights(rows, camera.height)
         self.col_weights = _linear_weights(cols, camera.width)
@@ -155,7 +155,7 @@ def _light_sums(points, view, cos_view, view_masking, samples_x, samples_z, heig
                                           0.0), 1.0)
                     cos_in = max(cos_in, np.float32(1e-4))
                     solid_sum += solid
-                    glossy_sum += _schlick(cos_in_half) * _ggx(cos_half) * _smith_g1(cos_in) * view_term / cos_in * solid
+                    glossy_sum += coat_reflectance(cos_in_half) * _ggx(cos_half) * _smith_g1(cos_in) * view_term / cos_in * solid
             diffuse[r, c] = solid_sum
             glossy[r, c] = glossy_sum
 
@@ -176,7 +176,8 @@ def _smith_g1(cos_theta):
 
 
 @njit(cache=True)
-def _schlick(cos_theta):
+def coat_reflectance(cos_theta):
+    """The coat's Fresnel reflectance (Schlick) at the cosine between the direction and the floor's normal."""
     return COAT_F0 + (1.0 - COAT_F0) * (1.0 - cos_theta) ** 5
 
 

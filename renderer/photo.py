@@ -193,7 +193,7 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     occupied = occupancy(grey)
     grey[..., :3] = np.where(occupied[..., None], np.float32(linear_to_srgb(SHADING_GREY)), np.float32(0.0))
     # A pixel where one part is drawn over another mixes both in the photo: it must not count as covered.
-    shaded = shade_scene(scene, grey, scene.floor.color, cover_behind=False)
+    shaded = shade_scene(scene, grey, scene.floor.color, cover_behind=False, reflection=False)
     shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
     known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
     return _albedo_image(srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING), known), known

@@ -454,9 +454,10 @@ def refiner(seed: int = 0, trained: bool = True, config: ShaderRefinerConfig = T
 
 
 def _shaded_image(scene, grid_size: int) -> np.ndarray:
-    """The voxel shader's image of `scene`, its object voxels merged as for a grid of `grid_size`^3, computed without
-    the engine."""
-    return shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, 64, grid_size).image
+    """The voxel shader's image of `scene` as a network reads it (no reflection of the object in the floor), its object
+    voxels merged as for a grid of `grid_size`^3, computed without the engine."""
+    return shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, 64, grid_size,
+                       reflection=False).image
 
 
 @pytest.mark.parametrize("factor, engine_factor, shaded_grid", [(1, None, 64), (2, None, 128), (2, 1, 64)])

@@ -14,6 +14,7 @@ from renderer.color import srgb_to_linear
 from renderer.floor_light import lit_floor_image
 from renderer.grid import pool_object, shader_pool_factors
 from renderer.scene import (
+    AMBIENT_RADIANCE,
     FLOOR_HALF_SIZE,
     GRID_SIZE,
     LIGHT_RADIANCE,
@@ -27,6 +28,7 @@ from renderer.shading import kernels, object_geometry, placed, repaint_surface, 
 from renderer.shading.shader import (
     COLOR_SPREAD,
     FLOOR_SHADOW_STEP,
+    REFLECTION_SUBSAMPLING,
     _any_in_3x3,
     _differs_from_a_neighbour,
     _pixel_window,
@@ -153,6 +155,37 @@ def test_a_spheres_shading_follows_lambert():
     slope, intercept = np.polyfit(direct[lit], radiance[lit], 1)
     assert slope == pytest.approx(albedo / np.pi, rel=0.15)
     assert np.corrcoef(direct[lit], radiance[lit])[0, 1] > 0.95
+
+
+@pytest.mark.parametrize("elevation", [10.0, 40.0])
+def test_the_floor_mirrors_the_object_by_the_coats_fresnel_reflectance(elevation):
+    # A cube of side 0.4 lit from the front (48 voxels a side: its face's normals flat at the centre, the normals' disc
+    # within the face): the floor's coat mirrors its front face below its bottom edge. There the
+    # shader's image gains, in linear light, Schlick's reflectance (F0 = 0.04, 1.5 the coat's index) towards the
+    # camera times 0.69 (the share of the sky the coat's fitted environment term reflects) times the face's radiance
+    # less the sky's it mirrored instead; nothing changes off the mirrored cube's outline or on the cube.
+    size, light, floor = 128, (0.0, 0.9, 1.6), (0.5, 0.5, 0.5)
+    scene = scene_of(ObjectSpec(voxels="v.npz", scale=(0.4, 0.4, 0.4)), light, elevation, size)
+    plain, mirrored = (shade_scene(scene, cube(48), floor, size, reflection=r) for r in (False, True))
+    camera = Camera(elevation, width=size, height=size)
+    face, image_of_face = np.array([0.0, 0.2, 0.2]), np.array([0.0, -0.2, 0.2])
+    u, v, _ = camera.project(face)
+    radiance = srgb_to_linear(plain.image[int(v), int(u)].astype(np.float64))
+    ray = image_of_face - camera.position
+    cos = -ray[1] / np.linalg.norm(ray)
+    expected = 0.69 * (0.04 + 0.96 * (1.0 - cos) ** 5) * (radiance - AMBIENT_RADIANCE)
+    u, v, _ = camera.project(image_of_face)
+    gained = srgb_to_linear(mirrored.image[int(v), int(u)].astype(np.float64)) - srgb_to_linear(
+        plain.image[int(v), int(u)].astype(np.float64))
+    assert plain.coverage[int(v), int(u)] == 0.0 and expected.min() > 0.005
+    np.testing.assert_allclose(gained, expected, rtol=0.15)
+    rows, cols = np.nonzero(np.abs(mirrored.image - plain.image).max(axis=2) > 0.5 / 255.0)
+    corners = np.array([[x, y, z] for x in (-0.2, 0.2) for y in (0.0, -0.4) for z in (-0.2, 0.2)])
+    corner_u, corner_v, _ = camera.project(corners)
+    reach = 2 * REFLECTION_SUBSAMPLING  # pixels: the coarse reflection's bilinear fade at its edge
+    assert corner_v.min() - reach <= rows.min() and rows.max() <= corner_v.max() + reach
+    assert corner_u.min() - reach <= cols.min() and cols.max() <= corner_u.max() + reach
+    assert np.all(plain.coverage[rows, cols] < 1.0)
 
 
 def test_an_empty_object_is_the_lit_floor():
@@ -453,9 +486,10 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
     assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
-    assert reran["move"] == reran["slide"] == {"placed", "surface", "shade"}  # the geometry is placed: turns keep it
-    assert reran["camera"] == {"placed", "surface", "floor", "shade"}
-    assert reran["paint"] == {"pool", "geometry", "placed", "surface", "shade"}
+    # The geometry is placed: turns keep it.
+    assert reran["move"] == reran["slide"] == {"placed", "surface", "reflection", "shade"}
+    assert reran["camera"] == {"placed", "surface", "reflection", "floor", "shade"}
+    assert reran["paint"] == {"pool", "geometry", "placed", "surface", "reflection", "shade"}
 
 
 def lattice(n: int = 40, bars: int = 4) -> np.ndarray:

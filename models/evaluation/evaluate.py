@@ -123,7 +123,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
 
     def predict(sample: dict, index: int) -> torch.Tensor:
         if renderer == "shaded":
-            image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1]).image
+            image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1],
+                                   reflection=True).image
             return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
         if model is None:
             return sample["splat"][None]

@@ -191,12 +191,13 @@ class VoxelRenderSet(Dataset):
             item["shading"] = shading_tensor(self.shaded(scene, rgba, splat.shape[-1]))
         return item
 
-    def shaded(self, scene: Scene, object_rgba: np.ndarray, size: int):
+    def shaded(self, scene: Scene, object_rgba: np.ndarray, size: int, reflection: bool = False):
         """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene at `size`^2: its object voxels merged
-        as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors)."""
+        as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors). `reflection`:
+        with the floor's reflection of the object, as the shader draws its own image (a network's input has none)."""
         from renderer.shading import shade_scene
 
-        return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size)
+        return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size, reflection=reflection)
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:

@@ -5,11 +5,12 @@
     geometry   pool (the object's own voxels, in its own frame)            the same
     placed     geometry, placement, elevation                              the same, any placement or camera edit
     surface    placed, image size                                          the same
+    reflection placed, image size (the object mirrored in the floor)        the same
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
     shade      surface, floor                                              any of the above
 
 So a light move or a floor color reruns only `floor` and `shade`, an object move, turn or scale (within its merge
-factors) `placed`, `surface` and `shade`, a camera tilt `placed`, `surface`, `floor` and `shade`: the geometry stands
+factors) `placed`, `surface`, `reflection` and `shade`, a camera tilt those and `floor`: the geometry stands
 at the floor's origin in the object's own frame and `placed` puts it in the scene (renderer.shading.shader).
 The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
 compares voxel arrays.
@@ -27,7 +28,7 @@ from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import pool_object, shader_pool_factors
 from renderer.scene import SHADER_GRID_SIZE, Scene
-from renderer.shading.shader import ShadedImage, object_geometry, placed, shade, visible_surface
+from renderer.shading.shader import ShadedImage, floor_reflection, object_geometry, placed, shade, visible_surface
 
 
 class StagedShader:
@@ -49,11 +50,13 @@ class StagedShader:
         placed_key = (voxels_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
         geometry = self._stage("placed", placed_key, lambda: placed(shape, o, elevation))
         surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size))
+        reflection = self._stage("reflection", (placed_key, size),
+                                 lambda: None if geometry.empty else floor_reflection(geometry, surface))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
             Camera(elevation, width=size, height=size), light, floor))
         return self._stage("shade", (placed_key, size, light, floor), lambda: shade(geometry, surface, light, floor,
-                                                                                 floor_terms))
+                                                                                 floor_terms, reflection))
 
     def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
         if name in self._memo and self._memo[name][0] == key:
