@@ -46,7 +46,7 @@ ABLATIONS = {
     "no light bounced from the floor": (shader, {"FLOOR_BOUNCE": 0.0}),
     "less smooth normals (from the surface's own field)": (shader, {"NORMAL_SIGMA": shader.DISTANCE_SIGMA}),
     "normals not averaged over the tangent plane's disc": (shader, {"NORMAL_RINGS": 0}),
-    "no reflection of the object in the floor": (shader, {"ENVIRONMENT_SCALE": 0.0}),
+    "no reflection of the object in the floor": (shader, {"REFLECTION_SCALE": 0.0}),
     "each point colored by one voxel (not averaged over the pixel's footprint)": (shader, {"COLOR_SPREAD": 0.0}),
 }
 

@@ -1,4 +1,5 @@
-"""Where the NVR+ and the voxel shader put their squared error: on the object, along its silhouette, on the floor.
+"""Where the NVR+ and the voxel shader it corrects (the network's input: without the object's reflection in the floor)
+put their squared error: on the object, along its silhouette, on the floor.
 
 Run from the repository root after making the test split (docs/results.md says how):
     python -m benchmarks.error_regions [--data DIR...] [--every 3] [--mesh-coverage]
@@ -101,7 +102,7 @@ def main() -> None:
             target, _ = load_image(folder / sample["target"])
             size = target.shape[0]
             rgba, floor = painted_voxels(scene, object_voxels(scene))
-            shaded = shade_scene(scene, rgba, floor, size)
+            shaded = shade_scene(scene, rgba, floor, size, reflection=False)  # what the NVR+ corrects
             masks = regions(shaded.coverage)
             for name, image in (("NVR+", engine.render(scene)), ("voxel shader", np.clip(shaded.image, 0.0, 1.0))):
                 squared = (((image - target) * 255.0) ** 2).mean(axis=2)

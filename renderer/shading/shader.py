@@ -46,7 +46,7 @@ from scipy import ndimage, special
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
-from renderer.floor_light import ENVIRONMENT_SCALE, coat_reflectance, lit_floor_terms
+from renderer.floor_light import coat_reflectance, lit_floor_terms
 from renderer.grid import dilate_cube, occupied_spans, pool_object, shader_pool_factors
 from renderer.resample import resized
 from renderer.scene import (
@@ -131,13 +131,17 @@ COVERAGE_PROBE = 4.0
 # openings a ray passes through keep their empty pixels and stay open.
 SPECK_PIXELS = 40
 # The floor's glossy coat mirrors the object, in the shader's own image: the object mirrored in the floor is traced
-# where the floor shows, at 1/REFLECTION_SUBSAMPLING of the image's side (the coat blurs it), lit like the object, and
-# replaces the sky the coat mirrored there by the coat's Fresnel reflectance times ENVIRONMENT_SCALE (floor_light's
-# share of the sky the coat reflects). On every third image the shader erred 18.77 / 25.53 / 36.51 -> 17.33 / 25.53 /
-# 35.94 (default / single / textured test chairs) and 32.24 / 32.96 -> 31.84 / 32.34 (the shapes unlike the furniture);
-# at half the side, or traced with the object's own subpixels, disc and colors, within 0.1 of that. A network's input
-# leaves it out: given it, the shipped NVR+, which learned a reflection from its data, erred 0.0-1.0 more.
+# where the floor shows, at 1/REFLECTION_SUBSAMPLING of the image's side, lit like the object, blurred by REFLECTION_BLUR
+# of its pixels (the coat's roughness), and replaces the sky the coat mirrored there by the coat's Fresnel reflectance
+# times REFLECTION_SCALE. On every third test image the shader's MSE / DSSIM went from 18.77 / 0.00835, 25.53 / 0.00898
+# and 36.51 / 0.01433 (default / single / textured) to 17.44 / 0.00786, 25.23 / 0.00879 and 35.63 / 0.01367; unblurred,
+# the DSSIM rose on the single-colored and textured chairs (0.00929, 0.01457); a scale of 0.69 (floor_light's share of
+# the sky the coat reflects), 0.4 or 0.6, or a blur of 1.5 or 2, did alike or worse; at half the image's side, or traced
+# with the object's own subpixels, normals' disc and colors, within 0.1 in MSE of this. A network's input leaves it
+# out: given it, the shipped NVR+, which learned a reflection from its data, erred 0.0-1.0 more.
 REFLECTION_SUBSAMPLING = 4
+REFLECTION_BLUR = 1.0
+REFLECTION_SCALE = 0.5
 CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still mark its pixels as ray candidates
 CANDIDATE_DEPTH = 0.25  # voxels of gap inside the surface a cell's points must reach to count (a ray stops within 0.1)
 CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (more: fewer boxes, more pixels traced)
@@ -204,7 +208,7 @@ class FloorReflection:
     normals: np.ndarray  # (N, 3) world, unit
     albedo: np.ndarray  # (N, 3) linear
     occlusion: np.ndarray  # (N,) sky light reaching the point, 0..1
-    weight: np.ndarray  # (N,) float32: the coat's reflectance towards the camera times ENVIRONMENT_SCALE and the coverage
+    weight: np.ndarray  # (N,) float32: the coat's reflectance towards the camera times REFLECTION_SCALE and the coverage
 
 
 @dataclass(frozen=True)
@@ -470,7 +474,7 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
     flip = _MIRROR.diagonal()[:3]
     _, directions = camera.pixel_rays(pixels[:, 1] + 0.5, pixels[:, 0] + 0.5)
     reflectance = coat_reflectance(np.clip(-directions[:, 1], 0.0, 1.0))
-    weight = ENVIRONMENT_SCALE * reflectance * coverage[pixels[:, 0], pixels[:, 1]]
+    weight = REFLECTION_SCALE * reflectance * coverage[pixels[:, 0], pixels[:, 1]]
     return FloorReflection(side=side, pixels=pixels, points=points * flip, normals=normals * flip, albedo=albedo,
                            occlusion=occlusion, weight=weight.astype(np.float32))
 
@@ -837,13 +841,16 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
                     floor_color) -> None:
     """Adds to the linear `image` the floor's reflection of the object, where the object leaves the floor uncovered:
     the coat mirrors the lit object where it mirrored the sky (an object darker than the sky darkens the floor). The
-    reflection's pixels are upsampled bilinearly over the box they fill (and a pixel more: it fades at its edge)."""
+    reflection's pixels are blurred (the coat's roughness) and upsampled bilinearly over the box they reach."""
     radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
                                    light_position, lights, maps, bounds, nearest, block, floor_color)
-    (r0, c0), (r1, c1) = reflection.pixels.min(axis=0) - 1, reflection.pixels.max(axis=0) + 2
+    margin = math.ceil(REFLECTION_BLUR * BLUR_TRUNCATE) + 1
+    (r0, c0), (r1, c1) = reflection.pixels.min(axis=0) - margin, reflection.pixels.max(axis=0) + 1 + margin
     change = np.zeros((r1 - r0, c1 - c0, 3), dtype=np.float32)
     change[reflection.pixels[:, 0] - r0, reflection.pixels[:, 1] - c0] = (
         reflection.weight[:, None] * (radiance - AMBIENT_RADIANCE))
+    change = ndimage.gaussian_filter(change, (REFLECTION_BLUR, REFLECTION_BLUR, 0), mode="constant",
+                                     truncate=BLUR_TRUNCATE)
     step = surface.size / reflection.side
     top, left = round(r0 * step), round(c0 * step)
     bottom, right = round(r1 * step), round(c1 * step)
