@@ -16,5 +16,5 @@ from renderer.shading.shader import (
     visible_surface,
 )
 
-__all__ = ["BUFFER_CHANNELS", "FloorReflection", "ObjectGeometry", "ShadedImage", "VisibleSurface", "floor_reflection", "network_buffers", "object_geometry",
-           "placed", "repaint_surface", "shade", "shade_scene", "visible_surface"]
+__all__ = ["BUFFER_CHANNELS", "FloorReflection", "ObjectGeometry", "ShadedImage", "VisibleSurface", "floor_reflection",
+           "network_buffers", "object_geometry", "placed", "repaint_surface", "shade", "shade_scene", "visible_surface"]

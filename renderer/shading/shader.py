@@ -461,12 +461,14 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
     """The object mirrored in the floor as the camera sees it past the object in `surface` (a ray the coat reflects
     off the floor goes on as the camera's ray through the same pixel goes on to the object mirrored below the floor).
     Blurred and faint, it is drawn from centre rays alone, normals without the disc and one voxel's color."""
-    side = max(surface.size // REFLECTION_SUBSAMPLING, 1)
+    step = REFLECTION_SUBSAMPLING
+    side = max(surface.size // step, 1)
     camera = Camera(geometry.elevation_deg, width=side, height=side)
     mirrored = replace(geometry, voxel_to_world=_MIRROR @ geometry.voxel_to_world)
-    open_floor = surface.floor & (surface.coverage < 1.0)
-    step = REFLECTION_SUBSAMPLING
-    where = open_floor[:side * step, :side * step].reshape(side, step, side, step).any(axis=(1, 3))
+    open_floor = np.zeros((side * step, side * step), dtype=bool)  # an image smaller than a step: one pixel of it
+    shown = surface.floor & (surface.coverage < 1.0)
+    open_floor[:shown.shape[0], :shown.shape[1]] = shown[:side * step, :side * step]
+    where = open_floor.reshape(side, step, side, step).any(axis=(1, 3))
     coverage, pixels, points_crop = _first_hits(mirrored, camera, subpixels=1, where=where)
     normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0)
     points, normals, _ = _in_world(mirrored, camera, points_crop, normals_crop)
