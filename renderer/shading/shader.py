@@ -48,7 +48,7 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import coat_reflectance, lit_floor_terms
 from renderer.grid import dilate_cube, occupied_spans, pool_object, shader_pool_factors
-from renderer.resample import resized
+from renderer.resample import downscaled_mask, resized
 from renderer.scene import (
     AMBIENT_RADIANCE,
     CAMERA_DISTANCE,
@@ -134,11 +134,12 @@ SPECK_PIXELS = 40
 # where the floor shows, at 1/REFLECTION_SUBSAMPLING of the image's side, lit like the object, blurred by REFLECTION_BLUR
 # of its pixels (the coat's roughness), and replaces the sky the coat mirrored there by the coat's Fresnel reflectance
 # times REFLECTION_SCALE. On every third test image the shader's MSE / DSSIM went from 18.77 / 0.00835, 25.53 / 0.00898
-# and 36.51 / 0.01433 (default / single / textured) to 17.44 / 0.00786, 25.23 / 0.00879 and 35.63 / 0.01367; unblurred,
-# the DSSIM rose on the single-colored and textured chairs (0.00929, 0.01457); a scale of 0.69 (floor_light's share of
-# the sky the coat reflects), 0.4 or 0.6, or a blur of 1.5 or 2, did alike or worse; at half the image's side, or traced
-# with the object's own subpixels, normals' disc and colors, within 0.1 in MSE of this. A network's input leaves it
-# out: given it, the shipped NVR+, which learned a reflection from its data, erred 0.0-1.0 more.
+# and 36.51 / 0.01433 (default / single / textured) to 17.44 / 0.00786, 25.23 / 0.00879 and 35.63 / 0.01367; unblurred
+# at a scale of 0.69 (floor_light's share of the sky the coat reflects) the DSSIM rose on the single-colored and
+# textured chairs (0.00929, 0.01457); scale 0.4 (blur 1), 0.6 (blur 1.5) and blurs of 1.5 or 2 (scale 0.5) did alike
+# or worse. Unblurred, the reflection traced at half the image's side, or with the object's own subpixels, normals'
+# disc and colors, came within 0.1 in MSE of the quarter side. A network's input leaves it out: given it, the shipped
+# NVR+, which learned a reflection from its data, erred 0.0-1.0 more.
 REFLECTION_SUBSAMPLING = 4
 REFLECTION_BLUR = 1.0
 REFLECTION_SCALE = 0.5
@@ -461,14 +462,11 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
     """The object mirrored in the floor as the camera sees it past the object in `surface` (a ray the coat reflects
     off the floor goes on as the camera's ray through the same pixel goes on to the object mirrored below the floor).
     Blurred and faint, it is drawn from centre rays alone, normals without the disc and one voxel's color."""
-    step = REFLECTION_SUBSAMPLING
-    side = max(surface.size // step, 1)
+    side = max(surface.size // REFLECTION_SUBSAMPLING, 1)
     camera = Camera(geometry.elevation_deg, width=side, height=side)
     mirrored = replace(geometry, voxel_to_world=_MIRROR @ geometry.voxel_to_world)
-    open_floor = np.zeros((side * step, side * step), dtype=bool)  # an image smaller than a step: one pixel of it
-    shown = surface.floor & (surface.coverage < 1.0)
-    open_floor[:shown.shape[0], :shown.shape[1]] = shown[:side * step, :side * step]
-    where = open_floor.reshape(side, step, side, step).any(axis=(1, 3))
+    # The reflection's pixels where any of the image's pixels they cover shows floor.
+    where = downscaled_mask(surface.floor & (surface.coverage < 1.0), side, min_cover=1e-6)
     coverage, pixels, points_crop = _first_hits(mirrored, camera, subpixels=1, where=where)
     normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0)
     points, normals, _ = _in_world(mirrored, camera, points_crop, normals_crop)
@@ -896,5 +894,5 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     geometry = placed(object_geometry(merged, resolution, factors), scene.object, scene.camera.elevation_deg)
     size = scene.image_size if size is None else size
     surface = visible_surface(geometry, size, cover_behind)
-    mirrored = floor_reflection(geometry, surface) if reflection and not geometry.empty else None
+    mirrored = floor_reflection(geometry, surface) if reflection else None
     return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored)

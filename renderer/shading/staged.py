@@ -50,8 +50,7 @@ class StagedShader:
         placed_key = (voxels_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
         geometry = self._stage("placed", placed_key, lambda: placed(shape, o, elevation))
         surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size))
-        reflection = self._stage("reflection", (placed_key, size),
-                                 lambda: None if geometry.empty else floor_reflection(geometry, surface))
+        reflection = self._stage("reflection", (placed_key, size), lambda: floor_reflection(geometry, surface))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
             Camera(elevation, width=size, height=size), light, floor))
