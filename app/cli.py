@@ -100,7 +100,9 @@ def _render_network(scene, size: int, args: argparse.Namespace):
 
     engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device)
     if size != engine.output_size:
-        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {size} is not supported")
+        asked = f"--size {size}" if args.size is not None else f"the scene's image_size {size}"
+        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; {asked} is not supported "
+                         f"(pass --size {engine.output_size})")
     image = engine.render(scene)
     return image, f", model {engine.model_name}, {engine.precision} on {engine.device.type}"
 

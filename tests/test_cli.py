@@ -47,6 +47,18 @@ def test_existing_output_is_kept_without_force(scene_dir):
     assert (scene_dir / "out.png").read_bytes() == b"precious"
 
 
+def test_a_network_render_at_a_size_it_does_not_make_says_which_size_to_ask_for(scene_dir):
+    data = json.loads((scene_dir / "scene.json").read_text())
+    data["image_size"] = 96
+    (scene_dir / "scene.json").write_text(json.dumps(data))
+    out = scene_dir / "out.png"
+    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr+"),
+                      "renders 256x256", "the scene's image_size 96", "--size 256")
+    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr+", "--size", "128"),
+                      "--size 128 is not supported")
+    assert not out.exists()
+
+
 def test_voxelize_and_info(scene_dir):
     result = nvr("voxelize", scene_dir / "chair.obj", "-o", scene_dir / "chair.npz", "--res", "24")
     assert result.returncode == 0, result.stderr

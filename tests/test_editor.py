@@ -90,6 +90,8 @@ def scene_file(tmp_path_factory) -> Path:
 def run_editor(display: str, tmp_path: Path, scene: Path, actions: list | None = None, *args: str,
                state: Path | None = None, cwd: Path = REPOSITORY) -> subprocess.CompletedProcess:
     env = dict(os.environ, DISPLAY=display, XDG_STATE_HOME=str(state or tmp_path / "state"), NVR_EDITOR_TIMEOUT="120")
+    if "--renderer" not in args and "--model" not in args:
+        args = (*args, "--renderer", "shaded")  # the quick renderer, at the scene's small size, unless a test asks
     command = [*EDITOR, str(scene), "--frames", "3", *args]
     if actions is not None:
         replay = tmp_path / f"replay{time.monotonic_ns()}.json"
@@ -266,7 +268,7 @@ def test_export_equals_nvr_render(edit_run, tmp_path, model_file):
 
 
 def test_the_panel_renders_with_the_chosen_renderer_and_exports_what_it_shows(display, tmp_path, scene_file, model_file):
-    """With --renderer shaded (the default without --model) the panel shows the voxel shader; switching to
+    """With --renderer shaded the panel shows the voxel shader; switching to
     NVR+ in the window shows (and exports) the network's image; each export equals `nvr render` with that
     renderer."""
     out = tmp_path / "out"
@@ -288,6 +290,25 @@ def test_the_panel_renders_with_the_chosen_renderer_and_exports_what_it_shows(di
     shown = pixels(out / "shaded_window.png", PANELS.render_image)
     export = Image.open(out / "shaded.png").resize(shown.shape[1::-1], Image.Resampling.BILINEAR)
     assert np.abs(shown - np.asarray(export) / 255.0).mean() < 0.01
+
+
+def test_the_editor_opens_on_the_shipped_nvr_plus(display, tmp_path, scene_file):
+    """Without --renderer or --model the panel renders (and exports) the shipped NVR+'s image, as `nvr render --renderer
+    nvr+` does; a scene of another image size exports that image resized to its size."""
+    scene = load_scene(scene_file)
+    scene_256 = tmp_path / "scene256.json"
+    save_scene(replace(scene, image_size=256), scene_256)  # the network's own size (save_scene keeps the voxel path)
+    env = dict(os.environ, DISPLAY=display, XDG_STATE_HOME=str(tmp_path / "state"), NVR_EDITOR_TIMEOUT="120")
+    for scene_path, export in ((scene_256, "editor256.png"), (scene_file, "editor64.png")):
+        result = subprocess.run([*EDITOR, str(scene_path), "--frames", "3", "--export", str(tmp_path / export)],
+                                env=env, capture_output=True, text=True, timeout=240, cwd=REPOSITORY)
+        assert result.returncode == 0, result.stderr[-2000:]
+    subprocess.run([sys.executable, "-m", "app.cli", "render", str(scene_256), "--renderer", "nvr+", "-o",
+                    str(tmp_path / "cli.png")], check=True, capture_output=True, timeout=120)
+    with Image.open(tmp_path / "cli.png") as cli:
+        np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "editor256.png")), np.asarray(cli))
+        resized = np.asarray(cli.resize((64, 64), Image.Resampling.LANCZOS))
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "editor64.png")), resized)
 
 
 def test_closing_asks_about_unsaved_changes_and_the_next_start_offers_them_back(display, tmp_path, scene_file,

@@ -124,7 +124,7 @@ class FrameStats:
 class EditorApp:
     """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
 
-    def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "shaded"):
+    def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "nvr+"):
         self.window = window
         self.doc = document
         self.voxels = VoxelCache()
@@ -331,8 +331,8 @@ class EditorApp:
         self.say(f"rendering with {self.live.label}")
 
     def export(self, path: str | Path, overwrite: bool = False, size: int | None = None) -> bool:
-        """Write the panel renderer's image of the committed scene as `nvr render` would, at `size` pixels
-        (default the scene's; larger network images are upscaled and the message says so)."""
+        """Write the panel renderer's image of the committed scene at `size` pixels (default the scene's; a network's
+        image of another size is resized and the message says so)."""
         def write() -> str:
             used = export_render(self.doc.history.current, path, self.live.model_path, self.live.renderer, self.voxels,
                                  size)

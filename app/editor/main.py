@@ -34,8 +34,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = OneLineParser(prog="nvr-editor", description="NVR Studio editor: voxel viewport and live neural render.")
     p.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE), help="scene file (default: the demo scene)")
     p.add_argument("--renderer", choices=["shaded", "nvr+"], default=None,
-                   help="the render panel's renderer (default: nvr+ when --model is given, else shaded); "
-                        "switch in the panel")
+                   help="the render panel's renderer (default: nvr+, which shows the shaded image while a drag "
+                        "lasts); switch in the panel")
     p.add_argument("--model", default=None, help="NVR+ weights (.safetensors); default: the shipped model")
     p.add_argument("--frames", type=int, default=None, help="headless: draw at least N frames, then exit when idle")
     p.add_argument("--replay", default=None, help="JSON list of actions to perform (see app/editor/replay.py)")
@@ -93,7 +93,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
     from app.editor.panels import Interface
 
     headless = args.frames is not None
-    renderer = args.renderer or ("nvr+" if args.model else "shaded")
+    renderer = args.renderer or "nvr+"
     app = EditorApp(window, document, model_path=args.model, renderer=renderer)
     interface = Interface(app)
     frame, started, finishing = 0, time.monotonic(), False

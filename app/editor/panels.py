@@ -39,7 +39,7 @@ NEW_PNG_FILE = FileKind("Export as", "PNG images", ("*.png",), save=True)
 NEW_GIF_FILE = FileKind("Export the turntable as", "GIF animations", ("*.gif",), save=True)
 VOX_FILES = FileKind("Import a MagicaVoxel model", "MagicaVoxel models", ("*.vox",))
 NEW_VOX_FILE = FileKind("Export the voxels as", "MagicaVoxel models", ("*.vox",), save=True)
-EXPORT_SIZES = (None, 512, 1024, 2048)  # None: the scene's size (the networks' native 256)
+EXPORT_SIZES = (None, 512, 1024, 2048)  # None: the scene's size
 RATE_REFRESH_SECONDS = 0.5  # the frame-time text changes at most this often: a window that looks the same is not redrawn
 PREVIEW_DELAY_SECONDS = 0.15  # the bucket rests this long on a voxel before its region is tinted
 PREVIEW_MIX = 0.6  # how far the tint goes towards the paint color
@@ -399,10 +399,11 @@ class Interface:
                 act(path)
             if key == "export":
                 imgui.set_next_item_width(200)
-                native = f"{app.scene.image_size} px (native)"
+                shader = app.live.renderer == "shaded"
+                scene_size = f"{app.scene.image_size} px (the scene's)"
                 _, f.export_size = imgui.combo("export size", f.export_size,
-                                               [native] + [f"{s} px" + ("" if app.live.renderer == "shaded" else " (upscaled)")
-                                                           for s in EXPORT_SIZES[1:]])
+                                               [scene_size] + [f"{s} px" + ("" if shader else " (upscaled)")
+                                                               for s in EXPORT_SIZES[1:]])
 
     def _browse(self, key: str, kind: FileKind, field_name: str) -> None:
         """A Browse button after a path field, when the system has a file dialog: the chosen file fills the field."""

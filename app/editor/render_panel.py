@@ -120,7 +120,7 @@ class LowPriority:
 class LiveRender:
     """Submits scenes to a worker thread and hands each newly finished frame to the UI once."""
 
-    def __init__(self, voxels: VoxelCache, model_path: str | None = None, renderer: str = "shaded"):
+    def __init__(self, voxels: VoxelCache, model_path: str | None = None, renderer: str = "nvr+"):
         self.model_path = model_path
         self._voxels = voxels
         self._engines: dict[str, object] = {}
@@ -219,8 +219,8 @@ class _Selected:
 
 def final_render(scene: Scene, model_path: str | None = None, renderer: str = "nvr+",
                  voxels: VoxelCache | None = None) -> tuple[np.ndarray, str]:
-    """The image `nvr render SCENE --renderer RENDERER` makes (for NVR+, the splat when no model loads), and
-    what made it."""
+    """The panel renderer's image of `scene` and what made it: the voxel shader's at the scene's size, the NVR+'s at the
+    network's own (256 px, whatever the scene's), or the splat when no model loads."""
     if renderer == "shaded":
         return ShadedEngine(voxels or VoxelCache()).render(scene), RENDERERS["shaded"]
     try:
@@ -230,24 +230,21 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
             raise
         rgba, floor_color = painted_voxels(scene, object_voxels(scene))
         return splat_scene(scene, rgba, floor_color), "splat, no trained model"
-    if scene.image_size != engine.output_size:
-        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; "
-                         f"the scene's image_size {scene.image_size} is not supported")
     return engine.render(scene), f"nvr+ {engine.model_name}"
 
 
 def export_render(scene: Scene, path: str | Path, model_path: str | None = None, renderer: str = "nvr+",
                   voxels: VoxelCache | None = None, size: int | None = None) -> str:
-    """Write the image `nvr render SCENE --renderer RENDERER` makes, at `size` (default the scene's); returns what
-    was used. The voxel shader renders any size; a network's 256 px image is upscaled (Lanczos), and says so."""
-    if size is None or size == scene.image_size:
-        image, used = final_render(scene, model_path, renderer, voxels)
-    elif renderer == "shaded":
+    """Write the panel renderer's image of `scene` at `size` (default the scene's); returns what was used. The voxel
+    shader renders any size; a network's 256 px image of another size is resized (Lanczos), and says so."""
+    size = size or scene.image_size
+    if renderer == "shaded":
         image, used = final_render(replace(scene, image_size=size), model_path, renderer, voxels)
     else:
         image, used = final_render(scene, model_path, renderer, voxels)
         native = image.shape[0]
-        image = np.asarray(Image.fromarray(to_uint8(image)).resize((size, size), Image.Resampling.LANCZOS))
-        used += f", upscaled from {native} px"
+        if native != size:
+            image = np.asarray(Image.fromarray(to_uint8(image)).resize((size, size), Image.Resampling.LANCZOS))
+            used += f", {'upscaled' if size > native else 'downscaled'} from {native} px"
     save_png(path, image)
     return used
