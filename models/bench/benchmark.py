@@ -245,7 +245,7 @@ def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: Benc
     """Frame time = re-render after an object move; errors of each scene's render if `score` is given."""
     memory.start()
     times, images = [], []
-    repeats = settings.repeats if engine.config.name == "compact" else 2
+    repeats = settings.repeats if engine.config.name != "paper" else 2  # the paper's widths take seconds a frame
     for bench in scenes:
         images.append(engine.render(bench.scene))
         times += alternating_ms(engine, move_pair(bench.scene), repeats)

@@ -117,7 +117,9 @@ FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object poi
 # weighted by a Gaussian of COLOR_SPREAD pixel sides at its depth, not its voxel's color alone. On every third
 # textured test image the NVR+ scored MSE 23.8 instead of 25.1 (0.3: 24.7, 0.5: 23.9, 0.75: 23.9, 0.9: 24.1).
 COLOR_SPREAD = 0.6
-SUBPIXELS = 2  # rays per side at silhouette pixels (3 gave the same error on the test split, MSE within 0.2, the surface stage taking 1.3x as long)
+# Rays per side at silhouette pixels: 3 gave the same error on the test split (MSE within 0.2) with the surface stage
+# taking 1.3x as long; 1 made the NVR+ err 1.6 more on single-colored chairs (docs/results.md).
+SUBPIXELS = 2
 # A ray covers its pixel by how deep it goes into the part it meets: not at all when it only touches
 # SURFACE_LEVEL, fully when within COVERAGE_PROBE voxels past the surface it gets COVERAGE_FULL of the
 # way from there to the part's core (the least distance around it: 0 in a thick part, more in a thin
