@@ -800,3 +800,44 @@ def test_ctrl_n_starts_an_untitled_scene_after_asking_and_open_recent_remembers_
     assert new.camera.elevation_deg == 30.0  # the new scene, not the edited one
     recent = json.loads((state / "nvr-studio" / "recent.json").read_text())
     assert recent[0] == str((tmp_path / "new.json").resolve())
+
+
+def test_a_fine_object_is_drawn_in_merged_blocks_while_the_user_drags(display, monkeypatch):
+    """In motion the viewport draws a 200^3 object's 2^3 blocks (a block occupied if any voxel is): the same image as
+    at rest with every voxel set to its block's merged value, with about a quarter of the faces."""
+    import moderngl
+
+    from app.editor.viewport import ViewportRenderer
+    from renderer.grid import pool_voxels
+
+    monkeypatch.setenv("DISPLAY", display)
+    ctx = moderngl.create_standalone_context()
+    n = 200
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    i, j, k = np.ogrid[:n, :n, :n]
+    ball = (i - 100) ** 2 + (j - 60) ** 2 + (k - 100) ** 2 < 50**2
+    rgba[ball] = (0.8, 0.3, 0.2, 1.0)
+    rgba[101, 110:190, 99] = (0.2, 0.3, 0.9, 1.0)  # a rod one voxel thick on top: a block holding it stays occupied
+    blocks = pool_voxels(rgba, (2, 2, 2))
+    as_blocks = blocks.repeat(2, axis=0).repeat(2, axis=1).repeat(2, axis=2)  # every voxel its block's value
+    scene = Scene(object=ObjectSpec(voxels="unused.npz", resolution=n))
+    view = viewport_camera(replace(HOME, distance=2.0), 320, 240)  # the object fills much of the view
+
+    def pixels(voxels: np.ndarray, moving: bool) -> np.ndarray:
+        viewport = ViewportRenderer(ctx)
+        viewport.set_voxels(voxels)
+        fbo = viewport.draw(320, 240, view, scene, (0.5, 0.5, 0.5), moving=moving)
+        return np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(240, 320, 3).astype(float)
+
+    at_rest, moving, expected = pixels(rgba, False), pixels(rgba, True), pixels(as_blocks, False)
+    assert np.abs(moving - expected).mean() < 0.05  # the same surface, up to a few edge pixels
+    assert np.abs(moving - at_rest).max(axis=2).astype(bool).any()  # the blocks, not the voxels, in motion
+
+    def rod(image: np.ndarray) -> int:  # pixels where the blue rod shows
+        return int(np.count_nonzero((image[..., 2] > image[..., 0] + 30) & (image[..., 2] > image[..., 1] + 20)))
+
+    assert rod(moving) >= max(0.5 * rod(at_rest), 10)  # the one-voxel rod is still there in motion
+    viewport = ViewportRenderer(ctx)
+    assert viewport.quads_in_motion == 0
+    quads_at_rest = viewport.set_voxels(rgba)
+    assert viewport.quads_in_motion <= quads_at_rest / 3.5

@@ -196,7 +196,8 @@ class Interface:
         inputs = self.viewport_input
         framebuffer = app.viewport.draw(w, h, viewport_camera(app.view, w, h), app.scene, app.floor_color,
                                         light_active=inputs.light_drag is not None or inputs.light_hovered,
-                                        picked_voxel=inputs.hovered_voxel)
+                                        picked_voxel=inputs.hovered_voxel,
+                                        moving=inputs.interacting or app.doc.previewing)
         self.underlay = (framebuffer, int(origin.x), int(origin.y))  # copied under the interface (Window.end_frame)
         imgui.invisible_button("viewport", imgui.ImVec2(w, h), imgui.ButtonFlags_.mouse_button_left
                                | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
