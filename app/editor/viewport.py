@@ -133,6 +133,7 @@ class ViewportRenderer:
         self._flat_program = ctx.program(vertex_shader=_FLAT_VS, fragment_shader=_FLAT_FS)
         self._levels: list[_FaceLevel] = []  # every voxel, then (for a fine object) the blocks drawn in motion
         self._resolution = 1  # the object's voxels a side
+        self._unmerged: np.ndarray | None = None  # a fine object's voxels until its blocks are made
         h, y = FLOOR_HALF_SIZE, GROUND_OFFSET
         ground = np.array([[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, -h], [h, y, h], [-h, y, h]], dtype=np.float32)
         self._ground_vao = ctx.vertex_array(self._ground_program, [(ctx.buffer(ground.tobytes()), "3f", "position")])
@@ -151,15 +152,24 @@ class ViewportRenderer:
         for level in self._levels:
             level.release()
         self._levels = [_FaceLevel(self.ctx, self._voxel_program, rgba, 1)]
-        block = -(-rgba.shape[0] // MOTION_RESOLUTION)
-        if block > 1:
-            self._levels.append(_FaceLevel(self.ctx, self._voxel_program, pool_voxels(rgba, (block,) * 3), block))
+        # Merged on the first drag, not here: the bucket's previews upload the voxels at every voxel it rests on.
+        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
         return self._levels[0].quads
 
     @property
     def quads_in_motion(self) -> int:
         """How many faces a frame draws while the user drags (0 before any voxels are set)."""
-        return self._levels[-1].quads if self._levels else 0
+        level = self._motion_level()
+        return 0 if level is None else level.quads
+
+    def _motion_level(self) -> _FaceLevel | None:
+        """What a frame draws while the user drags: a fine object's merged blocks (made once per set_voxels)."""
+        if self._unmerged is not None:
+            block = -(-self._resolution // MOTION_RESOLUTION)
+            merged = pool_voxels(self._unmerged, (block,) * 3)
+            self._levels.append(_FaceLevel(self.ctx, self._voxel_program, merged, block))
+            self._unmerged = None
+        return self._levels[-1] if self._levels else None
 
     def draw(self, width: int, height: int, view: Camera, scene: Scene, floor_color, light_active: bool = False,
              picked_voxel: tuple[int, int, int] | None = None, moving: bool = False) -> moderngl.Framebuffer:
@@ -169,7 +179,7 @@ class ViewportRenderer:
         llvmpipe (software OpenGL) needs tens of milliseconds for a frame, so a frame identical
         to the last one is not drawn again.
         """
-        level = self._levels[-1] if moving and self._levels else (self._levels[0] if self._levels else None)
+        level = self._motion_level() if moving else (self._levels[0] if self._levels else None)
         drawn = (width, height, view, scene, tuple(floor_color), light_active, picked_voxel, self._voxels_version,
                  None if level is None else level.block)
         if drawn == self._drawn:
