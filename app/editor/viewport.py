@@ -280,8 +280,11 @@ class _FaceLevel:
         self.block = block
         cells, colors = exposed_faces(rgba)
         self.quads = len(cells)
-        self.groups = [_FaceGroup(ctx, program, face, cells[cells[:, 3] == face], colors[cells[:, 3] == face])
-                       for face in range(6) if np.any(cells[:, 3] == face)]
+        self.groups = []
+        for face in range(6):
+            mine = cells[:, 3] == face
+            if mine.any():
+                self.groups.append(_FaceGroup(ctx, program, face, cells[mine], colors[mine]))
 
     def release(self) -> None:
         for group in self.groups:
