@@ -802,6 +802,52 @@ def test_ctrl_n_starts_an_untitled_scene_after_asking_and_open_recent_remembers_
     assert recent[0] == str((tmp_path / "new.json").resolve())
 
 
+def test_a_paint_stroke_recolors_the_viewport_faces_as_if_they_were_made_again(display, monkeypatch):
+    """recolor (a paint stroke, the bucket's tint) draws what set_voxels of the painted voxels draws, without finding the
+    faces again; the blocks drawn in motion take the new colors too."""
+    import moderngl
+
+    from app.editor.viewport import ViewportRenderer
+    from renderer.paint import fill_region_voxels
+
+    monkeypatch.setenv("DISPLAY", display)
+    ctx = moderngl.create_standalone_context()
+    n = 120  # finer than MOTION_RESOLUTION: the viewport also has blocks for drags
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    i, j, k = np.ogrid[:n, :n, :n]
+    rgba[(i - 60) ** 2 + (j - 40) ** 2 + (k - 60) ** 2 < 30**2] = (0.8, 0.3, 0.2, 1.0)
+    rgba[40:80, 20:40, 40:80] = (0.2, 0.6, 0.3, 1.0)  # a green slab through the ball's lower half
+    scene = Scene(object=ObjectSpec(voxels="unused.npz", resolution=n))
+    view = viewport_camera(replace(HOME, distance=2.0), 320, 240)
+    region = fill_region_voxels(rgba, (60, 30, 60), 0.05)  # the slab
+    painted = rgba.copy()
+    painted.reshape(-1, 4)[region, :3] = (0.1, 0.2, 0.9)
+
+    def pixels(viewport: ViewportRenderer, moving: bool = False) -> np.ndarray:
+        fbo = viewport.draw(320, 240, view, scene, (0.5, 0.5, 0.5), moving=moving)
+        return np.frombuffer(fbo.read(components=3), dtype=np.uint8).reshape(240, 320, 3).astype(int)
+
+    def made_from(voxels: np.ndarray) -> ViewportRenderer:
+        viewport = ViewportRenderer(ctx)
+        viewport.set_voxels(voxels)
+        return viewport
+
+    viewport = made_from(rgba)
+    before, before_moving = pixels(viewport), pixels(viewport, moving=True)
+    viewport.recolor(painted)
+    assert np.array_equal(pixels(viewport), pixels(made_from(painted)))
+    assert np.abs(pixels(viewport) - before).max() > 50  # the stroke shows
+    assert np.array_equal(pixels(viewport, moving=True), pixels(made_from(painted), moving=True))
+    assert not np.array_equal(pixels(viewport, moving=True), before_moving)
+    tint = painted.reshape(-1, 4)[region[::2], :3] * 0.5  # every other slab voxel darker
+    tinted = painted.copy()
+    tinted.reshape(-1, 4)[region[::2], :3] = tint
+    viewport.recolor(painted, (region[::2], tint))
+    assert np.array_equal(pixels(viewport), pixels(made_from(tinted)))
+    viewport.recolor(rgba)
+    assert np.array_equal(pixels(viewport), before)
+
+
 def test_a_fine_object_is_drawn_in_merged_blocks_while_the_user_drags(display, monkeypatch):
     """In motion the viewport draws a 200^3 object's 2^3 blocks (a block occupied if any voxel is): the same image as
     at rest with every voxel set to its block's merged value, with about a quarter of the faces."""

@@ -115,6 +115,9 @@ class FrameStats:
                 parts.append(f"{name}: {len(wall) / sum(wall):.1f} fps over {len(wall)} frames "
                              f"({1000.0 * sum(work) / len(work):.1f} ms of work per frame; {len(drawn)} drawn"
                              + (f", {1000.0 * sum(drawn) / len(drawn):.1f} ms each" if drawn else "") + ")")
+        slowest = max((w for rendering in (True, False) for w in self.work[rendering]), default=None)
+        if slowest is not None:
+            parts.append(f"slowest frame {1000.0 * slowest:.0f} ms of work")
         if self.renders:
             parts.append(f"render median {1000.0 * sorted(self.renders)[len(self.renders) // 2]:.0f} ms "
                          f"over {len(self.renders)} renders")
@@ -150,6 +153,7 @@ class EditorApp:
         self.keep_recovery = True  # False once the user saved or discarded the changes on closing
         self._synced = -1  # document revision the viewport and render were last updated for
         self.shown_rgba = None  # the painted voxels the viewport shows (for picking)
+        self.shown_source = None  # their object's source_key: paint on it keeps the viewport's faces
         self._autosaved = document.revision
         self._autosave_time = time.monotonic()
         self._screenshots: list[Path] = []
@@ -558,8 +562,11 @@ class EditorApp:
             self._synced = self.doc.revision
             return
         if rgba is not self.shown_rgba:
-            self.viewport.set_voxels(rgba)
-            self.shown_rgba = rgba
+            if self.shown_source == source_key(scene) and self.shown_rgba is not None:
+                self.viewport.recolor(rgba)  # paint: the same object's voxels, other colors
+            else:
+                self.viewport.set_voxels(rgba)
+            self.shown_rgba, self.shown_source = rgba, source_key(scene)
         self.live.submit(scene, preview=self.doc.previewing)
         self._synced = self.doc.revision
 

@@ -235,17 +235,15 @@ class Interface:
             return
         if target is None:
             if rgba is not None:
-                app.viewport.set_voxels(rgba)
+                app.viewport.recolor(rgba)
             self._preview_key = None
             return
         try:
             region = fill_region_voxels(rgba, voxel, app.tolerance)
         except InputError:
             return
-        preview = rgba.copy()
-        flat = preview.reshape(-1, 4)
-        flat[region, :3] = (1.0 - PREVIEW_MIX) * flat[region, :3] + PREVIEW_MIX * np.asarray(app.paint_color)
-        app.viewport.set_voxels(preview)
+        tint = (1.0 - PREVIEW_MIX) * rgba.reshape(-1, 4)[region, :3] + PREVIEW_MIX * np.asarray(app.paint_color)
+        app.viewport.recolor(rgba, (region, tint))
         self._preview_key = target
 
     # --- live render --------------------------------------------------------------------

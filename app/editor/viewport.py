@@ -1,6 +1,6 @@
 """The 3D viewport, drawn with moderngl into an offscreen framebuffer the window shows: voxels, ground, light, render camera.
 
-Voxels are quads (app/editor/voxel_faces.py) placed by the object's placement matrix,
+Voxels are quads (renderer/voxel_faces.py) placed by the object's placement matrix,
 shaded by the direction to the light plus ambient. Each quad's four corners are stored as
 vertices of their own rather than drawn as instances: Mesa's software OpenGL shades long
 vertex arrays in wide batches but instances of four vertices one by one (the demo chair's
@@ -8,9 +8,9 @@ viewport takes about 30% less time). Faces turned away from the viewer
 are dropped in the vertex shader. While the user drags, an object finer than MOTION_RESOLUTION voxels a side is
 drawn from its voxels merged in blocks (a block is occupied if any of its voxels is): the product's 200^3 voxels have
 four times the faces of 100^3, and software OpenGL drew a light drag's frames at 27-36 fps instead of 40-55
-(docs/editor.md). At rest every voxel is drawn. The ground is the floor square with a faint grid, the
-light is its square seen as a glowing rectangle with a line down to the floor, and the render
-camera is drawn as its viewing frustum.
+(docs/editor.md). At rest every voxel is drawn. A paint stroke or the bucket's preview rewrites only the faces'
+colors (`recolor`). The ground is the floor square with a faint grid, the light is its square seen as a glowing
+rectangle with a line down to the floor, and the render camera is drawn as its viewing frustum.
 """
 
 from __future__ import annotations
@@ -156,6 +156,20 @@ class ViewportRenderer:
         self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
         return self._levels[0].quads
 
+    def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Show new colors on the faces set_voxels made: `rgba` must have the same occupancy (paint never changes
+        it). `overrides`: (sorted flat voxel indices, their colors (K, 3)) shown instead of rgba's (the bucket's
+        preview tint). Only the faces' colors are written: finding the faces took 127 ms on the demo chair's 200^3
+        voxels, and the bucket's previews and strokes would pay it at each voxel the bucket rests on."""
+        if not self._levels or rgba.shape[0] != self._resolution:
+            raise ValueError("recolor needs the voxels set_voxels was given, with other colors")
+        self._voxels_version += 1
+        for level in self._levels[1:]:  # the merged blocks' colors are made again on the next drag
+            level.release()
+        self._levels = self._levels[:1]
+        self._levels[0].recolor(rgba, overrides)
+        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
+
     @property
     def quads_in_motion(self) -> int:
         """How many faces a frame draws while the user drags (0 before any voxels are set)."""
@@ -284,7 +298,19 @@ class _FaceLevel:
         for face in range(6):
             mine = cells[:, 3] == face
             if mine.any():
-                self.groups.append(_FaceGroup(ctx, program, face, cells[mine], colors[mine]))
+                self.groups.append(_FaceGroup(ctx, program, face, cells[mine], colors[mine], rgba.shape[:3]))
+
+    def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None = None) -> None:
+        """Write each face's color from its voxel in `rgba` (see ViewportRenderer.recolor)."""
+        flat = np.asarray(rgba).reshape(-1, rgba.shape[-1])
+        for group in self.groups:
+            colors = flat[group.voxels, :3]
+            if overrides is not None and len(overrides[0]):
+                indices, override_colors = overrides
+                slot = np.minimum(np.searchsorted(indices, group.voxels), len(indices) - 1)
+                hit = indices[slot] == group.voxels
+                colors[hit] = override_colors[slot[hit]]
+            group.write_colors(colors)
 
     def release(self) -> None:
         for group in self.groups:
@@ -292,20 +318,30 @@ class _FaceLevel:
 
 
 class _FaceGroup:
-    """The exposed faces of one direction: their vertex buffers (four corners a face), and the planes they lie on."""
+    """The exposed faces of one direction: their vertex buffers (four corners a face; the colors in a buffer of their
+    own, so a paint stroke rewrites only them), the flat index of each face's voxel, and the planes they lie on."""
 
     def __init__(self, ctx: moderngl.Context, program: moderngl.Program, face: int, cells: np.ndarray,
-                 colors: np.ndarray):
+                 colors: np.ndarray, shape: tuple[int, int, int]):
         self.axis, self.positive = face // 2, face % 2 == 0
         planes = cells[:, self.axis] + (1.0 if self.positive else 0.0)  # grid coordinate of each face's plane
         self.bound = float(planes.min() if self.positive else planes.max())
+        self.voxels = np.ravel_multi_index(tuple(cells[:, :3].astype(np.int64).T), shape)
         count = len(cells)
-        vertices = np.concatenate([np.tile(_QUAD_CORNERS, (count, 1)), np.repeat(cells, 4, axis=0),
-                                   np.repeat(colors, 4, axis=0)], axis=1).astype(np.float32)
+        geometry = np.concatenate([np.tile(_QUAD_CORNERS, (count, 1)), np.repeat(cells, 4, axis=0)],
+                                  axis=1).astype(np.float32)
         triangles = (4 * np.arange(count, dtype=np.uint32)[:, None] + _QUAD_TRIANGLES).ravel()
-        self._buffers = (ctx.buffer(vertices.tobytes()), ctx.buffer(triangles.tobytes()))
-        self.vao = ctx.vertex_array(program, [(self._buffers[0], "2f 4f 3f", "corner", "cell", "color")],
-                                    index_buffer=self._buffers[1], index_element_size=4)
+        self._buffers = (ctx.buffer(geometry.tobytes()), ctx.buffer(reserve=count * 4 * 3 * 4),
+                         ctx.buffer(triangles.tobytes()))
+        self.write_colors(colors)
+        self.vao = ctx.vertex_array(program, [(self._buffers[0], "2f 4f", "corner", "cell"),
+                                              (self._buffers[1], "3f", "color")],
+                                    index_buffer=self._buffers[2], index_element_size=4)
+
+    def write_colors(self, colors: np.ndarray) -> None:
+        """Set the faces' colors (F, 3), sRGB, clipped to [0, 1]."""
+        clipped = np.clip(np.asarray(colors, dtype=np.float32), 0.0, 1.0)
+        self._buffers[1].write(np.repeat(clipped, 4, axis=0).tobytes())
 
     def may_face(self, eye_grid: np.ndarray) -> bool:
         """Whether any face of the group can turn its front to an eye at `eye_grid` (object grid coordinates).
