@@ -291,6 +291,7 @@ def _edit_pairs(scene: Scene, paint_seed: tuple[int, int, int]) -> dict[str, tup
         "floor color": (scene, scene.with_changes(floor=FloorSpec((0.8, 0.7, 0.3)))),
         "object move": move_pair(scene),
         "object turn": turn_pair(scene),
+        "object scale": scale_pair(scene),
         "camera": (scene, scene.with_changes(camera=CameraSpec(scene.camera.elevation_deg + 5.0))),
     }
 
@@ -304,6 +305,12 @@ def move_pair(scene: Scene) -> tuple[Scene, Scene]:
 def turn_pair(scene: Scene) -> tuple[Scene, Scene]:
     """The scene and the scene with its object turned by 20 degrees about the vertical."""
     return scene, scene.with_changes(object=replace(scene.object, rotation_deg=scene.object.rotation_deg + 20.0))
+
+
+def scale_pair(scene: Scene) -> tuple[Scene, Scene]:
+    """The scene and the scene with its object scaled by 1.05 on every axis (a step of a scale drag; on the bench
+    chairs it can change how many object voxels the network's grid merges, so the merge reruns as in a drag)."""
+    return scene, scene.with_changes(object=replace(scene.object, scale=tuple(1.05 * s for s in scene.object.scale)))
 
 
 def alternating_ms(engine: RenderEngine | _PaintedShader, pair: tuple[Scene, Scene], repeats: int) -> list[float]:
