@@ -31,6 +31,7 @@ from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import ObjectSpec, PaintOp, Scene, save_scene
+from renderer.surface import occupancy
 
 AUTOSAVE_SECONDS = 5.0
 FRAME_SECONDS = 1.0 / 60.0  # the loop sleeps to this pace so the render thread gets the CPU it needs
@@ -154,6 +155,7 @@ class EditorApp:
         self._synced = -1  # document revision the viewport and render were last updated for
         self.shown_rgba = None  # the painted voxels the viewport shows (for picking)
         self.shown_source = None  # their object's source_key: paint on it keeps the viewport's faces
+        self.shown_occupancy = None  # their occupancy (for picking; paint keeps it: 14-29 ms to find at 200^3)
         self._autosaved = document.revision
         self._autosave_time = time.monotonic()
         self._screenshots: list[Path] = []
@@ -566,6 +568,7 @@ class EditorApp:
                 self.viewport.recolor(rgba)  # paint: the same object's voxels, other colors
             else:
                 self.viewport.set_voxels(rgba)
+                self.shown_occupancy = occupancy(rgba)
             self.shown_rgba, self.shown_source = rgba, source_key(scene)
         self.live.submit(scene, preview=self.doc.previewing)
         self._synced = self.doc.revision

@@ -21,7 +21,6 @@ from app.editor.orbit_view import orbit, pan, viewport_camera, zoom
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
 from renderer.camera import Camera
 from renderer.scene import Scene
-from renderer.surface import occupancy
 
 LIGHT_HEIGHT_PER_PIXEL = 0.01
 TRANSFORM_KEYS = {imgui.Key.g: "grab", imgui.Key.r: "rotate", imgui.Key.s: "scale"}
@@ -126,9 +125,9 @@ class ViewportInput:
     # --- picking --------------------------------------------------------------------------
 
     def _voxel_under(self, app, ray) -> tuple[int, int, int] | None:
-        if app.job is not None or app.shown_rgba is None:
+        if app.job is not None or app.shown_occupancy is None:
             return None
-        return pick_voxel(occupancy(app.shown_rgba), app.scene.object, *ray)
+        return pick_voxel(app.shown_occupancy, app.scene.object, *ray)
 
     # --- the light ------------------------------------------------------------------------
 
