@@ -210,6 +210,45 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
     assert cache.painted(one)[0] is first  # undo back to `one`: no repaint
 
 
+
+def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_forgotten_ones_nothing_holds(box_scene,
+                                                                                                       monkeypatch):
+    """Past PAINTED_BYTES_KEPT the oldest states go; a forgotten array is painted into again only if nothing else holds
+    it, so an array a caller still reads never changes, and every state equals a replay from scratch."""
+    import app.editor.voxel_cache as voxel_cache
+
+    state_bytes = 8**3 * 4 * 4
+    monkeypatch.setattr(voxel_cache, "PAINTED_BYTES_KEPT", 2 * state_bytes)  # two states of the 8^3 box
+    painted_into = []  # per fill: whether it wrote into a forgotten array
+
+    def recording(rgba, floor, ops, occupied=None, out=None):
+        if any(op.target != "floor" for op in ops):  # (the floor's strokes are replayed apart)
+            painted_into.append(out is not None)
+        return apply_paint(rgba, floor, ops, occupied, out)
+
+    monkeypatch.setattr(voxel_cache, "apply_paint", recording)
+    cache = VoxelCache()
+    base = cache.object_rgba(box_scene)
+    colors = [(0.1 * k, 0.9 - 0.1 * k, 0.5) for k in range(8)]
+    scenes = [box_scene]
+    for color in colors:  # each stroke recolors the whole red cube (seed in it, tolerance wide)
+        scenes.append(edits.paint(scenes[-1], PaintOp("region", color, seed=(3, 1, 3), tolerance=1.0)))
+
+    def replayed(scene: Scene) -> np.ndarray:
+        return apply_paint(base, scene.floor.color, scene.paint)[0]
+
+    held = cache.painted(scenes[1])[0]  # a caller keeps reading the first state
+    held_copy = held.copy()
+    for scene in scenes[2:]:
+        rgba = cache.painted(scene)[0]
+        np.testing.assert_array_equal(rgba, replayed(scene))
+        assert len(cache._painted) <= 2
+        del rgba
+    np.testing.assert_array_equal(held, held_copy)  # never painted into: it was still held
+    # The third fill forgets the held first state, the fourth the second: from the fifth on, into forgotten arrays.
+    assert painted_into == [False] * 4 + [True] * 4
+    np.testing.assert_array_equal(cache.painted(scenes[3])[0], replayed(scenes[3]))  # forgotten: painted again
+
 # --- photo camera ---------------------------------------------------------------------------------
 
 
