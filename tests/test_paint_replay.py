@@ -1,4 +1,5 @@
-"""The engine's paint replay (models/engine/paint_replay.py): painting from a kept stroke list equals painting from scratch."""
+"""The engine's paint replay (models/engine/paint_replay.py): painting in place, undoing what strokes overwrote,
+equals painting from scratch."""
 
 from __future__ import annotations
 
@@ -7,7 +8,8 @@ import pytest
 
 import models.engine.paint_replay as paint_replay
 from models.engine.paint_replay import PaintReplay
-from renderer.paint import apply_paint, fill_object
+from renderer.errors import InputError
+from renderer.paint import apply_paint, fill_object, stroke_voxels
 from renderer.scene import PaintOp
 
 RED, GREEN, BLUE = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -28,14 +30,14 @@ def from_scratch(rgba: np.ndarray, color, strokes) -> np.ndarray:
 
 @pytest.fixture
 def fills(monkeypatch) -> list:
-    """Records the strokes the replay paints."""
+    """Records the strokes the replay paints (searches the voxels of)."""
     painted = []
 
-    def counting(rgba, floor, ops, occupied=None, out=None):
-        painted.extend(ops)
-        return apply_paint(rgba, floor, ops, occupied, out)
+    def counting(rgba, op, occupied=None):
+        painted.append(op)
+        return stroke_voxels(rgba, op, occupied)
 
-    monkeypatch.setattr(paint_replay, "apply_paint", counting)
+    monkeypatch.setattr(paint_replay, "stroke_voxels", counting)
     return painted
 
 
@@ -49,22 +51,21 @@ def test_each_step_equals_a_replay_from_scratch_and_paints_at_most_one_stroke(fi
         (None, (corner,), [corner]),
         (None, (corner, bar), [bar]),  # a new stroke
         (None, (corner, recolored_bar), [recolored_bar]),  # the last stroke changed
-        (None, (corner,), []),  # undo
-        (None, (corner, bar), [bar]),  # the first bar again: no longer kept, one fill
+        (None, (corner,), []),  # undo: what the bar overwrote is put back
+        (None, (corner, bar), [bar]),  # the first bar again: one fill
         (None, (corner,), []),  # undo once more
         ((0.2, 0.2, 0.2), (corner,), [corner]),  # a new base color repaints
     ]
     steps += [(None, (corner, bar), [corner, bar]),  # the voxels' own colors again
               (None, (corner, recolored_bar), [recolored_bar])]  # another last stroke, no undo between
-    last = None
+    arrays = set()
     for color, strokes, expected in steps:
         fills.clear()
         out = replay.painted(color, strokes)
         assert fills == expected
         np.testing.assert_array_equal(out, from_scratch(rgba, color, strokes))
-        if last is not None:  # arrays are reused for new fills, never the one returned before this call
-            np.testing.assert_array_equal(last[0], from_scratch(rgba, *last[1:]))
-        last = (out, color, strokes)
+        arrays.add(id(out))
+    assert len(arrays) == 1  # one array, painted in place
     corner_after_bar = replay.painted(None, (corner, recolored_bar))
     assert tuple(corner_after_bar[4, 2, 4, :3]) == BLUE and tuple(corner_after_bar[0, 0, 0, :3]) == RED
     np.testing.assert_array_equal(rgba, two_blobs())  # the unpainted voxels are never changed
@@ -76,3 +77,16 @@ def test_no_strokes_is_the_base_color_or_the_voxels_themselves():
     assert replay.painted(None, ()) is rgba
     red = replay.painted(RED, ())
     assert tuple(red[4, 1, 4, :3]) == RED and not red[3, 3, 3].any()  # occupied voxels only
+
+
+def test_a_stroke_that_cannot_be_painted_leaves_the_voxels_as_the_caller_last_saw_them():
+    rgba = two_blobs()
+    replay = PaintReplay(rgba)
+    corner = PaintOp("region", RED, seed=(0, 0, 0))
+    bar = PaintOp("region", GREEN, seed=(4, 2, 4))
+    out = replay.painted(None, (corner, bar))
+    on_empty = PaintOp("region", BLUE, seed=(3, 3, 3))  # an empty voxel
+    with pytest.raises(InputError, match="empty voxel"):
+        replay.painted(None, (corner, on_empty))  # the bar is undone before the failing stroke
+    np.testing.assert_array_equal(out, from_scratch(rgba, None, (corner, bar)))
+    np.testing.assert_array_equal(replay.painted(None, (corner,)), from_scratch(rgba, None, (corner,)))

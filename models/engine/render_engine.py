@@ -7,8 +7,8 @@ when those change:
 
     stage         depends on                                              result
     voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/engine/paint_replay.py)
-    paint         voxels, object color, region/object paint strokes       painted object voxels (from the
-                                                                          longest stroke list painted before)
+    paint         voxels, object color, region/object paint strokes       painted object voxels (one array, painted
+                                                                          in place; differing strokes undone first)
     pool          paint, merge factors (resolution, scale)                merged voxels (after a paint edit:
                                                                           only the blocks it touched)
     placement     voxels, resolution, merge factors, translation,         grid row of every voxel, object's crop
