@@ -109,6 +109,27 @@ EDITS = {
 }
 
 
+
+def test_an_engine_given_the_object_voxels_renders_them_without_loading_the_object_again(model, scene):
+    """The editor shares its voxel cache: the engine paints the voxels it is given (read-only), once per object."""
+    painted = scene.with_changes(paint=(PaintOp("region", (0.1, 0.9, 0.1), seed=(6, 5, 6)),))
+    given = []
+
+    def source(s: Scene) -> np.ndarray:
+        given.append(s.object.voxels)
+        rgba = load_voxels(s.voxels_path())
+        rgba.flags.writeable = False
+        return rgba
+
+    shared = RenderEngine(model, threads=1, precision="fp32", object_source=source)
+    for s in (scene, painted, scene):
+        np.testing.assert_array_equal(shared.render(s), engine(model).render(s))
+    assert given == ["box.npz"]
+    other = replace(scene.object, voxels="other.npz")
+    save_voxels(scene.base_dir / "other.npz", np.flip(load_voxels(scene.voxels_path()), axis=1))
+    shared.render(scene.with_changes(object=other))
+    assert given == ["box.npz", "other.npz"]
+
 @pytest.mark.parametrize("edit", EDITS)
 def test_cached_render_equals_uncached_and_reruns_only_its_stages(model, scene, edit):
     make, expected = EDITS[edit]

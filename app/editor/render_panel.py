@@ -149,7 +149,7 @@ class LiveRender:
         if renderer == "shaded":
             return ShadedEngine(self._voxels), (RENDERERS["shaded"], "cpu", True)
         try:
-            engine = RenderEngine.load(self.model_path, kind="nvr+")
+            engine = RenderEngine.load(self.model_path, kind="nvr+", object_source=self._voxels.object_rgba)
         except InputError as exc:
             print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
             return SplatEngine(self._voxels), (NO_MODEL_LABEL, "cpu (splatting)", False)

@@ -178,10 +178,12 @@ class RenderEngine:
     """NVR or NVR+ rendering scenes, caching every stage on exactly the scene parts it depends on."""
 
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
-                 precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None):
+                 precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None,
+                 object_source: Callable[[Scene], np.ndarray] = object_voxels):
         """`shading_grid_factor`: shade the object voxels merged as for a grid this many times finer than the network's
         instead of the one the model's configuration names (1: as for the network's own grid, in pairs at scale 1:
-        fewer voxels to trace, less accurate; nvr bench times both)."""
+        fewer voxels to trace, less accurate; nvr bench times both). `object_source`: a scene's unpainted object voxels
+        (read, never changed), e.g. from a cache the caller shares, so a mesh is not voxelised twice."""
         set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
@@ -202,6 +204,7 @@ class RenderEngine:
         self.model = split_light_merge(inference).to(self.device, self.dtype)
         self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
         self.last_report: RenderReport | None = None
+        self._object_source = object_source
         self._memo: dict[str, tuple[Any, Any]] = {}
         self._recording = _Recording()
 
@@ -300,7 +303,7 @@ class RenderEngine:
         """Painted object voxels, the floor color after floor strokes, and the paint stage's key."""
         source = _voxel_source(scene)
         plain = replace(scene, object=replace(scene.object, color=None))  # the base color is painted below
-        replay = self._stage("voxels", source, lambda: PaintReplay(object_voxels(plain)))
+        replay = self._stage("voxels", source, lambda: PaintReplay(self._object_source(plain)))
         strokes = tuple(op for op in scene.paint if op.target != "floor")
         paint_key = (source, scene.object.color, strokes)
         painted = self._stage("paint", paint_key, lambda: replay.painted(scene.object.color, strokes))
