@@ -25,7 +25,6 @@ from models.engine.render_engine import RenderEngine, RenderReport, default_thre
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
-from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import Scene
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
@@ -221,15 +220,15 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
                  voxels: VoxelCache | None = None) -> tuple[np.ndarray, str]:
     """The panel renderer's image of `scene` and what made it: the voxel shader's at the scene's size, the NVR+'s at the
     network's own (256 px, whatever the scene's), or the splat when no model loads."""
+    voxels = voxels or VoxelCache()  # the editor's: the object is not voxelised again
     if renderer == "shaded":
-        return ShadedEngine(voxels or VoxelCache()).render(scene), RENDERERS["shaded"]
+        return ShadedEngine(voxels).render(scene), RENDERERS["shaded"]
     try:
-        engine = RenderEngine.load(model_path, kind="nvr+")
+        engine = RenderEngine.load(model_path, kind="nvr+", object_source=voxels.object_rgba)
     except InputError:
         if model_path is not None:
             raise
-        rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-        return splat_scene(scene, rgba, floor_color), "splat, no trained model"
+        return splat_scene(scene, *voxels.painted(scene)), "splat, no trained model"
     return engine.render(scene), f"nvr+ {engine.model_name}"
 
 
