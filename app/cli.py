@@ -56,14 +56,19 @@ def cmd_render(args: argparse.Namespace) -> None:
     _warn(range_warnings(scene) + _material_warnings(scene.mesh_path()))
     size = args.size or scene.image_size
     start = time.perf_counter()
-    if args.renderer == "splat":
-        image, detail = _render_splat(scene, size)
-    elif args.renderer == "shaded":
-        image, detail = _render_shaded(scene, size)
-    elif args.renderer == "pathtrace":
-        image, detail = _render_pathtrace(scene, size, args)
-    else:
-        image, detail = _render_network(scene, size, args)
+    try:
+        if args.renderer == "splat":
+            image, detail = _render_splat(scene, size)
+        elif args.renderer == "shaded":
+            image, detail = _render_shaded(scene, size)
+        elif args.renderer == "pathtrace":
+            image, detail = _render_pathtrace(scene, size, args)
+        else:
+            image, detail = _render_network(scene, size, args)
+    except InputError as exc:  # a problem in what the scene asks for (a paint seed on no voxel): name the scene
+        if exc.path is not None:
+            raise
+        raise InputError(exc.problem, args.scene) from None
     elapsed = time.perf_counter() - start
     save_png(out, image)
     print(f"wrote {out} ({size}x{size}, {args.renderer}{detail}, {elapsed:.2f} s)")
@@ -102,7 +107,7 @@ def _render_network(scene, size: int, args: argparse.Namespace):
     if size != engine.output_size:
         asked = f"--size {size}" if args.size is not None else f"the scene's image_size {size}"
         raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; {asked} is not supported "
-                         f"(pass --size {engine.output_size})")
+                         f"(pass --size {engine.output_size})", "--size" if args.size is not None else args.scene)
     image = engine.render(scene)
     return image, f", model {engine.model_name}, {engine.precision} on {engine.device.type}"
 

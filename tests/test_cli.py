@@ -82,6 +82,8 @@ def test_voxelize_and_info(scene_dir):
         (lambda d, folder: d["object"].update(scale=[1, 0, 1]), ("object.scale", "positive")),
         (lambda d, folder: d.update(image_size="big"), ("image_size", "integer")),
         (lambda d, folder: d["light"].update(position=[0, -1, 0]), ("above the floor",)),
+        (lambda d, folder: d.update(paint=[{"target": "region", "seed": [0, 0, 0], "color": [1, 0, 0]}]),
+         ("scene.json: paint seed [0, 0, 0] is on an empty voxel",)),
     ],
 )
 def test_bad_scenes_give_one_line_and_exit_2(scene_dir, change, fragments):
