@@ -521,6 +521,23 @@ def test_ray_candidates_leave_out_the_inside_of_a_solid():
         assert radii.min() > 20.0 - 3.0 and radii.max() < 20.0 + 3.0
 
 
+
+def test_candidate_cells_are_those_whose_corners_allow_a_hit():
+    """near_surface_cell_mask against its definition over the eight corners of each cell, computed with numpy."""
+    rng = np.random.default_rng(3)
+    i, j, k = np.meshgrid(*(np.arange(n, dtype=np.float32) for n in (9, 12, 15)), indexing="ij")
+    distance = np.abs(np.sqrt((i - 4) ** 2 + (j - 5) ** 2 + (k - 7) ** 2) - 4.0)  # from a shell of radius 4
+    core = rng.uniform(0.0, 0.6, distance.shape)  # thin parts here and there
+    fields = np.stack([distance + rng.uniform(0.0, 0.2, distance.shape), core], axis=-1).astype(np.float32)
+    corners = [fields[a:a + 8, b:b + 11, c:c + 14] for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+    least, most = np.minimum.reduce(corners), np.maximum.reduce(corners)
+    level, thin, slack, depth = 0.8, 0.35, 0.01, 0.25
+    expected = ((least[..., 0] - np.maximum(level, most[..., 1] + thin) < kernels.HIT_GAP + slack)
+                & (most[..., 0] - np.maximum(level, least[..., 1] + thin) >= -depth))
+    mask = kernels.near_surface_cell_mask(fields, level, thin, slack, depth)
+    assert 0.2 < expected.mean() < 0.8  # both kinds of cell
+    np.testing.assert_array_equal(mask, expected)
+
 @pytest.mark.parametrize("shape, elevation, translation", [("ball", 30.0, (0.0, 0.0)), ("lattice", 30.0, (0.0, 0.0)),
                                                            ("lattice", 0.0, (0.0, 0.0)), ("lattice", 89.0, (0.0, 0.0)),
                                                            ("ball", 30.0, (1.1, 0.2))])
