@@ -152,6 +152,22 @@ def test_pool_voxels_equals_block_means(factors):
     np.testing.assert_allclose(pooled[..., :3], total / np.maximum(count, 1)[..., None], rtol=1e-6, atol=1e-7)
 
 
+
+@pytest.mark.parametrize("factors", [(2, 2, 2), (3, 1, 4), (5, 5, 5)])
+def test_pooling_only_the_occupied_box_equals_pooling_every_block(factors):
+    # A box of occupied voxels off the grid's middle, empty voxels with colors in it and around it: the blocks outside
+    # the box are empty either way, so the merge within it alone is the same array.
+    rng = np.random.default_rng(11)
+    rgba = np.zeros((17, 14, 19, 4), dtype=np.float32)
+    rgba[..., :3] = rng.random((17, 14, 19, 3))
+    inside = np.zeros(rgba.shape[:3], dtype=bool)
+    inside[5:13, 3:9, 7:18] = rng.random((8, 6, 11)) < 0.4
+    rgba[inside, 3] = 1.0
+    box = occupied_spans(inside)
+    assert box != ((0, 17), (0, 14), (0, 19))
+    np.testing.assert_array_equal(pool_voxels(rgba, factors, box), pool_voxels(rgba, factors))
+    assert pool_voxels(rgba, factors)[..., 3].any()
+
 @pytest.mark.parametrize("scale", [0.75, 1.0, 1.25])
 def test_resampled_thin_shell_stays_closed(scale):
     # At resolution 64 an object voxel is thinner than a grid voxel; plain nearest sampling

@@ -39,6 +39,8 @@ class PaintReplay:
     def __init__(self, rgba: np.ndarray):
         self.rgba = rgba  # the unpainted object voxels (never changed)
         self.occupied = occupied_voxels(rgba)
+        self.box = None if not len(self.occupied) else tuple(  # the occupied voxels' (start, stop) per axis
+            (int(axis.min()), int(axis.max()) + 1) for axis in np.unravel_index(self.occupied, rgba.shape[:3]))
         self._array: np.ndarray | None = None  # painted in place
         self._color: Color | None = None  # the base color in it (None: the voxels' own)
         self._strokes: list[_Painted] = []  # the strokes in it, in order

@@ -360,10 +360,11 @@ class RenderEngine:
         merge factors) only the blocks it touched are merged again, in the last merge's array (the stage keeps one
         result and nothing else reads it), and their box stays. Paint changes the colors of occupied voxels alone,
         so only they are compared: work in proportion to the surface, not the grid."""
-        occupied = self._memo["voxels"][1].occupied  # this object's (the voxels stage ran for `source` first)
+        replay = self._memo["voxels"][1]  # this object's (the voxels stage ran for `source` first)
+        occupied = replay.occupied
         last = self._memo[stage][1] if stage in self._memo else None
         if last is None or (last.source, last.factors) != (source, factors):
-            pooled, within = pool_object(painted, factors)
+            pooled, within = pool_object(painted, factors, replay.box)  # only the blocks the object reaches
             return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, within)
         del self._memo[stage]  # updated in place below: never a stale entry under the old key
         colors, changed = colors_and_changes(painted, occupied, last.colors)
