@@ -564,12 +564,13 @@ class EditorApp:
             self._synced = self.doc.revision
             return
         if rgba is not self.shown_rgba:
-            if self.shown_source == source_key(scene) and self.shown_rgba is not None:
+            source = source_key(scene)
+            if self.shown_source == source and self.shown_rgba is not None:
                 self.viewport.recolor(rgba)  # paint: the same object's voxels, other colors
             else:
                 self.viewport.set_voxels(rgba)
                 self.shown_occupancy = occupancy(rgba)
-            self.shown_rgba, self.shown_source = rgba, source_key(scene)
+            self.shown_rgba, self.shown_source = rgba, source
         self.live.submit(scene, preview=self.doc.previewing)
         self._synced = self.doc.revision
 

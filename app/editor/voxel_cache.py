@@ -5,7 +5,7 @@ color); painted voxels on that and the paint strokes. A stroke list that extends
 is painted from the cached result, so one more bucket fill costs one fill, not a replay.
 Painted states are kept up to a memory budget (a 200^3 object's voxels take 128 MB), and the array of a
 forgotten state that nothing else holds any more is painted into again: a fill into fresh memory took
-280-356 ms on the demo chair at 200^3, most of it the kernel mapping the pages.
+282-356 ms on the demo chair at 200^3, most of it the kernel mapping the pages.
 Safe to use from the UI thread and a background job at once.
 """
 

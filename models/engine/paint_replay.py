@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from renderer.errors import InputError
+from renderer.grid import occupied_spans
 from renderer.paint import Color, fill_object, occupied_voxels, paint_voxels, stroke_voxels
 from renderer.scene import PaintOp
 
@@ -39,8 +40,7 @@ class PaintReplay:
     def __init__(self, rgba: np.ndarray):
         self.rgba = rgba  # the unpainted object voxels (never changed)
         self.occupied = occupied_voxels(rgba)
-        self.box = None if not len(self.occupied) else tuple(  # the occupied voxels' (start, stop) per axis
-            (int(axis.min()), int(axis.max()) + 1) for axis in np.unravel_index(self.occupied, rgba.shape[:3]))
+        self.box = occupied_spans(np.asarray(rgba)[..., 3] >= 0.5)  # the occupied voxels' (start, stop) per axis
         self._array: np.ndarray | None = None  # painted in place
         self._color: Color | None = None  # the base color in it (None: the voxels' own)
         self._strokes: list[_Painted] = []  # the strokes in it, in order
