@@ -19,14 +19,15 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 
+import numba
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb
 from renderer.errors import InputError
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_HALF_SIZE, OBJECT_SIZE, Scene
-from renderer.surface import Shell, check_object_voxels, grid_from_world, occupancy, voxel_centers_at
+from renderer.surface import Shell, check_object_voxels, grid_from_world, occupancy, sees, voxel_centers_at
 from renderer.transform import apply_transform, object_to_world
 
 NEAR_DEPTH = 1e-3  # voxels closer to the image plane than this (or behind it) are dropped
@@ -60,18 +61,22 @@ def splat_layout(shell: Shell, object_to_world_matrix: np.ndarray, camera: Camer
     """Which voxel of an (N, N, N) object grid (its Shell) placed in the world each pixel shows, and where the floor is."""
     n = shell.shape[0]
     matrix = np.asarray(object_to_world_matrix, dtype=np.float64)
-    seen = shell.facing_mask(apply_transform(grid_from_world(matrix, n), camera.position))
+    # Integer voxel indices go straight to camera space: one affine map, no world centres in between.
+    index_to_object = np.eye(4)
+    index_to_object[:3, :3] *= OBJECT_SIZE / n
+    index_to_object[:3, 3] = voxel_centers_at(np.zeros((1, 3)), n)[0]
+    to_camera = (camera.world_to_camera() @ matrix @ index_to_object)[:3]
+    edges = camera.world_to_camera()[:3, :3] @ (matrix[:3, :3] * (OBJECT_SIZE / n))  # a voxel's edges, camera space
+    # Each thread splats a contiguous run of the shell into a buffer of its own; the runs' buffers are then merged in
+    # shell order, so the image is the one a single pass over the shell draws.
+    runs = max(1, min(numba.get_num_threads(), len(shell.voxels)))
+    depth = np.full((runs, camera.height, camera.width), np.inf, dtype=np.float32)
+    nearest = np.full((runs, camera.height, camera.width), -1, dtype=np.int64)
+    (cx, cy), f = camera.principal_point, camera.focal_px
+    _splat_shell(shell.coords, shell.faces, apply_transform(grid_from_world(matrix, n), camera.position),
+                 np.ascontiguousarray(to_camera), np.ascontiguousarray(edges), f, cx, cy, depth, nearest)
     voxel = np.full((camera.height, camera.width), -1, dtype=np.int64)
-    if seen.any():
-        # Integer voxel indices go straight to camera space: one affine map, no world centres in between.
-        index_to_object = np.eye(4)
-        index_to_object[:3, :3] *= OBJECT_SIZE / n
-        index_to_object[:3, 3] = voxel_centers_at(np.zeros((1, 3)), n)[0]
-        edges = matrix[:3, :3] * (OBJECT_SIZE / n)  # columns: the voxel's edge vectors in the world
-        nearest = _nearest_per_pixel(shell.coords[seen], camera.world_to_camera() @ matrix @ index_to_object, edges,
-                                     camera)
-        covered = nearest >= 0
-        voxel[covered] = shell.voxels[seen][nearest[covered]]
+    _merge_runs(depth, nearest, shell.voxels, voxel)
     return SplatLayout(voxel, cached_floor_mask(camera))
 
 
@@ -112,64 +117,63 @@ def floor_mask(camera: Camera) -> np.ndarray:
     return down & (np.abs(hit_x) <= FLOOR_HALF_SIZE) & (np.abs(hit_z) <= FLOOR_HALF_SIZE)
 
 
-def nearest_point_per_pixel(centres_world: np.ndarray, edges_world: np.ndarray, camera: Camera) -> np.ndarray:
-    """(H, W) index of the nearest splatted voxel per pixel, -1 where none.
-
-    `centres_world` (n, 3) are voxel centres; the columns of `edges_world` (3, 3) are the world
-    edge vectors shared by all voxels (the placed voxel is a parallelepiped).
-    """
-    return _nearest_per_pixel(centres_world, camera.world_to_camera(), edges_world, camera)
-
-
-def _nearest_per_pixel(points: np.ndarray, to_camera: np.ndarray, edges_world: np.ndarray, camera: Camera) -> np.ndarray:
-    """nearest_point_per_pixel of the voxel centres `to_camera` (4x4) takes to camera space from `points` (n, 3)."""
-    edges_camera = camera.world_to_camera()[:3, :3] @ np.asarray(edges_world, dtype=np.float64)
-    depth = np.full((camera.height, camera.width), np.inf, dtype=np.float32)
-    nearest = np.full((camera.height, camera.width), -1, dtype=np.int64)
-    (cx, cy), f = camera.principal_point, camera.focal_px
-    _splat_depths(np.ascontiguousarray(points, dtype=np.float64), np.ascontiguousarray(to_camera[:3], dtype=np.float64),
-                  np.ascontiguousarray(edges_camera), f, cx, cy, depth, nearest)
-    return nearest
-
-
-@njit(cache=True)
-def _splat_depths(points, to_camera, edges, f, cx, cy, depth_buffer, nearest):
-    """Each point drawn over the pixels its voxel covers: per pixel the nearest point's index into `nearest` and its
-    depth (float32) into `depth_buffer`; of points at the same float32 depth, the first.
+@njit(cache=True, parallel=True)
+def _splat_shell(coords, faces, viewpoint, to_camera, edges, f, cx, cy, depth, nearest):
+    """The shell voxels that face `viewpoint` (surface.sees), each drawn over the pixels it covers: thread t splats
+    the t-th of depth.shape[0] contiguous runs of the shell into depth[t] (float32) and nearest[t] (the shell row of
+    the pixel's nearest voxel; of voxels at the same float32 depth, the first).
 
     A voxel covers the pixels whose centres lie within the bounding box of its projected cube, always including the
     pixel holding its centre (so a voxel smaller than a pixel still shows). The box is first-order perspective: a
     camera-space offset (dx, dy, dz) at a point with x/depth = a, y/depth = b moves the pixel by
-    f/depth * (dx + a dz, -(dy + b dz)), and a parallelepiped with edges e_k spans half of sum_k |.| of its edges'
-    offsets each side. Points nearer the image plane than NEAR_DEPTH are dropped. A loop: with numpy's
-    scatter-minimum over every (point, pixel) pair (np.minimum.at) the whole layout took 2.6-2.8 times as long on a
+    f/depth * (dx + a dz, -(dy + b dz)), and a parallelepiped with camera-space edges e_k spans half of sum_k |.| of
+    its edges' offsets each side. Voxels nearer the image plane than NEAR_DEPTH are dropped. A loop: with numpy's
+    scatter-minimum over every (voxel, pixel) pair (np.minimum.at) the whole layout took 2.6-2.8 times as long on a
     test chair at 100^3 and 200^3."""
-    for i in range(points.shape[0]):
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        px = to_camera[0, 0] * x + to_camera[0, 1] * y + to_camera[0, 2] * z + to_camera[0, 3]
-        py = to_camera[1, 0] * x + to_camera[1, 1] * y + to_camera[1, 2] * z + to_camera[1, 3]
-        depth = -(to_camera[2, 0] * x + to_camera[2, 1] * y + to_camera[2, 2] * z + to_camera[2, 3])
-        if depth <= NEAR_DEPTH:
-            continue
-        height, width = nearest.shape
-        u = cx + f * px / depth
-        v = cy - f * py / depth
-        a = (u - cx) / f
-        b = (cy - v) / f
-        half_u = 0.0
-        half_v = 0.0
-        for k in range(3):
-            half_u += abs(edges[0, k] + a * edges[2, k])
-            half_v += abs(edges[1, k] + b * edges[2, k])
-        scale = 0.5 * f / depth
-        col0, col1 = _covered_range(u, scale * half_u, width)
-        row0, row1 = _covered_range(v, scale * half_v, height)
-        d = np.float32(depth)
-        for r in range(row0, row1 + 1):
-            for c in range(col0, col1 + 1):
-                if d < depth_buffer[r, c]:  # points come in index order: a tie keeps the first
-                    depth_buffer[r, c] = d
-                    nearest[r, c] = i
+    runs, count = depth.shape[0], coords.shape[0]
+    height, width = depth.shape[1], depth.shape[2]
+    for run in prange(runs):
+        for m in range(run * count // runs, (run + 1) * count // runs):
+            if not sees(coords, faces, viewpoint, m):
+                continue
+            x, y, z = float(coords[m, 0]), float(coords[m, 1]), float(coords[m, 2])
+            px = to_camera[0, 0] * x + to_camera[0, 1] * y + to_camera[0, 2] * z + to_camera[0, 3]
+            py = to_camera[1, 0] * x + to_camera[1, 1] * y + to_camera[1, 2] * z + to_camera[1, 3]
+            distance = -(to_camera[2, 0] * x + to_camera[2, 1] * y + to_camera[2, 2] * z + to_camera[2, 3])
+            if distance <= NEAR_DEPTH:
+                continue
+            u = cx + f * px / distance
+            v = cy - f * py / distance
+            a = (u - cx) / f
+            b = (cy - v) / f
+            half_u = 0.0
+            half_v = 0.0
+            for k in range(3):
+                half_u += abs(edges[0, k] + a * edges[2, k])
+                half_v += abs(edges[1, k] + b * edges[2, k])
+            scale = 0.5 * f / distance
+            col0, col1 = _covered_range(u, scale * half_u, width)
+            row0, row1 = _covered_range(v, scale * half_v, height)
+            d = np.float32(distance)
+            for r in range(row0, row1 + 1):
+                for c in range(col0, col1 + 1):
+                    if d < depth[run, r, c]:  # a run's voxels come in shell order: a tie keeps the first
+                        depth[run, r, c] = d
+                        nearest[run, r, c] = m
+
+
+@njit(cache=True, parallel=True)
+def _merge_runs(depth, nearest, shell_voxels, voxel):
+    """voxel[r, c] = the flat grid index of the nearest of the runs' voxels at the pixel (an earlier run's on a tie,
+    as one pass in shell order keeps the first); left as it is where no run drew one."""
+    for r in prange(voxel.shape[0]):
+        for c in range(voxel.shape[1]):
+            best, row = np.float32(np.inf), -1
+            for run in range(depth.shape[0]):
+                if depth[run, r, c] < best:
+                    best, row = depth[run, r, c], nearest[run, r, c]
+            if row >= 0:
+                voxel[r, c] = shell_voxels[row]
 
 
 @njit(cache=True, inline="always")

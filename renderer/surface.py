@@ -105,15 +105,21 @@ class Shell:
 
 @njit(cache=True)
 def _facing(coords, faces, viewpoint, seen):
-    """seen[m]: an exposed face of shell voxel m (faces[m, i] on Shell.SIDES[i]) has `viewpoint` on its outer side;
-    one pass over the shell (six numpy passes took 2.2 ms of a 200^3 chair's splat layout)."""
+    """seen[m] = sees(coords, faces, viewpoint, m) for every shell voxel m: one pass over the shell (six numpy passes
+    took 2.2 ms of a 200^3 chair's splat layout)."""
     for m in range(coords.shape[0]):
-        any_side = False
-        for axis in range(3):
-            for s, side in enumerate((-1, 1)):
-                face = coords[m, axis] + (side > 0)  # the face's coordinate, as facing_exposed computes it
-                any_side |= faces[m, 2 * axis + s] and (viewpoint[axis] - face) * side > 0
-        seen[m] = any_side
+        seen[m] = sees(coords, faces, viewpoint, m)
+
+
+@njit(cache=True, inline="always")
+def sees(coords, faces, viewpoint, m):
+    """Whether an exposed face of shell voxel m (faces[m, i] on Shell.SIDES[i]) has `viewpoint` on its outer side."""
+    any_side = False
+    for axis in range(3):
+        for s, side in enumerate((-1, 1)):
+            face = coords[m, axis] + (side > 0)  # the face's coordinate, as facing_exposed computes it
+            any_side |= faces[m, 2 * axis + s] and (viewpoint[axis] - face) * side > 0
+    return any_side
 
 
 def voxel_centers_at(indices: np.ndarray, resolution: int) -> np.ndarray:

@@ -173,3 +173,27 @@ def test_degenerate_placements_give_finite_images():
     assert red["half outside the view"][:, -1].any() and not red["half outside the view"][:, :20].any()
     assert not red["behind the camera"].any()
     assert 1 <= red["tiny"].sum() <= 4
+
+
+def test_the_layout_does_not_depend_on_how_many_threads_split_the_shell(monkeypatch):
+    # Each thread splats a run of the shell into its own buffer and the runs are merged in shell order: the image must
+    # be the single pass's, ties included (at elevation 0 a slab's voxels share one depth and overlap).
+    from renderer import splat as splat_module
+    from renderer.surface import Shell
+
+    rng = np.random.default_rng(3)
+    n = 24
+    occupied = np.zeros((n, n, n), bool)
+    occupied[4:20, 0:14, 9:13] = True  # a slab facing the elevation-0 camera
+    occupied |= rng.random((n, n, n)) < 0.08  # and scattered voxels in front of and behind it
+    shell = Shell(occupied)
+    matrix = object_to_world(ObjectSpec(voxels="v.npz", rotation_deg=20.0, scale=(1.2, 0.9, 1.0)))
+    for elevation in (0.0, 35.0):
+        camera = Camera(elevation, 72, 72)
+        layouts = {}
+        for runs in (1, 2, 3, 7):
+            monkeypatch.setattr(splat_module.numba, "get_num_threads", lambda runs=runs: runs)
+            layouts[runs] = splat_module.splat_layout(shell, matrix, camera).voxel
+        assert (layouts[1] >= 0).sum() > 500
+        for runs in (2, 3, 7):
+            np.testing.assert_array_equal(layouts[runs], layouts[1])
