@@ -20,6 +20,20 @@ def test_srgb_curve_known_values():
     assert float(linear_to_srgb(np.float32(0.214041))) == pytest.approx(0.5, abs=1e-6)
 
 
+def test_float32_conversion_follows_the_curve_everywhere():
+    # float32 is converted from a table of the curve (renderer/color.py): every float32 value of a dense sweep, the
+    # knee's neighbours and the values just below 1 must lie within 2e-7 of the curve in float64, and never above 1.
+    sweep = np.concatenate([np.linspace(0.0, 1.0, 3_000_001, dtype=np.float32),
+                            np.nextafter(np.float32(0.0031308), np.float32([-1, 2])),
+                            np.float32(1.0) - np.arange(200, dtype=np.float32) * np.finfo(np.float32).epsneg])
+    c = sweep.astype(np.float64)
+    curve = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    single = linear_to_srgb(sweep)
+    assert single.dtype == np.float32
+    assert np.abs(single - curve).max() < 2e-7
+    assert single.max() <= 1.0 and np.all(np.diff(single[:3_000_001]) >= 0.0)  # and it never goes down
+
+
 def test_conversion_never_returns_nan():
     for dtype in (np.float64, np.float32):
         out = linear_to_srgb(np.array([np.nan, np.inf, -np.inf, -1.0, 2.0], dtype=dtype))
