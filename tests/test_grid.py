@@ -20,7 +20,6 @@ from renderer.grid import (
     repool_voxels,
     sample_indices,
     scene_grid,
-    voxel_table,
 )
 from renderer.mesh import normalise_mesh
 from renderer.scene import GRID_SIZE, ObjectSpec
@@ -200,7 +199,7 @@ def test_floor_color_change_needs_only_the_gather():
     pooled = pool_voxels(rgba, factors)
     indices = sample_indices(10, factors, spec, 20.0)
     for floor in [(0.0, 0.0, 0.0), (1.0, 0.5, 0.25)]:
-        np.testing.assert_array_equal(gather(voxel_table(pooled, floor), indices), scene_grid(rgba, spec, floor, 20.0))
+        np.testing.assert_array_equal(gather(pooled, floor, indices), scene_grid(rgba, spec, floor, 20.0))
 
 
 def sphere_voxels() -> np.ndarray:

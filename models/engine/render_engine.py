@@ -104,7 +104,6 @@ from renderer.grid import (
     repool_voxels,
     sample_indices,
     shader_pool_factors,
-    voxel_table,
 )
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
@@ -141,7 +140,7 @@ class RenderReport:
 
 
 class _Placement(NamedTuple):
-    indices: np.ndarray | None  # table row per grid voxel (renderer.grid.sample_indices): of the whole grid
+    indices: np.ndarray | None  # gather row per grid voxel (renderer.grid.sample_indices): of the whole grid
     # (crop=False), else of the crop plan.grid; None if the object changes nothing in the grid
     plan: CropPlan | None  # where the object changes the voxel branch (crop=True); None if nowhere
 
@@ -342,7 +341,7 @@ class RenderEngine:
         pooled, placement = self._placed(scene, painted, keys)
         grid_key = (keys.grid, self.crop)
         if not self.crop:
-            grid = self._stage("gather", grid_key, lambda: gather(voxel_table(pooled, floor), placement.indices))
+            grid = self._stage("gather", grid_key, lambda: gather(pooled, floor, placement.indices))
             self._recording.grid_fraction = 1.0
             return self._stage("voxel_branch", grid_key, lambda: self.model.encode_voxels(self._grid_tensor(grid)))
         elevation = scene.camera.elevation_deg
@@ -351,7 +350,7 @@ class RenderEngine:
         if plan is None:  # the object lies outside the grid
             self._recording.grid_fraction = 0.0
             return background.latent
-        crop = self._stage("gather", grid_key, lambda: gather(voxel_table(pooled, floor), placement.indices))
+        crop = self._stage("gather", grid_key, lambda: gather(pooled, floor, placement.indices))
         self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", grid_key, lambda: self.encoder.encode(background, plan, self._grid_tensor(crop)))
 
@@ -510,7 +509,7 @@ def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, g
     """The scene grid (D, H, W, 4) of the ground alone, as renderer.grid samples it (no object); its first `columns` columns."""
     ground = ground_mask(elevation_deg, grid_size, columns)
     grid = np.zeros((*ground.shape, 4), dtype=np.float32)
-    grid[ground] = (*floor_color, 1.0)  # the floor row of renderer.grid.voxel_table
+    grid[ground] = (*floor_color, 1.0)  # the floor row of renderer.grid.gather
     return grid
 
 
