@@ -210,22 +210,21 @@ def test_ground_grid_is_the_scene_grid_without_object():
 
 
 def test_changed_spans_leave_out_empty_object_rows_but_not_replaced_ground():
-    pooled = np.zeros((2, 1, 1, 4), np.float32)  # P = 2 object rows: row 0 empty, row 1 occupied
-    pooled[1, 0, 0] = (0.5, 0.5, 0.5, 1.0)
+    object_rows = np.array([False, True, False, False])  # P = 2 object rows: row 0 empty, row 1 occupied; empty, floor
     ground = np.zeros((4, 5, 6), dtype=bool)
     ground[:, 4, :] = True
     indices = np.where(ground, 3, 2).astype(np.int32)  # the floor row P + 1, the empty row P
     indices[0, 0, 0] = 0  # the empty object row equals the empty row: nothing changes
     indices[1, 1, 2] = 1
     whole = [(0, 4), (0, 5), (0, 6)]
-    assert changed_spans(indices, pooled, ground, whole) == ((1, 2), (1, 2), (2, 3))
+    assert changed_spans(indices, object_rows, ground, whole) == ((1, 2), (1, 2), (2, 3))
     # Over a window of the grid the spans are the grid's.
-    assert changed_spans(indices[1:, 1:, 2:], pooled, ground, [(1, 4), (1, 5), (2, 6)]) == ((1, 2), (1, 2), (2, 3))
+    assert changed_spans(indices[1:, 1:, 2:], object_rows, ground, [(1, 4), (1, 5), (2, 6)]) == ((1, 2), (1, 2), (2, 3))
     indices[3, 4, 5] = 0  # an object row, even an empty one, in place of a floor voxel removes it
-    assert changed_spans(indices, pooled, ground, whole) == ((1, 4), (1, 5), (2, 6))
+    assert changed_spans(indices, object_rows, ground, whole) == ((1, 4), (1, 5), (2, 6))
     indices[3, 4, 5] = 2  # the empty row on a ground voxel: the floor voxel is gone too
-    assert changed_spans(indices, pooled, ground, whole) == ((1, 4), (1, 5), (2, 6))
-    assert changed_spans(np.where(ground, 3, 2).astype(np.int32), pooled, ground, whole) is None
+    assert changed_spans(indices, object_rows, ground, whole) == ((1, 4), (1, 5), (2, 6))
+    assert changed_spans(np.where(ground, 3, 2).astype(np.int32), object_rows, ground, whole) is None
 
 
 def test_crop_around_a_small_part_of_the_object_box_equals_the_full_grid(model, scene):

@@ -151,6 +151,8 @@ class _Pooled(NamedTuple):
     source: tuple  # where those voxels were read from (_voxel_source)
     factors: tuple[int, int, int]
     within: tuple | None  # the box of the non-empty merged voxels (renderer.grid.pool_object); paint keeps it
+    object_rows: np.ndarray  # (P + 2,) bool: which rows of renderer.grid.gather hold a non-empty merged voxel; paint
+    #                          keeps them (it recolors occupied voxels, whose merged voxels stay occupied)
 
 
 class _Keys(NamedTuple):
@@ -364,11 +366,12 @@ class RenderEngine:
         last = self._memo[stage][1] if stage in self._memo else None
         if last is None or (last.source, last.factors) != (source, factors):
             pooled, within = pool_object(painted, factors, replay.box)  # only the blocks the object reaches
-            return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, within)
+            object_rows = np.append(non_empty_voxels(pooled).reshape(-1), [False, False])  # the empty and floor rows
+            return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, within, object_rows)
         del self._memo[stage]  # updated in place below: never a stale entry under the old key
         colors, changed = colors_and_changes(painted, occupied, last.colors)
         return _Pooled(repool_voxels(last.voxels, painted, factors, changed, in_place=True), colors, source, factors,
-                       last.within)
+                       last.within, last.object_rows)
 
     def _background(self, floor: tuple, elevation: float) -> Background:
         """The ground's features, from a ground grid a few columns wide when the ground is the same in every column."""
@@ -384,14 +387,22 @@ class RenderEngine:
         if not self.crop:
             return _Placement(sample_indices(n, factors, scene.object, elevation, g, within), None)
         window = object_window(n, factors, scene.object, elevation, g, within)
-        spans = None if any(lo >= hi for lo, hi in window) else changed_spans(
-            sample_indices(n, factors, scene.object, elevation, g, within, window, window), pooled.voxels,
-            ground_mask(elevation, g), window)
+        if any(lo >= hi for lo, hi in window):
+            return _Placement(None, None)  # the object changes nothing in the grid
+        taken = sample_indices(n, factors, scene.object, elevation, g, within, window, window)
+        spans = changed_spans(taken, pooled.object_rows, ground_mask(elevation, g), window)
         plan = None if spans is None else self.encoder.plan(spans)
-        if plan is None:  # the object changes nothing in the grid
+        if plan is None:
             return _Placement(None, None)
+        # The crop's rows: the ground and empty rows (no window to sample), then the window's, which hold every object
+        # row and were just sampled.
         box = [(crop.start, crop.stop) for crop in plan.grid]
-        return _Placement(sample_indices(n, factors, scene.object, elevation, g, within, box, window), plan)
+        indices = sample_indices(n, factors, scene.object, elevation, g, within, box, [(0, 0)] * 3)
+        overlap = [(max(lo, start), min(hi, stop)) for (lo, hi), (start, stop) in zip(window, box)]
+        if all(lo < hi for lo, hi in overlap):
+            indices[tuple(slice(lo - start, hi - start) for (lo, hi), (start, _) in zip(overlap, box))] = \
+                taken[tuple(slice(lo - start, hi - start) for (lo, hi), (start, _) in zip(overlap, window))]
+        return _Placement(indices, plan)
 
     def _splat_layout(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> SplatLayout:
         shell = self._stage("shell", keys.layout[0], lambda: Shell(occupancy(painted)))  # paint keeps occupancy
@@ -521,21 +532,20 @@ def ground_is_column_invariant(elevation_deg: float, grid_size: int) -> bool:
     return bool(grid_index_to_world(elevation_deg, grid_size)[1, 2] == 0.0)
 
 
-def changed_spans(taken: np.ndarray, pooled: np.ndarray, ground: np.ndarray,
+def changed_spans(taken: np.ndarray, object_rows: np.ndarray, ground: np.ndarray,
                   window: list[tuple[int, int]]) -> tuple[tuple[int, int], ...] | None:
     """Bounding box (one span per axis) of the grid voxels that differ from the ground-only grid; None if none do.
 
-    `taken` are renderer.grid.sample_indices over the grid ranges `window` (renderer.grid.object_window, non-empty),
-    with the P merged voxels `pooled`; every voxel that takes one of them lies in the window, and `ground` is the
-    grid's ground_mask. A voxel differs where it takes a non-zero object row, or a ground voxel took an object row.
-    The object's box is mostly empty, and its all-zero rows equal the empty row, so they are left out: the
-    object's crop covered 14-21 % of the grid instead of 35-42 % on the bench objects.
+    `taken` are renderer.grid.sample_indices over the grid ranges `window` (renderer.grid.object_window, non-empty);
+    every voxel that takes a merged voxel lies in the window, `object_rows` (P + 2,) says which of gather's rows hold a
+    non-empty one, and `ground` is the grid's ground_mask. A voxel differs where it takes a non-empty merged voxel,
+    or a ground voxel took an object row. The object's box is mostly empty, and its all-zero rows equal the empty
+    row, so they are left out: the object's crop covered 14-21 % of the grid instead of 35-42 % on the bench objects.
     """
     box = tuple(slice(*span) for span in window)
-    rows = int(np.prod(pooled.shape[:-1]))
-    non_zero = np.append(non_empty_voxels(pooled).reshape(-1), [False, False])  # the empty and floor rows: no object
-    changed = np.take(non_zero.view(np.uint8), taken).view(bool)  # np.take: twice as fast as fancy indexing
-    changed |= ground[box] & (taken != rows + 1)
+    floor_row = len(object_rows) - 1
+    changed = np.take(object_rows.view(np.uint8), taken).view(bool)  # np.take: twice as fast as fancy indexing
+    changed |= ground[box] & (taken != floor_row)
     spans = occupied_spans(changed)
     return None if spans is None else tuple((lo + s.start, hi + s.start) for (lo, hi), s in zip(spans, box))
 
