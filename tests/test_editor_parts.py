@@ -211,10 +211,12 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
 
 
 
-def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_forgotten_ones_nothing_holds(box_scene,
-                                                                                                       monkeypatch):
-    """Past PAINTED_BYTES_KEPT the oldest states go; a forgotten array is painted into again only if nothing else holds
-    it, so an array a caller still reads never changes, and every state equals a replay from scratch."""
+@pytest.mark.parametrize("prepared", [False, True])
+def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_spares_nothing_holds(box_scene, monkeypatch,
+                                                                                               prepared):
+    """Past PAINTED_BYTES_KEPT the oldest states go; a stroke paints into a spare array: a forgotten one only if nothing
+    else holds it (an array a caller still reads never changes), or one prepared after the object loaded and after
+    each stroke (here at once, in the editor on another thread); every state equals a replay from scratch."""
     import app.editor.voxel_cache as voxel_cache
 
     state_bytes = 8**3 * 4 * 4
@@ -227,7 +229,7 @@ def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_forgot
         return apply_paint(rgba, floor, ops, occupied, out)
 
     monkeypatch.setattr(voxel_cache, "apply_paint", recording)
-    cache = VoxelCache()
+    cache = VoxelCache(run_later=(lambda task: task()) if prepared else (lambda task: None))
     base = cache.object_rgba(box_scene)
     colors = [(0.1 * k, 0.9 - 0.1 * k, 0.5) for k in range(8)]
     scenes = [box_scene]
@@ -245,8 +247,10 @@ def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_forgot
         assert len(cache._painted) <= 2
         del rgba
     np.testing.assert_array_equal(held, held_copy)  # never painted into: it was still held
-    # The third fill forgets the held first state, the fourth the second: from the fifth on, into forgotten arrays.
-    assert painted_into == [False] * 4 + [True] * 4
+    if prepared:  # every fill, the first too, into a prepared spare
+        assert painted_into == [True] * 8
+    else:  # the third fill forgets the held first state, the fourth the second: from the fifth on, into those
+        assert painted_into == [False] * 4 + [True] * 4
     np.testing.assert_array_equal(cache.painted(scenes[3])[0], replayed(scenes[3]))  # forgotten: painted again
 
 # --- photo camera ---------------------------------------------------------------------------------
