@@ -131,12 +131,12 @@ class VoxelCache:
             try:
                 spare = np.empty(shape, dtype=np.float32)
                 np.copyto(spare, 0.0)  # touches every page (numpy lets other threads run meanwhile)
-                with self._lock:
-                    if self._spare is None or self._spare.shape != shape:
-                        self._spare = spare
-            finally:
-                with self._lock:
-                    self._preparing = False
+            except MemoryError:  # only time is lost: the next stroke maps fresh memory itself
+                spare = None
+            with self._lock:
+                self._preparing = False
+                if spare is not None and (self._spare is None or self._spare.shape != shape):
+                    self._spare = spare
 
         self._run_later(prepare)
 
