@@ -111,3 +111,15 @@ def test_the_device_bench_compares_images_on_the_0_255_scale():
     assert result["finite"]
     image[0, 0, 0] = np.nan
     assert not compare(image, reference)["finite"]
+
+
+def test_every_benchmark_script_imports():
+    """The scripts under benchmarks/ run by hand, not in the suite: at least they must still import what they call."""
+    import importlib
+    from pathlib import Path
+
+    scripts = sorted(Path(__file__).resolve().parents[1].glob("benchmarks/*.py"))
+    assert len(scripts) > 5
+    for script in scripts:
+        if script.stem != "__init__":
+            importlib.import_module(f"benchmarks.{script.stem}")
