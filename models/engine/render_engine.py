@@ -100,7 +100,7 @@ from renderer.grid import (
     object_window,
     occupied_spans,
     pool_factors,
-    pool_object,
+    pool_voxels,
     repool_voxels,
     sample_indices,
     shader_pool_factors,
@@ -150,7 +150,7 @@ class _Pooled(NamedTuple):
     colors: np.ndarray  # (K, 4) the painted voxels they were merged from, at the object's occupied voxels
     source: tuple  # where those voxels were read from (_voxel_source)
     factors: tuple[int, int, int]
-    within: tuple | None  # the box of the non-empty merged voxels (renderer.grid.pool_object); paint keeps it
+    within: tuple | None  # the box of the non-empty merged voxels (as renderer.grid.pool_object finds it); paint keeps it
     object_rows: np.ndarray  # (P + 2,) bool: which rows of renderer.grid.gather hold a non-empty merged voxel; paint
     #                          keeps them (it recolors occupied voxels, whose merged voxels stay occupied)
 
@@ -365,9 +365,11 @@ class RenderEngine:
         occupied = replay.occupied
         last = self._memo[stage][1] if stage in self._memo else None
         if last is None or (last.source, last.factors) != (source, factors):
-            pooled, within = pool_object(painted, factors, replay.box)  # only the blocks the object reaches
-            object_rows = np.append(non_empty_voxels(pooled).reshape(-1), [False, False])  # the empty and floor rows
-            return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, within, object_rows)
+            pooled = pool_voxels(painted, factors, replay.box)  # only the blocks the object reaches
+            non_empty = non_empty_voxels(pooled)  # for the box to sample and the rows the placement reads
+            object_rows = np.append(non_empty.reshape(-1), [False, False])  # the empty and floor rows: no object
+            return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, occupied_spans(non_empty),
+                           object_rows)
         del self._memo[stage]  # updated in place below: never a stale entry under the old key
         colors, changed = colors_and_changes(painted, occupied, last.colors)
         return _Pooled(repool_voxels(last.voxels, painted, factors, changed, in_place=True), colors, source, factors,
