@@ -6,7 +6,14 @@ import pytest
 import torch
 from torch import nn
 
-from models.engine.onednn import FusedResidual, OneDnnConv, OneDnnConvTranspose, use_onednn_convolutions
+from models.engine.onednn import (
+    FusedResidual,
+    OneDnnConv,
+    OneDnnConvTranspose,
+    cpu_has_native_bfloat16,
+    use_onednn_convolutions,
+)
+from models.engine.render_engine import resolve_precision
 from models.networks.inference import prepare_for_inference
 from tests.test_engine import TINY_COMPACT, TINY_PAPER, random_model
 
@@ -44,3 +51,20 @@ def test_every_activation_after_a_convolution_is_fused():
     # Without an activation after them: each residual block's last convolution and shortcut, the output heads.
     assert all(m.activation in (("relu", []), ("leaky_relu", [0.2]), ("none", [])) for m in convs)
     assert len(unfused) == len(blocks) + 2 + sum(not isinstance(b.block.shortcut, nn.Identity) for b in blocks) + 2
+
+
+def test_an_instruction_set_cap_below_bfloat16_runs_the_cpu_as_one_without(monkeypatch):
+    """ONEDNN_MAX_CPU_ISA=AVX2 keeps oneDNN off the bfloat16 instructions: the engine must then choose fp32."""
+    monkeypatch.delenv("DNNL_MAX_CPU_ISA", raising=False)
+    monkeypatch.delenv("ONEDNN_MAX_CPU_ISA", raising=False)
+    hardware = bool(torch.cpu._is_avx512_bf16_supported())
+    assert cpu_has_native_bfloat16() == hardware
+    for cap in ("AVX2", "avx512_core", "AVX512_CORE_VNNI"):
+        monkeypatch.setenv("ONEDNN_MAX_CPU_ISA", cap)
+        assert not cpu_has_native_bfloat16() and resolve_precision("auto") == "fp32"
+    for cap in ("AVX512_CORE_BF16", "avx512_core_amx", "DEFAULT", " "):
+        monkeypatch.setenv("ONEDNN_MAX_CPU_ISA", cap)
+        assert cpu_has_native_bfloat16() == hardware
+    monkeypatch.delenv("ONEDNN_MAX_CPU_ISA")
+    monkeypatch.setenv("DNNL_MAX_CPU_ISA", "AVX2")  # the older name
+    assert not cpu_has_native_bfloat16()

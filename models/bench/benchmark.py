@@ -56,6 +56,7 @@ from models.networks.inference import prepare_for_inference
 from models.networks.nvr import SHADING_CHANNELS, build_model, reads_floor_light, reads_shading
 from renderer.errors import InputError
 from renderer.io import save_json
+from renderer.pathtrace.mitsuba_variant import LIBLLVM_ENV, LLVM_VARIANT, active_variant
 from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
@@ -163,7 +164,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "quick": settings == QUICK,
         "seconds": time.perf_counter() - started,
         "note": note,
-        "machine": machine_description(),
+        "machine": machine_description() | {"path tracer": _path_tracer_description()},
         "load": {"loadavg_before": list(load_before), "loadavg_after": list(os.getloadavg()),
                  "other_processes": [asdict(p) for p in other_load(cpu_before, cpu_snapshot())]},
         "memory_method": memory.method,
@@ -398,6 +399,16 @@ def _weights_files(paths: list[str] | None) -> list[Path]:
     if paths:
         return [Path(p) for p in paths]
     return sorted(ASSET_MODELS.glob("*.safetensors")) if ASSET_MODELS.is_dir() else []
+
+
+def _path_tracer_description() -> str:
+    """Mitsuba's version and variant: the scalar variant (no libLLVM >= 16 found) traces many times slower."""
+    import mitsuba as mi
+
+    variant = active_variant()
+    library = os.environ.get(LIBLLVM_ENV) if variant == LLVM_VARIANT else None
+    return f"Mitsuba {mi.__version__}, {variant}" + (f" ({Path(library).name})" if library else
+                                                    " (no libLLVM >= 16 found: install libllvm19 for the fast variant)")
 
 
 def _precisions() -> list[str]:

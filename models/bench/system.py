@@ -119,11 +119,14 @@ def machine_description() -> dict[str, str]:
         names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines() if line.startswith("model name")]
         cpu = names[0] if names else cpu
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-    from models.engine.onednn import cpu_has_native_bfloat16
+    from models.engine.onednn import cpu_has_native_bfloat16, onednn_isa_cap
 
     bf16 = cpu_has_native_bfloat16()
+    cap = onednn_isa_cap()
     return {
-        "cpu": f"{cpu}, {cores} cores usable, {'native bfloat16 (AVX512-BF16)' if bf16 else 'no native bfloat16'}",
+        "cpu": f"{cpu}, {cores} cores usable, {'native bfloat16 (AVX512-BF16)' if bf16 else 'no native bfloat16'}"
+               + (f", oneDNN capped at {cap} (ONEDNN_MAX_CPU_ISA)" if cap else "")
+               + f", torch kernels {torch.backends.cpu.get_cpu_capability()}",
         "os": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
         "torch": f"{torch.__version__}, {torch.get_num_threads()} threads, OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', 'unset')}, "

@@ -15,6 +15,8 @@ The arithmetic is unchanged.
 
 from __future__ import annotations
 
+import os
+
 import torch
 from torch import nn
 
@@ -23,8 +25,24 @@ from models.networks.layers import ResidualBlock2d
 NO_ACTIVATION = ("none", [])
 
 
+# oneDNN's instruction-set caps (its ONEDNN_MAX_CPU_ISA setting) that leave it the bfloat16 instructions.
+_CAPS_WITH_BFLOAT16 = frozenset({"DEFAULT", "ALL", "AVX512_CORE_BF16", "AVX512_CORE_FP16", "AVX512_CORE_AMX",
+                                 "AVX512_CORE_AMX_FP16", "AVX10_1_512", "AVX10_1_512_AMX", "AVX10_1_512_AMX_FP16",
+                                 "AVX10_2_512", "AVX10_2_512_AMX_2"})
+
+
+def onednn_isa_cap() -> str | None:
+    """The instruction set oneDNN is capped at by the environment (ONEDNN_MAX_CPU_ISA, or its older name), or None."""
+    cap = os.environ.get("ONEDNN_MAX_CPU_ISA") or os.environ.get("DNNL_MAX_CPU_ISA")
+    return cap.strip().upper() if cap and cap.strip() else None
+
+
 def cpu_has_native_bfloat16() -> bool:
-    """Whether this CPU computes bfloat16 in hardware (AVX512-BF16); without it oneDNN emulates it, slower than fp32."""
+    """Whether this CPU computes bfloat16 in hardware (AVX512-BF16) and oneDNN may use it; without it oneDNN emulates
+    bfloat16, slower than fp32. A cap below AVX512_CORE_BF16 (ONEDNN_MAX_CPU_ISA=AVX2, say) runs a CPU as one without."""
+    cap = onednn_isa_cap()
+    if cap is not None and cap not in _CAPS_WITH_BFLOAT16:
+        return False
     return bool(getattr(torch.cpu, "_is_avx512_bf16_supported", lambda: False)())
 
 
