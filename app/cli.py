@@ -414,9 +414,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a scene file to a PNG")
     p.add_argument("scene", help="scene file (JSON, version 1)")
     p.add_argument("-o", "--output", required=True, help="PNG to write")
-    p.add_argument("--renderer", choices=["splat", "shaded", "pathtrace", "nvr", "nvr+"], default="splat",
-                   help="splat: voxel colors; shaded: the voxels lit physically (soft shadows, lit floor); "
-                        "pathtrace: the mesh in Mitsuba 3; nvr, nvr+: the networks")
+    p.add_argument("--renderer", choices=["nvr+", "shaded", "splat", "pathtrace", "nvr"], default="nvr+",
+                   help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (256 px); "
+                        "shaded: the voxels lit physically (soft shadows, lit floor; any size); splat: voxel colors; "
+                        "pathtrace: the mesh in Mitsuba 3; nvr: the paper's network without the splat")
     p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
     p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
     p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")

@@ -34,7 +34,7 @@ def scene_dir(tmp_path) -> Path:
 
 
 def test_render_splat_writes_the_scene_size(scene_dir):
-    result = nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png", "--size", "64")
+    result = nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png", "--size", "64", "--renderer", "splat")
     assert result.returncode == 0, result.stderr
     image = np.asarray(Image.open(scene_dir / "out.png"))
     assert image.shape == (64, 64, 3)
