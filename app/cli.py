@@ -60,7 +60,7 @@ def cmd_render(args: argparse.Namespace) -> None:
         if args.renderer == "splat":
             image, detail = _render_splat(scene, size)
         elif args.renderer == "shaded":
-            image, detail = _render_shaded(scene, size)
+            image, detail = _render_shaded(scene, size, args.quality)
         elif args.renderer == "pathtrace":
             image, detail = _render_pathtrace(scene, size, args)
         else:
@@ -82,12 +82,16 @@ def _render_splat(scene, size: int):
     return splat_scene(scene, rgba, floor_color, size=size), ""
 
 
-def _render_shaded(scene, size: int):
+def _render_shaded(scene, size: int, quality: str):
     from renderer.pipeline import object_voxels, painted_voxels
-    from renderer.shading import shade_scene
+    from renderer.shading import QUALITIES, shade_scene
 
     rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    return shade_scene(scene, rgba, floor_color, size=size).image, ""
+    return shade_scene(scene, rgba, floor_color, size=size, quality=QUALITIES[quality]).image, _quality_detail(quality)
+
+
+def _quality_detail(quality: str) -> str:
+    return "" if quality == "full" else f", {quality} shading"
 
 
 def _render_pathtrace(scene, size: int, args: argparse.Namespace):
@@ -103,13 +107,14 @@ def _render_pathtrace(scene, size: int, args: argparse.Namespace):
 def _render_network(scene, size: int, args: argparse.Namespace):
     from models.engine.render_engine import RenderEngine
 
-    engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device)
+    engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device,
+                               shader_quality=args.quality)
     if size != engine.output_size:
         asked = f"--size {size}" if args.size is not None else f"the scene's image_size {size}"
         raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; {asked} is not supported "
                          f"(pass --size {engine.output_size})", "--size" if args.size is not None else args.scene)
     image = engine.render(scene)
-    return image, f", model {engine.model_name}, {engine.precision} on {engine.device.type}"
+    return image, f", model {engine.model_name}, {engine.precision} on {engine.device.type}{_quality_detail(args.quality)}"
 
 
 # --- nvr voxelize / info ------------------------------------------------------------------
@@ -366,7 +371,9 @@ def cmd_eval(args: argparse.Namespace) -> None:
 
         print(f"wrote {resolution_study(args.data, args.model, args.renderer, resolutions, out, limit=args.limit)}")
         return
-    print(f"wrote {evaluate(args.data, args.model, args.renderer, out, limit=args.limit, shading_grid=args.shading_grid)}")
+    written = evaluate(args.data, args.model, args.renderer, out, limit=args.limit, shading_grid=args.shading_grid,
+                       shader_quality=args.quality)
+    print(f"wrote {written}")
 
 
 def _parse_resolutions(text: str) -> list[int]:
@@ -426,6 +433,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
                    help="network arithmetic (auto: bf16 on CPUs with native bfloat16, else fp32)")
     p.add_argument("--device", default="auto", help="network device: auto (a CUDA GPU if there is one), cpu or cuda")
+    p.add_argument("--quality", choices=["full", "fast"], default="full",
+                   help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
+                        "silhouette pixel and 2 x 2 light points, faster, less accurate")
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.set_defaults(func=cmd_render)
 
@@ -575,6 +585,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--shading-grid", type=int, default=256, metavar="N",
                    help="the grid the shaded renderer stands in for: 256 (the object's voxels unmerged, the editor's) "
                         "or 128 (the network's: merged in pairs, faster)")
+    p.add_argument("--quality", choices=["full", "fast"], default="full",
+                   help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
+                        "silhouette pixel and 2 x 2 light points, faster, less accurate")
     p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
                    help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")

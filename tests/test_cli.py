@@ -41,6 +41,19 @@ def test_render_splat_writes_the_scene_size(scene_dir):
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 3  # floor, background and the chair's colors
 
 
+def test_render_at_the_shaders_fast_quality_says_so_and_differs_from_full(scene_dir):
+    images = {}
+    for quality in ("full", "fast"):
+        out = scene_dir / f"{quality}.png"
+        result = nvr("render", scene_dir / "scene.json", "-o", out, "--size", "64", "--renderer", "shaded",
+                     "--quality", quality)
+        assert result.returncode == 0, result.stderr
+        assert ("fast shading" in result.stdout) == (quality == "fast")
+        images[quality] = np.asarray(Image.open(out)).astype(int)
+    difference = np.abs(images["fast"] - images["full"])
+    assert 0 < difference.max() and difference.mean() < 3.0  # another sampling of the same shading
+
+
 def test_existing_output_is_kept_without_force(scene_dir):
     (scene_dir / "out.png").write_bytes(b"precious")
     assert_user_error(nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png"), "--force")

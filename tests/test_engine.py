@@ -31,7 +31,7 @@ from renderer.floor_light import lit_floor_image
 from renderer.grid import occupied_spans, scene_grid
 from renderer.objects.demo import DEMO_DIR
 from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, load_scene
-from renderer.shading import shade_scene
+from renderer.shading import FAST_QUALITY, FULL_QUALITY, ShaderQuality, shade_scene
 from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
@@ -473,11 +473,11 @@ def refiner(seed: int = 0, trained: bool = True, config: ShaderRefinerConfig = T
     return model
 
 
-def _shaded_image(scene, grid_size: int) -> np.ndarray:
+def _shaded_image(scene, grid_size: int, quality: ShaderQuality = FULL_QUALITY) -> np.ndarray:
     """The voxel shader's image of `scene` as a network reads it (no reflection of the object in the floor), its object
     voxels merged as for a grid of `grid_size`^3, computed without the engine."""
     return shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, 64, grid_size,
-                       reflection=False).image
+                       reflection=False, quality=quality).image
 
 
 @pytest.mark.parametrize("factor, engine_factor, shaded_grid", [(1, None, 64), (2, None, 128), (2, 1, 64)])
@@ -495,6 +495,22 @@ def test_an_untrained_refiner_renders_the_shaded_image(scene, factor, engine_fac
         np.testing.assert_allclose(live.render(edited), _shaded_image(edited, shaded_grid), rtol=0, atol=1e-6)
         assert "shade_geometry" not in live.last_report.stages_run
         assert "shade_surface" in live.last_report.stages_run
+
+
+def test_at_the_fast_quality_an_untrained_refiner_renders_the_fast_shading(scene):
+    """The engine's shader quality is what its network reads: untrained, it renders the fast shaded image, after a
+    light edit too (only the light's stages rerun), and not the full one."""
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", TINY_REFINER).eval()
+    fast = RenderEngine(model, threads=1, precision="fp32", shader_quality="fast")
+    np.testing.assert_allclose(fast.render(scene), _shaded_image(scene, 64, FAST_QUALITY), rtol=0, atol=1e-6)
+    lit = replace(scene, light=replace(scene.light, position=(-0.7, 2.5, 0.6)))
+    image = fast.render(lit)
+    assert not {"shade_geometry", "shade_surface"} & set(fast.last_report.stages_run)
+    np.testing.assert_allclose(image, _shaded_image(lit, 64, FAST_QUALITY), rtol=0, atol=1e-6)
+    assert np.abs(image - _shaded_image(lit, 64)).max() > 1e-3  # the fast shading is not the full one
+    with pytest.raises(InputError, match="unknown shader quality"):
+        RenderEngine(model, shader_quality="draft")
 
 
 def test_refiner_drag_preview_is_the_shaded_image(scene):

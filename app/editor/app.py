@@ -128,11 +128,12 @@ class FrameStats:
 class EditorApp:
     """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
 
-    def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "nvr+"):
+    def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "nvr+",
+                 quality: str = "full"):
         self.window = window
         self.doc = document
         self.voxels = VoxelCache()
-        self.live = LiveRender(self.voxels, model_path, renderer)
+        self.live = LiveRender(self.voxels, model_path, renderer, quality)
         self.viewport = ViewportRenderer(window.ctx)
         self.view = HOME
         self.render_texture = None

@@ -37,6 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the render panel's renderer (default: nvr+, which shows the shaded image while a drag "
                         "lasts); switch in the panel")
     p.add_argument("--model", default=None, help="NVR+ weights (.safetensors); default: the shipped model")
+    p.add_argument("--quality", choices=["full", "fast"], default="full",
+                   help="the live render's voxel shader: full, as the network was trained; fast: one ray per "
+                        "silhouette pixel and 2 x 2 light points, for slower CPUs (exports stay full)")
     p.add_argument("--frames", type=int, default=None, help="headless: draw at least N frames, then exit when idle")
     p.add_argument("--replay", default=None, help="JSON list of actions to perform (see app/editor/replay.py)")
     p.add_argument("--screenshot", default=None, help="with --frames: save the whole window as PNG at the end")
@@ -94,7 +97,7 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
 
     headless = args.frames is not None
     renderer = args.renderer or "nvr+"
-    app = EditorApp(window, document, model_path=args.model, renderer=renderer)
+    app = EditorApp(window, document, model_path=args.model, renderer=renderer, quality=args.quality)
     interface = Interface(app)
     frame, started, finishing = 0, time.monotonic(), False
     try:

@@ -26,6 +26,7 @@ from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import Scene
+from renderer.shading import QUALITIES
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
@@ -64,9 +65,9 @@ class SplatEngine:
 class ShadedEngine:
     """The engine's interface over the voxel shader, its stages cached (a light move reruns only the light's)."""
 
-    def __init__(self, voxels: VoxelCache):
+    def __init__(self, voxels: VoxelCache, quality: str = "full"):
         self._voxels = voxels
-        self._shader = StagedShader()
+        self._shader = StagedShader(quality=QUALITIES[quality])
         self._lock = threading.Lock()  # exports on the UI thread and the render thread share the stages
         self.last_report: RenderReport | None = None
 
@@ -119,8 +120,10 @@ class LowPriority:
 class LiveRender:
     """Submits scenes to a worker thread and hands each newly finished frame to the UI once."""
 
-    def __init__(self, voxels: VoxelCache, model_path: str | None = None, renderer: str = "nvr+"):
+    def __init__(self, voxels: VoxelCache, model_path: str | None = None, renderer: str = "nvr+",
+                 quality: str = "full"):
         self.model_path = model_path
+        self.quality = quality  # the shader's, for both renderers (renderer.shading.QUALITIES); exports stay full
         self._voxels = voxels
         self._engines: dict[str, object] = {}
         self._labels: dict[str, tuple[str, str, bool]] = {}  # renderer -> (what renders, device, as chosen)
@@ -146,14 +149,20 @@ class LiveRender:
     def _make_engine(self, renderer: str) -> tuple[object, tuple[str, str, bool]]:
         """The engine for `renderer` and its labels: what renders, on what device, and whether it is what was chosen."""
         if renderer == "shaded":
-            return ShadedEngine(self._voxels), (RENDERERS["shaded"], "cpu", True)
+            return ShadedEngine(self._voxels, self.quality), (RENDERERS["shaded"], f"cpu{self._quality_note}", True)
         try:
-            engine = RenderEngine.load(self.model_path, kind="nvr+", object_source=self._voxels.object_rgba)
+            engine = RenderEngine.load(self.model_path, kind="nvr+", object_source=self._voxels.object_rgba,
+                                       shader_quality=self.quality)
         except InputError as exc:
             print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
             return SplatEngine(self._voxels), (NO_MODEL_LABEL, "cpu (splatting)", False)
         threads = f", {default_threads()} threads" if engine.device.type == "cpu" else ""
-        return engine, (f"NVR+ {engine.model_name}", f"{engine.device.type}, {engine.precision}{threads}", True)
+        return engine, (f"NVR+ {engine.model_name}", f"{engine.device.type}, {engine.precision}{threads}{self._quality_note}",
+                        True)
+
+    @property
+    def _quality_note(self) -> str:
+        return "" if self.quality == "full" else f", {self.quality} shading"
 
     @property
     def label(self) -> str:

@@ -60,6 +60,7 @@ from renderer.pathtrace.mitsuba_variant import LIBLLVM_ENV, LLVM_VARIANT, active
 from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.shading import QUALITIES
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
@@ -129,10 +130,15 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         rows.append(shader_row)
         # The shader of the network's grid (the object voxels merged in pairs): faster, further from the path tracer.
         rows.append(bench_shading(scenes, settings, memory, score, GRID_SIZE)[0])
+        # The shader at its fast quality (one ray per silhouette pixel, 2 x 2 light points): faster, further off.
+        rows.append(bench_shading(scenes, settings, memory, score, quality="fast")[0])
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.
         trained += [_load_engine(path, _precisions()[0], shading_grid_factor=1) for path in _weights_files(model_paths)
                     if _shades_a_finer_grid(path)]
+        # And a network that reads the shader, given the shader's fast quality (which it was not trained on).
+        trained += [_load_engine(path, precision, shader_quality="fast") for path in _weights_files(model_paths)
+                    if _reads_the_shader(path) for precision in _precisions()]
         for engine in trained:
             rows.append(bench_network(engine, scenes, settings, memory, score))
         timing_only = _random_engines(settings, trained)
@@ -143,7 +149,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         shipped = f"({SHIPPED_MODELS['nvr+'].name})"
         candidates = sorted(trained + timing_only, key=lambda e: e.precision != "fp32")
         live = next((e for e in candidates if e.kind == "nvr+" and e.model_name.endswith(shipped)
-                     and "shading the" not in e.model_name), None) or next(
+                     and "shading the" not in e.model_name and e.shader_quality == "full"), None) or next(
             (e for e in candidates if e.kind == "nvr+" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         networks = bench_networks(settings)
@@ -214,28 +220,31 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
 
 
 def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
-                  score: Callable[[list[np.ndarray]], dict], grid_size: int = SHADER_GRID_SIZE) -> tuple[Row, list[float]]:
-    """The voxel shader of a `grid_size`^3 grid with its stages cached as in the editor: a frame after an object
-    move and, separately, a light edit (the light stage alone); the voxels are painted once per scene."""
+                  score: Callable[[list[np.ndarray]], dict], grid_size: int = SHADER_GRID_SIZE,
+                  quality: str = "full") -> tuple[Row, list[float]]:
+    """The voxel shader of a `grid_size`^3 grid at a `quality` (renderer.shading.QUALITIES) with its stages cached as
+    in the editor: a frame after an object move and, separately, a light edit (the light stage alone); the voxels are
+    painted once per scene."""
     memory.start()
     times, light_times, images = [], [], []
     for bench in scenes:
-        shader = _PaintedShader(bench, grid_size)
+        shader = _PaintedShader(bench, grid_size, quality)
         images.append(shader.render(bench.scene))
         times += alternating_ms(shader, move_pair(bench.scene), settings.repeats)
         light = bench.scene.light.position
         moved = bench.scene.with_changes(light=LightSpec((light[0] + 0.1, light[1], light[2] + 0.05)))
         light_times += alternating_ms(shader, (bench.scene, moved), settings.repeats)
-    return Row("voxel shader", f"{grid_size}^3 grid", *_spread(times), memory.peak_mb(), **score(images)), light_times
+    setting = f"{grid_size}^3 grid" + ("" if quality == "full" else f", {quality}")
+    return Row("voxel shader", setting, *_spread(times), memory.peak_mb(), **score(images)), light_times
 
 
 class _PaintedShader:
     """The staged voxel shader of one bench scene's painted voxels, rendering like an engine."""
 
-    def __init__(self, bench: BenchScene, grid_size: int = SHADER_GRID_SIZE):
+    def __init__(self, bench: BenchScene, grid_size: int = SHADER_GRID_SIZE, quality: str = "full"):
         self._rgba, self._floor = painted_voxels(bench.scene, object_voxels(bench.scene))
         self._key = bench.name
-        self._shader = StagedShader(grid_size)
+        self._shader = StagedShader(grid_size, QUALITIES[quality])
 
     def render(self, scene: Scene) -> np.ndarray:
         return self._shader.render(scene, self._key, self._rgba, self._floor, SIZE).image
@@ -417,19 +426,27 @@ def _precisions() -> list[str]:
     return [default] + (["fp32"] if default != "fp32" else [])
 
 
+def _reads_the_shader(path: Path) -> bool:
+    """Whether the weights file holds a network that reads the voxel shader's image and buffers."""
+    _, config, _ = check_weights_file(path)
+    return config.shading_input
+
+
 def _shades_a_finer_grid(path: Path) -> bool:
     """Whether the weights file holds a shader refiner that reads the shading of a grid finer than its own."""
     _, config, _ = check_weights_file(path)
     return config.shading_input and config.shading_grid_factor > 1
 
 
-def _load_engine(path: Path, precision: str, shading_grid_factor: int | None = None) -> RenderEngine:
+def _load_engine(path: Path, precision: str, shading_grid_factor: int | None = None,
+                 shader_quality: str = "full") -> RenderEngine:
     model, config, _ = load_model(path)
     if config.output_size != SIZE:
         raise InputError(f"renders {config.output_size}^2; the benchmark compares at {SIZE}^2", path)
     grid = "" if shading_grid_factor is None else f", shading the {config.grid_size * shading_grid_factor}^3 grid"
-    return RenderEngine(model, model_name=f"{config.name}{grid} ({path.name})", precision=precision,
-                        shading_grid_factor=shading_grid_factor)
+    quality = "" if shader_quality == "full" else f", {shader_quality} shading"
+    return RenderEngine(model, model_name=f"{config.name}{grid}{quality} ({path.name})", precision=precision,
+                        shading_grid_factor=shading_grid_factor, shader_quality=shader_quality)
 
 
 def _random_engines(settings: BenchSettings, trained: list[RenderEngine]) -> list[RenderEngine]:

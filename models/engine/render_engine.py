@@ -109,6 +109,7 @@ from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
 from renderer.scene import Scene
 from renderer.shading import (
+    QUALITIES,
     ShadedImage,
     network_buffers,
     object_geometry,
@@ -180,11 +181,13 @@ class RenderEngine:
 
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
                  precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None,
-                 object_source: Callable[[Scene], np.ndarray] = object_voxels):
+                 object_source: Callable[[Scene], np.ndarray] = object_voxels, shader_quality: str = "full"):
         """`shading_grid_factor`: shade the object voxels merged as for a grid this many times finer than the network's
         instead of the one the model's configuration names (1: as for the network's own grid, in pairs at scale 1:
         fewer voxels to trace, less accurate; nvr bench times both). `object_source`: a scene's unpainted object voxels
-        (read, never changed), e.g. from a cache the caller shares, so a mesh is not voxelised twice."""
+        (read, never changed), e.g. from a cache the caller shares, so a mesh is not voxelised twice. `shader_quality`:
+        'full' (what the networks were trained on) or 'fast' (fewer silhouette rays and light points: faster, less
+        accurate; renderer.shading.QUALITIES)."""
         set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
@@ -193,6 +196,10 @@ class RenderEngine:
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
+        if shader_quality not in QUALITIES:
+            raise InputError(f"unknown shader quality {shader_quality!r} (choose from {', '.join(QUALITIES)})")
+        self.shader_quality = shader_quality
+        self._quality = QUALITIES[shader_quality]
         self.precision = resolve_precision(precision, self.device)
         self.dtype = PRECISIONS[self.precision]
         self._reads_floor_light = reads_floor_light(model.architecture, self.config)
@@ -437,12 +444,13 @@ class RenderEngine:
                             lambda: placed(shape, scene.object, scene.camera.elevation_deg))
         geometry = replace(where, rgb=pooled.voxels[..., :3])
         traced = self._stage("shade_surface", keys.placement,  # its colors come next, from the painted voxels
-                             lambda: visible_surface(geometry, self.output_size, colors=False))
+                             lambda: visible_surface(geometry, self.output_size, colors=False,
+                                                                    quality=self._quality))
         surface = self._stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
         return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
-                                                              floor_terms))
+                                                              floor_terms, quality=self._quality))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""

@@ -23,6 +23,7 @@ from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
+from renderer.shading import QUALITIES
 
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 # NVR+ is the network that refines the voxel shader at half the image's side; nvrplus_shader_refiner.safetensors (the
@@ -54,21 +55,26 @@ def _load_renderer(model_path: str | None, renderer: str):
 
 
 def evaluate(data: list[str], model_path: str | None, renderer: str, report: str | Path, limit: int = 0,
-             shading_grid: int = SHADER_GRID_SIZE) -> Path:
+             shading_grid: int = SHADER_GRID_SIZE, shader_quality: str = "full") -> Path:
     """Compute MSE, DSSIM and perceptual per setting; write the report and figure; return the report path.
-    `shading_grid`: the side of the grid the 'shaded' renderer stands in for (a multiple of the network grid's 128)."""
+    `shading_grid`: the side of the grid the 'shaded' renderer stands in for (a multiple of the network grid's 128);
+    `shader_quality`: the shader's silhouette rays and light points (renderer.shading.QUALITIES), for both."""
     report = Path(report)
     if shading_grid < GRID_SIZE or shading_grid % GRID_SIZE:
         raise InputError(f"--shading-grid must be a multiple of {GRID_SIZE}, got {shading_grid}")
+    if shader_quality not in QUALITIES:
+        raise InputError(f"unknown shader quality {shader_quality!r} (choose from {', '.join(QUALITIES)})")
     model, config, extra = _load_renderer(model_path, renderer)
     if renderer == "shaded":
         extra = {"shading_grid": f"{shading_grid}^3"}
     elif model is not None and reads_shading(model.architecture, config):
         extra = {**extra, "shading_grid": f"{config.shading_grid_size}^3"}
+    if shader_quality != "full" and "shading_grid" in extra:
+        extra["shader_quality"] = shader_quality
     metrics = ImageMetrics()
     started = time.perf_counter()
     scores, (rows, captions), count = _score(data, model, config, renderer, metrics, limit,
-                                             shading_grid_factor=shading_grid // GRID_SIZE)
+                                             shading_grid_factor=shading_grid // GRID_SIZE, shader_quality=shader_quality)
     seconds = time.perf_counter() - started
     figure = report.with_suffix(".png")
     if rows:
@@ -108,7 +114,8 @@ def resolution_study(data: list[str], model_path: str | None, renderer: str, res
 
 
 def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics, limit: int,
-           object_resolution: int | None = None, figure: bool = True, shading_grid_factor: int = 1):
+           object_resolution: int | None = None, figure: bool = True, shading_grid_factor: int = 1,
+           shader_quality: str = "full"):
     """Per-setting metric lists, the figure's rows with their captions (none without `figure`), and the sample count.
     `shading_grid_factor`: how much finer than the network's grid the 'shaded' renderer's grid is."""
     # The splat baseline reads no voxels; the shader reads the scene grid.
@@ -117,7 +124,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     with_shading = model is not None and reads_shading(model.architecture, config)
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light,
                              shading=with_shading,
-                             shading_grid_factor=config.shading_grid_factor if with_shading else shading_grid_factor)
+                             shading_grid_factor=config.shading_grid_factor if with_shading else shading_grid_factor,
+                             shader_quality=shader_quality)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
@@ -186,6 +194,7 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
         f"- model: {model_path or ('shipped' if renderer not in ('splat', 'shaded') else 'none (' + renderer + ')')}"
         + (f", trained {extra.get('steps', '?')} steps" if extra.get("steps") else "")
         + (f", shading the {extra['shading_grid']} grid" if extra.get("shading_grid") else "")
+        + (f" at the shader's {extra['shader_quality']} quality" if extra.get("shader_quality") else "")
         + (f" starting from {extra['init']} (trained {extra.get('init_steps', '?')} steps)" if extra.get("init") else ""),
         f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",
         f"- perceptual metric: VGG16 conv1 + 0.1 conv2 with {weights_name}",

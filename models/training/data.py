@@ -80,7 +80,7 @@ class VoxelRenderSet(Dataset):
     def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128,
                  voxel_cache_bytes: int = VOXEL_CACHE_BYTES,
                  object_resolution: int | None = None, floor_light: bool = False, shading: bool = False,
-                 shading_grid_factor: int = 1):
+                 shading_grid_factor: int = 1, shader_quality: str = "full"):
         folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
         self.items: list[tuple[Path, dict]] = []
         self.settings: list[str] = []
@@ -103,6 +103,7 @@ class VoxelRenderSet(Dataset):
         self.floor_light = floor_light  # add the lit empty floor (NVR+ with config.floor_light_input)
         self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
         self.shading_grid_size = grid_size * shading_grid_factor  # the grid the shader draws from
+        self.shader_quality = shader_quality  # 'full' (as trained on) or 'fast': renderer.shading.QUALITIES
         self._voxel_cache_bytes = voxel_cache_bytes
         self._voxels: OrderedDict[str, _StoredVoxels] = OrderedDict()  # the objects read last, by voxel file
         self._dense: tuple[str, np.ndarray] | None = None  # the latest object's voxels, dense (views come in runs)
@@ -195,9 +196,10 @@ class VoxelRenderSet(Dataset):
         """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene at `size`^2: its object voxels merged
         as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors). `reflection`:
         with the floor's reflection of the object, as the shader draws its own image (a network's input has none)."""
-        from renderer.shading import shade_scene
+        from renderer.shading import QUALITIES, shade_scene
 
-        return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size, reflection=reflection)
+        return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size, reflection=reflection,
+                           quality=QUALITIES[self.shader_quality])
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:

@@ -2,9 +2,13 @@
 
 from renderer.shading.shader import (
     BUFFER_CHANNELS,
+    FAST_QUALITY,
+    FULL_QUALITY,
+    QUALITIES,
     FloorReflection,
     ObjectGeometry,
     ShadedImage,
+    ShaderQuality,
     VisibleSurface,
     floor_reflection,
     network_buffers,
@@ -16,5 +20,5 @@ from renderer.shading.shader import (
     visible_surface,
 )
 
-__all__ = ["BUFFER_CHANNELS", "FloorReflection", "ObjectGeometry", "ShadedImage", "VisibleSurface", "floor_reflection",
-           "network_buffers", "object_geometry", "placed", "repaint_surface", "shade", "shade_scene", "visible_surface"]
+__all__ = ["BUFFER_CHANNELS", "FAST_QUALITY", "FULL_QUALITY", "QUALITIES", "FloorReflection", "ObjectGeometry", "ShadedImage",
+           "ShaderQuality", "VisibleSurface", "floor_reflection", "network_buffers", "object_geometry", "placed", "repaint_surface", "shade", "shade_scene", "visible_surface"]

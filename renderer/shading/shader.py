@@ -14,13 +14,13 @@ lengths below in voxels are those merged voxels.
    for normals; the occupancy smoothed broadly for ambient occlusion; the shadows' occluders (the occupied voxels'
    mean centre in each block of about 1 / OCCLUDER_CELLS of the object box).
 2. visible_surface (adds the image size): per pixel, the first surface point a camera ray meets
-   (sphere tracing the distance), anti-aliased at silhouettes by 2 x 2 rays, its normal (averaged over the
+   (sphere tracing the distance), anti-aliased at silhouettes by 2 x 2 rays (ShaderQuality), its normal (averaged over the
    surface around it where the surface is flat), albedo (the voxels' colors averaged over the pixel's footprint)
    and ambient occlusion; the floor points, and how much of their sky the object blocks; these as
    images too (SurfaceImages), shared by every light's shaded image. floor_reflection: the same, coarser, of the
    object mirrored in the floor, where the floor shows (for the shader's own image, not a network's input).
 3. shade (adds the light and the floor color): soft shadows from shadow maps seen from
-   LIGHT_POINTS^2 points on the square light (the floor reads each as its square of the light: one smooth
+   LIGHT_POINTS^2 (ShaderQuality) points on the square light (the floor reads each as its square of the light: one smooth
    penumbra, not LIGHT_POINTS^2 copies), direct light (Lambert), ambient light with occlusion,
    light bounced up from the floor, the lit floor (renderer/floor_light.py, which a caller may keep
    while the object moves) times the object's shadow, and the object's reflection in the floor's glossy coat, if
@@ -148,6 +148,26 @@ REFLECTION_SCALE = 0.5
 CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still mark its pixels as ray candidates
 CANDIDATE_DEPTH = 0.25  # voxels of gap inside the surface a cell's points must reach to count (a ray stops within 0.1)
 CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (more: fewer boxes, more pixels traced)
+
+
+@dataclass(frozen=True)
+class ShaderQuality:
+    """How finely the shader samples its two dearest terms: rays per side at silhouette pixels (anti-aliasing) and
+    points per side of the square light (shadow maps, soft shadows). FULL_QUALITY is what the networks were trained
+    on; FAST_QUALITY takes about a seventh off an NVR+ frame after an object move and errs more (docs/results.md)."""
+
+    silhouette_rays: int = SUBPIXELS
+    light_points: int = LIGHT_POINTS
+
+    def __post_init__(self) -> None:
+        if not (1 <= self.silhouette_rays <= 8 and 1 <= self.light_points <= 8):
+            raise InputError(f"shader quality: silhouette rays and light points per side must be in [1, 8], got "
+                             f"{self.silhouette_rays} and {self.light_points}")
+
+
+FULL_QUALITY = ShaderQuality()
+FAST_QUALITY = ShaderQuality(silhouette_rays=1, light_points=2)
+QUALITIES = {"full": FULL_QUALITY, "fast": FAST_QUALITY}  # by the name the command line and the editor use
 
 
 @dataclass(frozen=True)
@@ -364,14 +384,15 @@ def _in_box(window: np.ndarray, start: np.ndarray, lo: np.ndarray, hi: np.ndarra
 # --- stage 2 ----------------------------------------------------------------------------------
 
 
-def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = True, colors: bool = True) -> VisibleSurface:
+def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = True, colors: bool = True,
+                    quality: ShaderQuality = FULL_QUALITY) -> VisibleSurface:
     """The object points and floor points a `size`^2 render camera sees, with their occlusion. `cover_behind`: a ray
     that grazes a part and goes on to a part behind it covers its pixel (no floor shows through at a part drawn over
     another); False counts it as partly covered, for photo delighting, where such a pixel mixes two parts. `colors`:
     False leaves the object grey, for a caller that repaints the surface next (repaint_surface) and so need not pay
-    for the colors twice."""
+    for the colors twice. `quality`: its rays per side at silhouette pixels."""
     camera = Camera(geometry.elevation_deg, width=size, height=size)
-    coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind)
+    coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind, quality.silhouette_rays)
     normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, NORMAL_RINGS)
     points_world, normals_world, depth = _in_world(geometry, camera, points_crop, normals_crop)
     color_spread = COLOR_SPREAD * np.maximum(depth, 0.0) / camera.focal_px  # a pixel's side at the point's depth
@@ -722,9 +743,9 @@ def _view_axis(camera: Camera) -> np.ndarray:
 # --- stage 3 ----------------------------------------------------------------------------------
 
 
-def light_points(light_position) -> np.ndarray:
-    """(LIGHT_POINTS^2, 3) world points at the centres of a regular grid over the square light."""
-    offsets = ((np.arange(LIGHT_POINTS) + 0.5) / LIGHT_POINTS - 0.5) * LIGHT_SIZE
+def light_points(light_position, per_side: int = LIGHT_POINTS) -> np.ndarray:
+    """(per_side^2, 3) world points at the centres of a regular grid over the square light."""
+    offsets = ((np.arange(per_side) + 0.5) / per_side - 0.5) * LIGHT_SIZE
     x, z = np.meshgrid(offsets, offsets, indexing="ij")
     light = np.asarray(light_position, dtype=np.float64)
     return np.stack([light[0] + x.ravel(), np.full(x.size, light[1]), light[2] + z.ravel()], axis=1)
@@ -732,16 +753,16 @@ def light_points(light_position) -> np.ndarray:
 
 def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
           floor_terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-          reflection: FloorReflection | None = None) -> ShadedImage:
+          reflection: FloorReflection | None = None, quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
     """The shaded image of the visible surface under the light at `light_position` (world). `floor_terms`: the
     empty floor's lighting, lit_floor_terms(camera, light_position, floor_color), if the caller keeps it (it does
     not change when the object does). `reflection`: the floor's mirror image of the object (floor_reflection) to draw,
-    if any (a network's input has none: it learned its own)."""
+    if any (a network's input has none: it learned its own). `quality`: its light points per side."""
     if floor_terms is None:
         floor_terms = lit_floor_terms(Camera(geometry.elevation_deg, width=surface.size, height=surface.size),
                                       light_position, floor_color)
     from_light, from_ambient, floor = floor_terms
-    lights = light_points(light_position)
+    lights = light_points(light_position, quality.light_points)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
     maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
     bounds = np.zeros((len(lights), 3))
@@ -754,7 +775,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
                          _floor_visibility(surface, geometry, lights, maps, bounds, nearest,
-                                           FLOOR_SHADOW_BIAS * block))
+                                           FLOOR_SHADOW_BIAS * block, LIGHT_SIZE / quality.light_points))
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
@@ -773,8 +794,9 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
 
 
 def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
-                      bounds: np.ndarray, nearest: np.ndarray, bias: float) -> np.ndarray:
-    """Share of the light each of the surface's floor points sees. The shadow maps are read on a grid of
+                      bounds: np.ndarray, nearest: np.ndarray, bias: float, spacing: float) -> np.ndarray:
+    """Share of the light each of the surface's floor points sees, each light point reading as its square of the
+    light (`spacing` on a side). The shadow maps are read on a grid of
     FLOOR_SHADOW_STEP over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
     points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
     floor_points = surface.floor_points
@@ -784,7 +806,7 @@ def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights:
     lo, hi = geometry.occluder_box
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
-        kernels.light_visibility(floor_points, bias, lights, maps, bounds, nearest, LIGHT_SIZE / LIGHT_POINTS, seen)
+        kernels.light_visibility(floor_points, bias, lights, maps, bounds, nearest, spacing, seen)
         return seen
     ends = lights[[0, -1]][:, None, :]  # opposite corners of the grid of light points
     cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
@@ -803,7 +825,7 @@ def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights:
     gx, gz = np.meshgrid(xs, zs, indexing="ij")
     samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
     on_grid = np.empty(len(samples))
-    kernels.light_visibility(samples, bias, lights, maps, bounds, nearest, LIGHT_SIZE / LIGHT_POINTS, on_grid)
+    kernels.light_visibility(samples, bias, lights, maps, bounds, nearest, spacing, on_grid)
     kernels.interpolate_grid(on_grid.reshape(gx.shape), x0, z0, FLOOR_SHADOW_STEP, floor_points, x1, z1, seen)
     return seen
 
@@ -885,16 +907,17 @@ def network_buffers(shaded: ShadedImage) -> np.ndarray:
 
 
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
-                grid_size: int = SHADER_GRID_SIZE, cover_behind: bool = True, reflection: bool = True) -> ShadedImage:
+                grid_size: int = SHADER_GRID_SIZE, cover_behind: bool = True, reflection: bool = True,
+                quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
     """All three stages at once: the shaded image of a scene whose (painted) object voxels are `object_rgba`, at `size`
     (default the scene's), from the object voxels merged as for a `grid_size`^3 grid (renderer.grid.shader_pool_factors;
     `cover_behind`: see visible_surface; `reflection`: False leaves out the floor's reflection of the object, as for a
-    network's input)."""
+    network's input; `quality`: ShaderQuality)."""
     resolution = object_rgba.shape[0]
     factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
     merged, _ = pool_object(object_rgba, factors)
     geometry = placed(object_geometry(merged, resolution, factors), scene.object, scene.camera.elevation_deg)
     size = scene.image_size if size is None else size
-    surface = visible_surface(geometry, size, cover_behind)
+    surface = visible_surface(geometry, size, cover_behind, quality=quality)
     mirrored = floor_reflection(geometry, surface) if reflection else None
-    return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored)
+    return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored, quality=quality)

@@ -28,14 +28,24 @@ from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import pool_object, shader_pool_factors
 from renderer.scene import SHADER_GRID_SIZE, Scene
-from renderer.shading.shader import ShadedImage, floor_reflection, object_geometry, placed, shade, visible_surface
+from renderer.shading.shader import (
+    FULL_QUALITY,
+    ShadedImage,
+    ShaderQuality,
+    floor_reflection,
+    object_geometry,
+    placed,
+    shade,
+    visible_surface,
+)
 
 
 class StagedShader:
     """Shades scenes one after another, rerunning only the stages an edit changed."""
 
-    def __init__(self, grid_size: int = SHADER_GRID_SIZE) -> None:
+    def __init__(self, grid_size: int = SHADER_GRID_SIZE, quality: ShaderQuality = FULL_QUALITY) -> None:
         self.grid_size = grid_size  # the grid whose merge of the object voxels the shader draws (grid.shader_pool_factors)
+        self.quality = quality  # silhouette rays and light points (shader.ShaderQuality), fixed for the cache's life
         self._memo: dict[str, tuple[Hashable, Any]] = {}
         self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
 
@@ -49,13 +59,13 @@ class StagedShader:
         shape = self._stage("geometry", (voxels_key, factors), lambda: object_geometry(merged, n, factors))
         placed_key = (voxels_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
         geometry = self._stage("placed", placed_key, lambda: placed(shape, o, elevation))
-        surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size))
+        surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size, quality=self.quality))
         reflection = self._stage("reflection", (placed_key, size), lambda: floor_reflection(geometry, surface))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
             Camera(elevation, width=size, height=size), light, floor))
         return self._stage("shade", (placed_key, size, light, floor), lambda: shade(geometry, surface, light, floor,
-                                                                                 floor_terms, reflection))
+                                                                                 floor_terms, reflection, self.quality))
 
     def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
         if name in self._memo and self._memo[name][0] == key:
