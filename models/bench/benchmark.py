@@ -267,11 +267,8 @@ def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: Benc
 
 def bench_edits(engine: RenderEngine, bench: BenchScene, settings: BenchSettings) -> dict[str, dict]:
     """Latency of each edit type through the engine, with the object crop and (unless quick) with the full grid."""
-    rgba = object_voxels(bench.scene)
-    occupied = np.argwhere(rgba[..., 3] >= 0.5)
-    paint_seed = tuple(int(i) for i in occupied[len(occupied) // 2])
     out = {}
-    for name, pair in _edit_pairs(bench.scene, paint_seed).items():
+    for name, pair in edit_pairs(bench.scene).items():
         times = alternating_ms(engine, pair, settings.edit_repeats)
         report = engine.last_report
         row = {"ms": statistics.median(times), "ms_q25": _spread(times)[1], "ms_q75": _spread(times)[2],
@@ -288,11 +285,13 @@ def bench_edits(engine: RenderEngine, bench: BenchScene, settings: BenchSettings
     return {"model": f"{engine.model_name}, {engine.precision}", "scene": bench.name, **out}
 
 
-def _edit_pairs(scene: Scene, paint_seed: tuple[int, int, int]) -> dict[str, tuple[Scene, Scene]]:
+def edit_pairs(scene: Scene) -> dict[str, tuple[Scene, Scene]]:
     """Two scenes per edit type that differ only in that edit: rendering them in turn measures the edit.
 
-    The paint stroke is a region fill around `paint_seed`, an occupied voxel of the object.
+    The paint stroke is a region fill around the object's middle occupied voxel (in voxel order).
     """
+    occupied = np.argwhere(object_voxels(scene)[..., 3] >= 0.5)
+    paint_seed = tuple(int(i) for i in occupied[len(occupied) // 2])
     x, y, z = scene.light.position
     return {
         "light": (scene, scene.with_changes(light=LightSpec((x - 0.6, y, z + 0.4)))),
