@@ -84,10 +84,10 @@ def _render_splat(scene, size: int):
 
 def _render_shaded(scene, size: int, quality: str):
     from renderer.pipeline import object_voxels, painted_voxels
-    from renderer.shading import QUALITIES, shade_scene
+    from renderer.shading import quality_named, shade_scene
 
     rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    return shade_scene(scene, rgba, floor_color, size=size, quality=QUALITIES[quality]).image, _quality_detail(quality)
+    return shade_scene(scene, rgba, floor_color, size=size, quality=quality_named(quality)).image, _quality_detail(quality)
 
 
 def _quality_detail(quality: str) -> str:
@@ -376,6 +376,12 @@ def cmd_eval(args: argparse.Namespace) -> None:
     print(f"wrote {written}")
 
 
+def _add_quality_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quality", choices=["full", "fast"], default="full",
+                   help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
+                        "silhouette pixel and 2 x 2 light points, faster, less accurate")
+
+
 def _parse_resolutions(text: str) -> list[int]:
     """--resolution-study's list, e.g. "100,75,50,25": object voxels per side, each a possible resolution."""
     try:
@@ -433,9 +439,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
                    help="network arithmetic (auto: bf16 on CPUs with native bfloat16, else fp32)")
     p.add_argument("--device", default="auto", help="network device: auto (a CUDA GPU if there is one), cpu or cuda")
-    p.add_argument("--quality", choices=["full", "fast"], default="full",
-                   help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
-                        "silhouette pixel and 2 x 2 light points, faster, less accurate")
+    _add_quality_argument(p)
     p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
     p.set_defaults(func=cmd_render)
 
@@ -585,9 +589,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--shading-grid", type=int, default=256, metavar="N",
                    help="the grid the shaded renderer stands in for: 256 (the object's voxels unmerged, the editor's) "
                         "or 128 (the network's: merged in pairs, faster)")
-    p.add_argument("--quality", choices=["full", "fast"], default="full",
-                   help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
-                        "silhouette pixel and 2 x 2 light points, faster, less accurate")
+    _add_quality_argument(p)
     p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
                    help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
     p.add_argument("--force", action="store_true", help="overwrite the report if it exists")

@@ -26,7 +26,7 @@ from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import Scene
-from renderer.shading import QUALITIES
+from renderer.shading import quality_named
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
@@ -67,7 +67,7 @@ class ShadedEngine:
 
     def __init__(self, voxels: VoxelCache, quality: str = "full"):
         self._voxels = voxels
-        self._shader = StagedShader(quality=QUALITIES[quality])
+        self._shader = StagedShader(quality=quality_named(quality))
         self._lock = threading.Lock()  # exports on the UI thread and the render thread share the stages
         self.last_report: RenderReport | None = None
 

@@ -60,7 +60,7 @@ from renderer.pathtrace.mitsuba_variant import LIBLLVM_ENV, LLVM_VARIANT, active
 from renderer.pathtrace.path_tracer import PathTracer
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
-from renderer.shading import QUALITIES
+from renderer.shading import quality_named
 from renderer.shading.staged import StagedShader
 from renderer.splat import splat_scene
 
@@ -244,7 +244,7 @@ class _PaintedShader:
     def __init__(self, bench: BenchScene, grid_size: int = SHADER_GRID_SIZE, quality: str = "full"):
         self._rgba, self._floor = painted_voxels(bench.scene, object_voxels(bench.scene))
         self._key = bench.name
-        self._shader = StagedShader(grid_size, QUALITIES[quality])
+        self._shader = StagedShader(grid_size, quality_named(quality))
 
     def render(self, scene: Scene) -> np.ndarray:
         return self._shader.render(scene, self._key, self._rgba, self._floor, SIZE).image

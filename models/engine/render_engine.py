@@ -109,11 +109,11 @@ from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
 from renderer.scene import Scene
 from renderer.shading import (
-    QUALITIES,
     ShadedImage,
     network_buffers,
     object_geometry,
     placed,
+    quality_named,
     repaint_surface,
     shade,
     visible_surface,
@@ -196,10 +196,8 @@ class RenderEngine:
         self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
-        if shader_quality not in QUALITIES:
-            raise InputError(f"unknown shader quality {shader_quality!r} (choose from {', '.join(QUALITIES)})")
+        self._quality = quality_named(shader_quality)
         self.shader_quality = shader_quality
-        self._quality = QUALITIES[shader_quality]
         self.precision = resolve_precision(precision, self.device)
         self.dtype = PRECISIONS[self.precision]
         self._reads_floor_light = reads_floor_light(model.architecture, self.config)

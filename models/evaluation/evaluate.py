@@ -23,7 +23,7 @@ from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
-from renderer.shading import QUALITIES
+from renderer.shading import quality_named
 
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 # NVR+ is the network that refines the voxel shader at half the image's side; nvrplus_shader_refiner.safetensors (the
@@ -62,8 +62,7 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     report = Path(report)
     if shading_grid < GRID_SIZE or shading_grid % GRID_SIZE:
         raise InputError(f"--shading-grid must be a multiple of {GRID_SIZE}, got {shading_grid}")
-    if shader_quality not in QUALITIES:
-        raise InputError(f"unknown shader quality {shader_quality!r} (choose from {', '.join(QUALITIES)})")
+    quality_named(shader_quality)  # a clear message for an unknown name before any work
     model, config, extra = _load_renderer(model_path, renderer)
     if renderer == "shaded":
         extra = {"shading_grid": f"{shading_grid}^3"}

@@ -196,10 +196,10 @@ class VoxelRenderSet(Dataset):
         """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene at `size`^2: its object voxels merged
         as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors). `reflection`:
         with the floor's reflection of the object, as the shader draws its own image (a network's input has none)."""
-        from renderer.shading import QUALITIES, shade_scene
+        from renderer.shading import quality_named, shade_scene
 
         return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size, reflection=reflection,
-                           quality=QUALITIES[self.shader_quality])
+                           quality=quality_named(self.shader_quality))
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:

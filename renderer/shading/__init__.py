@@ -14,6 +14,7 @@ from renderer.shading.shader import (
     network_buffers,
     object_geometry,
     placed,
+    quality_named,
     repaint_surface,
     shade,
     shade_scene,
@@ -21,4 +22,4 @@ from renderer.shading.shader import (
 )
 
 __all__ = ["BUFFER_CHANNELS", "FAST_QUALITY", "FULL_QUALITY", "QUALITIES", "FloorReflection", "ObjectGeometry", "ShadedImage",
-           "ShaderQuality", "VisibleSurface", "floor_reflection", "network_buffers", "object_geometry", "placed", "repaint_surface", "shade", "shade_scene", "visible_surface"]
+           "ShaderQuality", "VisibleSurface", "floor_reflection", "network_buffers", "object_geometry", "placed", "quality_named", "repaint_surface", "shade", "shade_scene", "visible_surface"]

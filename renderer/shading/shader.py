@@ -170,6 +170,13 @@ FAST_QUALITY = ShaderQuality(silhouette_rays=1, light_points=2)
 QUALITIES = {"full": FULL_QUALITY, "fast": FAST_QUALITY}  # by the name the command line and the editor use
 
 
+def quality_named(name: str) -> ShaderQuality:
+    """The ShaderQuality a name of QUALITIES stands for; an InputError for any other name."""
+    if name not in QUALITIES:
+        raise InputError(f"unknown shader quality {name!r} (choose from {', '.join(QUALITIES)})")
+    return QUALITIES[name]
+
+
 @dataclass(frozen=True)
 class ObjectGeometry:
     """What the shader derives from the object's voxels alone (stage 1), and where `placed` put them."""
