@@ -442,8 +442,7 @@ class RenderEngine:
                             lambda: placed(shape, scene.object, scene.camera.elevation_deg))
         geometry = replace(where, rgb=pooled.voxels[..., :3])
         traced = self._stage("shade_surface", keys.placement,  # its colors come next, from the painted voxels
-                             lambda: visible_surface(geometry, self.output_size, colors=False,
-                                                                    quality=self._quality))
+                             lambda: visible_surface(geometry, self.output_size, colors=False, quality=self._quality))
         surface = self._stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
         floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))

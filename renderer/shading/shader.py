@@ -154,7 +154,8 @@ CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (mo
 class ShaderQuality:
     """How finely the shader samples its two dearest terms: rays per side at silhouette pixels (anti-aliasing) and
     points per side of the square light (shadow maps, soft shadows). FULL_QUALITY is what the networks were trained
-    on; FAST_QUALITY takes about a seventh off an NVR+ frame after an object move and errs more (docs/results.md)."""
+    on; FAST_QUALITY takes about a fifth off an NVR+ frame after an object move in bf16 (less in fp32) and errs more
+    (docs/results.md, "Speed")."""
 
     silhouette_rays: int = SUBPIXELS
     light_points: int = LIGHT_POINTS
