@@ -1,7 +1,7 @@
 """Where an edit's time goes: the shipped NVR+'s latency per edit type and the median of each engine stage it reran.
 
 Usage: python -m benchmarks.bench_edit_stages [--data DIR ...] [--scenes N] [--repeats R] [--precision fp32|bf16]
-       [--quality full|fast] [--edits light,object move,camera]
+       [--quality full|fast] [--edits light,object move,camera] [--model FILE]
 Each edit alternates between two scenes that differ only in it (nvr bench's pairs), on the first view of up to N
 objects of the test folders, after one render of each; prints the median ms per edit over all scenes and the
 median of each stage's own time (a stage's time includes the stages it called, as the engine reports them), then
@@ -33,11 +33,12 @@ def main() -> None:
     p.add_argument("--precision", choices=["fp32", "bf16"], default="fp32")
     p.add_argument("--quality", choices=["full", "fast"], default="full", help="the voxel shader's")
     p.add_argument("--edits", default="light,object move,camera", help="comma-separated edit types of nvr bench")
+    p.add_argument("--model", default=None, help="NVR+ weights (.safetensors); default: the shipped model")
     args = p.parse_args()
 
     import torch
 
-    engine = RenderEngine.load(shipped_model("nvr+"), precision=args.precision, shader_quality=args.quality)
+    engine = RenderEngine.load(args.model or shipped_model("nvr+"), precision=args.precision, shader_quality=args.quality)
     scenes = data_scenes(args.data, args.scenes)
     results = {}
     pairs = [edit_pairs(bench.scene) for bench in scenes]  # each voxelises its object once

@@ -151,7 +151,8 @@ class View:
     light: tuple[float, float, float]
 
 
-def _uniform_light(rng: np.random.Generator) -> tuple[float, float, float]:
+def sample_light(rng: np.random.Generator) -> tuple[float, float, float]:
+    """A light position drawn uniformly over the box lights are sampled from (renderer.scene)."""
     return (
         float(rng.uniform(*LIGHT_XZ_RANGE)),
         float(rng.uniform(*LIGHT_Y_RANGE)),
@@ -169,7 +170,7 @@ def sample_train_views(rng: np.random.Generator, count: int) -> list[View]:
                 rotation_deg=float(rng.uniform(*FACING_ROTATION_RANGE)),
                 translation=(float(rng.uniform(*TRANSLATION_RANGE)), float(rng.uniform(*TRANSLATION_RANGE))),
                 scale=tuple(float(s) for s in rng.uniform(*SCALE_RANGE, size=3)),
-                light=_uniform_light(rng),
+                light=sample_light(rng),
             )
         )
     return views
@@ -185,7 +186,7 @@ def sample_test_sequence(rng: np.random.Generator, count: int) -> list[View]:
     if direction < 0:
         start = lo + hi - start  # walk the same span downwards from the mirrored start
     t0, t1 = rng.uniform(*TRANSLATION_RANGE, size=2), rng.uniform(*TRANSLATION_RANGE, size=2)
-    l0, l1 = np.array(_uniform_light(rng)), np.array(_uniform_light(rng))
+    l0, l1 = np.array(sample_light(rng)), np.array(sample_light(rng))
     scale = tuple(float(s) for s in rng.uniform(*SCALE_RANGE, size=3))
     views = []
     for k in range(count):
@@ -209,7 +210,7 @@ def sample_source_view(rng: np.random.Generator) -> View:
         rotation_deg=float(rng.uniform(*FACING_ROTATION_RANGE)),
         translation=(0.0, 0.0),
         scale=(1.0, 1.0, 1.0),
-        light=_uniform_light(rng),
+        light=sample_light(rng),
     )
 
 
