@@ -344,12 +344,11 @@ def cmd_train(args: argparse.Namespace) -> None:
 
 def cmd_distill(args: argparse.Namespace) -> None:
     import models.engine  # noqa: F401 - before torch, so OMP_WAIT_POLICY is set when torch loads OpenMP
-    from models.evaluation.evaluate import shipped_model
     from models.training.distill import DistillConfig, distill
 
     out = _output_path(args.out, args.force)
     config = DistillConfig(
-        teacher=str(args.model or shipped_model("nvr+")), post_light_blocks=args.post_light_blocks,
+        teacher=args.model, post_light_blocks=args.post_light_blocks,
         objects=args.objects, views=args.views, steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
         resolution=args.res, categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()))
     measured = distill(out, config)
@@ -597,7 +596,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("distill", help="an NVR+ with fewer residual blocks after the light merge (a faster light "
                                        "edit), trained to give a trained one's features; no rendered data needed")
-    p.add_argument("--model", default=None, help="the teacher's weights (.safetensors); default: the shipped NVR+")
+    p.add_argument("--model", required=True, help="the teacher's weights (.safetensors), e.g. "
+                                                  "assets/models/nvrplus_half_res_refiner.safetensors")
     p.add_argument("--out", required=True, help="weights file to write")
     p.add_argument("--post-light-blocks", type=int, default=1, help="the student's residual blocks after the merge")
     p.add_argument("--objects", type=int, default=160, help="procedural training-split objects to take latents from")

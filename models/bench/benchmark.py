@@ -444,7 +444,9 @@ def _load_engine(path: Path, precision: str, shading_grid_factor: int | None = N
         raise InputError(f"renders {config.output_size}^2; the benchmark compares at {SIZE}^2", path)
     grid = "" if shading_grid_factor is None else f", shading the {config.grid_size * shading_grid_factor}^3 grid"
     quality = "" if shader_quality == "full" else f", {shader_quality} shading"
-    return RenderEngine(model, model_name=f"{config.name}{grid}{quality} ({path.name})", precision=precision,
+    blocks = config.post_light_blocks  # a distilled network (nvr distill) has fewer than its configuration's
+    lean = "" if blocks == type(config).post_light_blocks else f", {blocks} block{'s' * (blocks != 1)} after the light"
+    return RenderEngine(model, model_name=f"{config.name}{lean}{grid}{quality} ({path.name})", precision=precision,
                         shading_grid_factor=shading_grid_factor, shader_quality=shader_quality)
 
 

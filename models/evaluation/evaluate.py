@@ -28,7 +28,7 @@ from renderer.shading import quality_named
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
 # NVR+ is the network that refines the voxel shader at half the image's side; nvrplus_shader_refiner.safetensors (the
 # same at full resolution) and nvrplus_compact.safetensors (the NVR+ before the shader) stay for comparison.
-SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_half_res_refiner.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
+SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_half_res_refiner_distilled.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
 METRICS = ("mse", "dssim", "perceptual")
 
 
