@@ -128,3 +128,14 @@ def test_cli_refuses_a_teacher_that_is_not_a_weights_file(tmp_path, capsys):
     assert code == 2
     assert len(err.splitlines()) == 1 and "teacher.safetensors" in err
     assert not (tmp_path / "student.safetensors").exists()
+
+
+def test_cli_writes_a_student_that_loads(distilled, tmp_path, capsys):
+    _, config, _ = distilled
+    out = tmp_path / "student.safetensors"
+    code = run(["distill", "--model", config.teacher, "--out", str(out), "--objects", "2", "--views", "1",
+                "--steps", "2", "--batch", "2", "--res", "24", "--categories", "stool"])
+    assert code == 0
+    assert f"wrote {out}" in capsys.readouterr().out
+    assert load_model(out)[1].post_light_blocks == 1
+    assert run(["distill", "--model", config.teacher, "--out", str(out)]) == 2  # exists: refused without --force
