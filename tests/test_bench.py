@@ -9,7 +9,7 @@ import numpy as np
 from PIL import Image
 
 from app.cli import run
-from models.bench.plot import Point, pareto_front
+from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.system import PeakMemory
 from models.evaluation.evaluate import shipped_model
 from models.networks.checkpoint import load_model
@@ -44,7 +44,7 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     text = report.read_text()
     assert "| path tracing | 1 spp + OIDN |" in text and "## Latency per edit" in text
     with Image.open(tmp_path / "speed_vs_error.png") as figure:
-        assert figure.format == "PNG" and figure.size == (1100, 760)
+        assert figure.format == "PNG" and figure.width == 1100 and figure.height >= 760  # taller with a key
 
 
 def test_quick_bench_never_writes_the_project_page(tmp_path, capsys):
@@ -67,6 +67,29 @@ def test_pareto_front_by_hand():
               Point("d", "path tracing", 200, 40), Point("e", "NVR", 10, 60)]
     # d is slower and worse than b; e ties a on time and is worse.
     assert [p.label for p in pareto_front(points)] == ["c", "a", "b"]
+
+
+def test_figure_labels_overlap_nothing_and_crowded_points_are_keyed(tmp_path):
+    from PIL import Image, ImageFont
+
+    from models.bench.plot import HEIGHT, KEY_ROW, _place_labels
+
+    font = ImageFont.load_default(size=14)
+    apart = [(200.0, 300.0), (700.0, 150.0)]
+    crowded = [(400.0 + k, 400.0 + k) for k in range(16)]  # sixteen points within 15 x 15 pixels
+    points = [Point(f"renderer number {k}", "NVR+", 1.0, 1.0) for k in range(len(apart) + len(crowded))]
+    placed = _place_labels(points, apart + crowded, font)
+    assert [text for text, _, _ in placed[:2]] == ["renderer number 0", "renderer number 1"]
+    numbers = [text for text, _, _ in placed[2:] if text.isdigit()]
+    assert numbers == [str(k) for k in range(1, len(numbers) + 1)] and len(numbers) >= 3
+    boxes = [(left, top, left + font.getlength(text), top + 16) for text, left, top in placed]
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            assert not (a[0] < b[2] and a[2] > b[0] and a[1] < b[3] and a[3] > b[1])  # no two labels overlap
+    draw_speed_vs_error([Point(f"renderer number {k}", "NVR+", 50 + 0.5 * k, 10 + 0.1 * k) for k in range(8)]
+                        + [Point("far", "splatting", 5, 3000)], tmp_path / "f.png")
+    image = Image.open(tmp_path / "f.png")
+    assert image.height > HEIGHT and (image.height - HEIGHT - 10) % KEY_ROW == 0  # a key below for the numbers
 
 
 def test_peak_memory_sees_a_native_allocation():

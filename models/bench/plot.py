@@ -38,36 +38,76 @@ def _dominates(q: Point, p: Point) -> bool:
 
 
 def draw_speed_vs_error(points: list[Point], path: str | Path, error_name: str = "MSE (0-255)") -> None:
-    """Write the figure as PNG (atomically); points need positive time and error."""
+    """Write the figure as PNG (atomically); points need positive time and error. A label that finds no free place
+    next to its point becomes a number there, keyed below the plot."""
     points = [p for p in points if p.ms > 0 and p.error > 0]
-    image = Image.new("RGB", (WIDTH, HEIGHT), "white")
-    draw = ImageDraw.Draw(image)
     font = ImageFont.load_default(size=14)
     if not points:
-        draw.text((WIDTH // 3, HEIGHT // 2), "no renderer with an error measurement", fill="black", font=font)
+        image = Image.new("RGB", (WIDTH, HEIGHT), "white")
+        ImageDraw.Draw(image).text((WIDTH // 3, HEIGHT // 2), "no renderer with an error measurement", fill="black",
+                                   font=font)
     else:
         x_axis = _LogAxis(min(p.ms for p in points), max(p.ms for p in points), MARGIN_LEFT, WIDTH - MARGIN_RIGHT)
         y_axis = _LogAxis(min(p.error for p in points), max(p.error for p in points), HEIGHT - MARGIN_BOTTOM, MARGIN_TOP)
+        centres = [(x_axis(p.ms), y_axis(p.error)) for p in points]
+        labels = _place_labels(points, centres, font)
+        keyed = [(text, p) for p, (text, _, _) in zip(points, labels) if text != p.label]
+        key_rows = math.ceil(len(keyed) / 2)
+        image = Image.new("RGB", (WIDTH, HEIGHT + (KEY_ROW * key_rows + 10 if keyed else 0)), "white")
+        draw = ImageDraw.Draw(image)
         _draw_axes(draw, font, x_axis, y_axis, error_name)
         front = pareto_front(points)
         xy = [(x_axis(p.ms), y_axis(p.error)) for p in front]
         for (x0, y0), (x1, y1) in zip(xy, xy[1:]):  # staircase: nothing below and left of it
             draw.line([(x0, y0), (x1, y0), (x1, y1)], fill=(120, 120, 120), width=2)
-        taken: list[tuple[float, float, float, float]] = []  # label boxes drawn so far
-        for p in points:
-            x, y = x_axis(p.ms), y_axis(p.error)
+        for p, (x, y), (text, left, top) in zip(points, centres, labels):
             color = FAMILY_COLORS.get(p.family, (0, 0, 0))
-            on_front = p in front
-            draw.ellipse([x - 6, y - 6, x + 6, y + 6], fill=color if on_front else "white", outline=color, width=2)
-            width = draw.textlength(p.label, font=font)
-            left, top = (x + 8 if x + 8 + width < WIDTH - MARGIN_RIGHT else x - 8 - width), y - 16
-            while any(left < x1 and left + width > x0 and top < y1 and top + 16 > y0 for x0, y0, x1, y1 in taken):
-                top += 16  # below the label it would cover (points close in time and error)
-            taken.append((left, top, left + width, top + 16))
-            draw.text((left, top), p.label, fill=color, font=font)
+            draw.ellipse([x - 6, y - 6, x + 6, y + 6], fill=color if p in front else "white", outline=color, width=2)
+            draw.text((left, top), text, fill=color, font=font)
+        for k, (number, p) in enumerate(keyed):
+            left = MARGIN_LEFT + (k % 2) * (WIDTH - MARGIN_LEFT - MARGIN_RIGHT) // 2
+            draw.text((left, HEIGHT + 5 + KEY_ROW * (k // 2)), f"{number}: {p.label}",
+                      fill=FAMILY_COLORS.get(p.family, (0, 0, 0)), font=font)
         _draw_legend(draw, font)
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG")
+
+
+KEY_ROW = 18  # pixels per row of the key below the plot
+
+
+def _place_labels(points: list[Point], centres: list[tuple[float, float]], font) -> list[tuple[str, float, float]]:
+    """(text, left, top) per point: its label beside it where that covers no other label or point and stays inside
+    the plot, else a number (1, 2, ... in the order of the points) beside it."""
+    taken = [(x - 7, y - 7, x + 7, y + 7) for x, y in centres]  # the points' circles
+    placed, numbers = [], 0
+    for p, (x, y) in zip(points, centres):
+        spot = _free_spot(p.label, x, y, font, taken)
+        text = p.label
+        if spot is None:
+            numbers += 1
+            text = str(numbers)
+            spot = _free_spot(text, x, y, font, taken, anywhere=True)
+        left, top = spot
+        taken.append((left, top, left + font.getlength(text), top + 16))
+        placed.append((text, left, top))
+    return placed
+
+
+def _free_spot(text: str, x: float, y: float, font, taken: list[tuple[float, float, float, float]],
+               anywhere: bool = False) -> tuple[float, float] | None:
+    """The first of a few places beside (x, y) where `text` fits inside the plot over nothing taken; None if none
+    does (with `anywhere`, the first place instead)."""
+    width = font.getlength(text)
+    candidates = [(left, y + dy) for dy in (-16, 0, -32, 16, -48, 32) for left in (x + 9, x - 9 - width)]
+    if anywhere:  # a short number: further out too, nearest first
+        candidates += sorted(((x + dx, y + dy) for dx in range(-120, 121, 12) for dy in range(-112, 113, 16)),
+                             key=lambda spot: math.hypot(spot[0] - x, spot[1] - y))
+    for left, top in candidates:
+        inside = MARGIN_LEFT < left and left + width < WIDTH - MARGIN_RIGHT and MARGIN_TOP < top and top + 16 < HEIGHT - MARGIN_BOTTOM
+        if inside and not any(left < x1 and left + width > x0 and top < y1 and top + 16 > y0 for x0, y0, x1, y1 in taken):
+            return left, top
+    return candidates[0] if anywhere else None
 
 
 class _LogAxis:

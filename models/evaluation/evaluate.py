@@ -194,7 +194,9 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
         + (f", trained {extra.get('steps', '?')} steps" if extra.get("steps") else "")
         + (f", shading the {extra['shading_grid']} grid" if extra.get("shading_grid") else "")
         + (f" at the shader's {extra['shader_quality']} quality" if extra.get("shader_quality") else "")
-        + (f" starting from {extra['init']} (trained {extra.get('init_steps', '?')} steps)" if extra.get("init") else ""),
+        + (f" starting from {extra['init']} (trained {extra.get('init_steps', '?')} steps)" if extra.get("init") else "")
+        + (f"; distilled to {distilled.get('post_light_blocks', '?')} residual block(s) after the light merge in "
+           f"{distilled.get('steps', '?')} steps" if isinstance(distilled := extra.get("distilled"), dict) else ""),
         f"- data: {', '.join(map(str, data))}; {count} samples; {seconds:.1f} s on {platform.node() or 'this machine'}",
         f"- perceptual metric: VGG16 conv1 + 0.1 conv2 with {weights_name}",
         "",
