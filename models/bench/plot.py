@@ -16,6 +16,7 @@ from renderer.io import atomic_path
 
 WIDTH, HEIGHT = 1100, 760
 MARGIN_LEFT, MARGIN_RIGHT, MARGIN_TOP, MARGIN_BOTTOM = 90, 30, 50, 70
+KEY_ROW = 18  # pixels per row of the key below the plot (labels that found no place beside their points)
 FAMILY_COLORS = {"path tracing": (200, 80, 40), "splatting": (60, 140, 60), "voxel shader": (200, 150, 0), "NVR": (70, 110, 200), "NVR+": (130, 60, 170)}
 
 
@@ -71,9 +72,6 @@ def draw_speed_vs_error(points: list[Point], path: str | Path, error_name: str =
         _draw_legend(draw, font)
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG")
-
-
-KEY_ROW = 18  # pixels per row of the key below the plot
 
 
 def _place_labels(points: list[Point], centres: list[tuple[float, float]], font) -> list[tuple[str, float, float]]:
