@@ -141,7 +141,6 @@ def distill(out: str | Path, config: DistillConfig, progress: bool = True) -> di
     if not isinstance(teacher, NVRPlus):
         raise InputError("is not an NVR+ network (distillation keeps NVR+'s other branches)", config.teacher)
     config.check(teacher_config.post_light_blocks)
-    torch.manual_seed(config.seed)
     latents, elevations = training_latents(teacher, config, progress)
     held_out = np.arange(len(latents)) % HELD_OUT_EVERY == 0
     train_rows, test_rows = np.flatnonzero(~held_out), np.flatnonzero(held_out)
