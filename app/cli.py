@@ -393,7 +393,8 @@ def cmd_eval(args: argparse.Namespace) -> None:
 def _add_quality_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quality", choices=["full", "fast"], default="full",
                    help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
-                        "silhouette pixel and 2 x 2 light points, faster, less accurate")
+                        "silhouette pixel, 2 x 2 light points, normals from the smoothed field alone, one voxel's color "
+                        "a point, faster, less accurate")
 
 
 def _parse_resolutions(text: str) -> list[int]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 from collections import defaultdict
 from contextlib import contextmanager
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -17,7 +18,7 @@ import torch
 import renderer.shading.shader as shader
 from models.evaluation.metrics import dssim, mse_255
 from models.training.data import VoxelRenderSet
-from renderer.shading import kernels
+from renderer.shading import FULL_QUALITY, kernels
 
 
 def _lit_everywhere(receivers, bias, lights, depth, bounds, nearest, spread, out):
@@ -37,6 +38,8 @@ def patched(module, **values):
             setattr(module, name, value)
 
 
+# Each ablation: the module attributes it sets, and the shader quality it renders at (the full one, or a term of it
+# taken out).
 ABLATIONS = {
     "full shader": (shader, {}),
     "no shadows (every point sees the whole light)": (kernels, {"light_visibility": _lit_everywhere}),
@@ -45,9 +48,10 @@ ABLATIONS = {
                                       "FLOOR_OCCLUSION_WEIGHTS": np.zeros(4, np.float32)}),
     "no light bounced from the floor": (shader, {"FLOOR_BOUNCE": 0.0}),
     "less smooth normals (from the surface's own field)": (shader, {"NORMAL_SIGMA": shader.DISTANCE_SIGMA}),
-    "normals not averaged over the tangent plane's disc": (shader, {"NORMAL_RINGS": 0}),
+    "normals not averaged over the tangent plane's disc": (shader, {}, replace(FULL_QUALITY, normal_rings=0)),
     "no reflection of the object in the floor": (shader, {"REFLECTION_SCALE": 0.0}),
-    "each point colored by one voxel (not averaged over the pixel's footprint)": (shader, {"COLOR_SPREAD": 0.0}),
+    "each point colored by one voxel (not averaged over the pixel's footprint)": (shader, {},
+                                                                                  replace(FULL_QUALITY, color_spread=0.0)),
 }
 
 
@@ -66,11 +70,12 @@ def main() -> None:
     print(f"{len(samples)} test images; MSE (0-255) / DSSIM per setting\n")
     print("| shader | " + " | ".join(settings) + " |")
     print("|---|" + "---:|" * len(settings))
-    for name, (module, values) in ABLATIONS.items():
+    for name, (module, values, *quality) in ABLATIONS.items():
         scores = defaultdict(list)
         with patched(module, **values):
             for target, scene, rgba, setting in samples:
-                image = shader.shade_scene(scene, rgba, scene.floor.color, target.shape[-1], args.shading_grid).image
+                image = shader.shade_scene(scene, rgba, scene.floor.color, target.shape[-1], args.shading_grid,
+                                           quality=quality[0] if quality else FULL_QUALITY).image
                 prediction = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
                 target = target[None]
                 scores[setting].append((float(mse_255(prediction, target)[0]), float(dssim(prediction, target)[0])))

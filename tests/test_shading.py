@@ -776,9 +776,9 @@ def test_an_object_reaching_up_to_the_light_reads_only_the_floor_in_view(monkeyp
 
 
 def test_the_fast_quality_samples_less_and_shades_nearly_alike():
-    """FAST_QUALITY: one ray per silhouette pixel (its coverage from how deep that ray goes, so edges stay soft) and
-    2 x 2 light points; the image stays close to the full quality's, and differs where those terms act: along
-    the silhouette and in the penumbra."""
+    """FAST_QUALITY: one ray per silhouette pixel (its coverage from how deep that ray goes, so edges stay soft),
+    2 x 2 light points, normals without the tangent plane's disc and colors of one voxel; the image stays close to
+    the full quality's, and differs where those terms act: along the silhouette, in the penumbra, in the shading."""
     spec, light = ObjectSpec(voxels="v.npz", scale=(0.6, 0.6, 0.6)), (0.9, 2.6, 0.4)
     full, fast = (shaded(ball(40), spec, light, quality=q) for q in (FULL_QUALITY, FAST_QUALITY))
     difference = np.abs(fast.image - full.image).max(axis=2)
@@ -787,12 +787,35 @@ def test_the_fast_quality_samples_less_and_shades_nearly_alike():
     assert edge.sum() > 20 and ((fast.coverage > 0.0) & (fast.coverage < 1.0)).sum() > 0.5 * edge.sum()
     inside = ndimage.binary_erosion(full.coverage == 1.0, iterations=3)
     np.testing.assert_array_equal(fast.coverage[inside], 1.0)  # one ray or four, the inside is covered
-    np.testing.assert_allclose(fast.normal[inside], full.normal[inside], atol=1e-6)  # the surface is the same
+    np.testing.assert_allclose(fast.depth[inside], full.depth[inside], atol=1e-6)  # the surface is the same
+    cosine = np.sum(fast.normal[inside] * full.normal[inside], axis=-1)
+    assert cosine.min() > np.cos(np.radians(10.0)) and cosine.min() < 1.0 - 1e-6  # a ball's normals, found otherwise
     assert len(light_points(light, FAST_QUALITY.light_points)) == 4
     assert len(light_points(light, FULL_QUALITY.light_points)) == 9
+
+
+def test_the_fast_quality_colors_each_point_by_one_voxel():
+    """With no color spread every visible point takes exactly one voxel's color: on a cube of voxels colored at
+    random, each albedo is one of the voxels' colors (at the full quality's spread, most are blends of several)."""
+    spec, elevation = ObjectSpec(voxels="v.npz", scale=(0.8, 0.8, 0.8)), 30.0
+    rgba = cube(24)
+    rgba[..., :3] = np.random.default_rng(0).integers(0, 8, rgba.shape[:3] + (3,)) / 7.0
+    geometry = geometry_of(rgba, spec, elevation)
+    palette = np.arange(8) / 7.0
+    for quality, one_voxel in ((FAST_QUALITY, 1.0), (FULL_QUALITY, 0.2)):
+        colors = visible_surface(geometry, SIZE, quality=quality).images.albedo_srgb
+        shown = colors[np.any(colors > 0.0, axis=-1)]
+        on_palette = np.all(np.abs(shown[..., None] - palette).min(axis=-1) < 1e-5, axis=-1)
+        assert on_palette.mean() >= one_voxel if one_voxel == 1.0 else on_palette.mean() < one_voxel
 
 
 @pytest.mark.parametrize("rays, points", [(0, 3), (2, 0), (9, 3), (2, 12)])
 def test_a_quality_outside_its_range_is_refused(rays, points):
     with pytest.raises(InputError, match="silhouette rays and light points"):
         ShaderQuality(rays, points)
+
+
+@pytest.mark.parametrize("rings, spread", [(-1, 0.6), (9, 0.6), (2, -0.1), (2, float("nan")), (2, float("inf"))])
+def test_a_normal_disc_or_color_spread_outside_its_range_is_refused(rings, spread):
+    with pytest.raises(InputError, match="normal rings .* color spread"):
+        ShaderQuality(normal_rings=rings, color_spread=spread)

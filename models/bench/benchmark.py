@@ -130,7 +130,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         rows.append(shader_row)
         # The shader of the network's grid (the object voxels merged in pairs): faster, further from the path tracer.
         rows.append(bench_shading(scenes, settings, memory, score, GRID_SIZE)[0])
-        # The shader at its fast quality (one ray per silhouette pixel, 2 x 2 light points): faster, further off.
+        # The shader at its fast quality (renderer.shading.FAST_QUALITY): faster, further off.
         rows.append(bench_shading(scenes, settings, memory, score, quality="fast")[0])
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.

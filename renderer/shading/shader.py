@@ -152,22 +152,28 @@ CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (mo
 
 @dataclass(frozen=True)
 class ShaderQuality:
-    """How finely the shader samples its two dearest terms: rays per side at silhouette pixels (anti-aliasing) and
-    points per side of the square light (shadow maps, soft shadows). FULL_QUALITY is what the networks were trained
-    on; FAST_QUALITY takes about a fifth off an NVR+ frame after an object move in bf16 (less in fp32) and errs more
-    (docs/results.md, "Speed")."""
+    """How finely the shader samples its dearest terms: rays per side at silhouette pixels (anti-aliasing), points
+    per side of the square light (shadow maps, soft shadows), rings of the normals' disc (NORMAL_RINGS; 0: the
+    smoothed field's gradient alone) and the spread of a point's color over its pixel's footprint (COLOR_SPREAD
+    pixel sides; 0: its voxel's color). FULL_QUALITY is what the networks were trained on; FAST_QUALITY takes about
+    a quarter off an NVR+ frame after an object move and errs more (docs/results.md, "Speed")."""
 
     silhouette_rays: int = SUBPIXELS
     light_points: int = LIGHT_POINTS
+    normal_rings: int = NORMAL_RINGS
+    color_spread: float = COLOR_SPREAD
 
     def __post_init__(self) -> None:
         if not (1 <= self.silhouette_rays <= 8 and 1 <= self.light_points <= 8):
             raise InputError(f"shader quality: silhouette rays and light points per side must be in [1, 8], got "
                              f"{self.silhouette_rays} and {self.light_points}")
+        if not (0 <= self.normal_rings <= 8 and 0.0 <= self.color_spread <= 4.0):
+            raise InputError(f"shader quality: normal rings must be in [0, 8] and the color spread in [0, 4] pixel "
+                             f"sides, got {self.normal_rings} and {self.color_spread}")
 
 
 FULL_QUALITY = ShaderQuality()
-FAST_QUALITY = ShaderQuality(silhouette_rays=1, light_points=2)
+FAST_QUALITY = ShaderQuality(silhouette_rays=1, light_points=2, normal_rings=0, color_spread=0.0)
 QUALITIES = {"full": FULL_QUALITY, "fast": FAST_QUALITY}  # by the name the command line and the editor use
 
 
@@ -398,12 +404,12 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     that grazes a part and goes on to a part behind it covers its pixel (no floor shows through at a part drawn over
     another); False counts it as partly covered, for photo delighting, where such a pixel mixes two parts. `colors`:
     False leaves the object grey, for a caller that repaints the surface next (repaint_surface) and so need not pay
-    for the colors twice. `quality`: its rays per side at silhouette pixels."""
+    for the colors twice. `quality`: its rays per side at silhouette pixels, normals' disc and colors' spread."""
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind, quality.silhouette_rays)
-    normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, NORMAL_RINGS)
+    normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, quality.normal_rings)
     points_world, normals_world, depth = _in_world(geometry, camera, points_crop, normals_crop)
-    color_spread = COLOR_SPREAD * np.maximum(depth, 0.0) / camera.focal_px  # a pixel's side at the point's depth
+    color_spread = quality.color_spread * np.maximum(depth, 0.0) / camera.focal_px  # pixel sides at its depth
 
     floor, floor_points, floor_extent = _floor_points(camera)
     floor_occlusion = _floor_occlusion(geometry, floor_points, np.linalg.inv(geometry.voxel_to_world))
