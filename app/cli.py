@@ -350,7 +350,8 @@ def cmd_distill(args: argparse.Namespace) -> None:
     config = DistillConfig(
         teacher=args.model, post_light_blocks=args.post_light_blocks,
         objects=args.objects, views=args.views, steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
-        resolution=args.res, categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()))
+        resolution=args.res, categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()),
+        train_merge=args.train_merge)
     measured = distill(out, config)
     print(f"wrote {out}: the teacher's decoder features on {measured['held_out_latents']} held-out latents with "
           f"relative error {measured['relative_error']:.4f} (cut, before training: {measured['relative_error_start']:.4f})")
@@ -609,6 +610,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help="voxel resolution of the objects")
     p.add_argument("--categories", default="chair,table,sofa,stool", help="comma-separated object categories")
+    p.add_argument("--train-merge", action="store_true",
+                   help="the light code and the merge learn too (else they keep the teacher's weights)")
     p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
     p.set_defaults(func=cmd_distill)
 

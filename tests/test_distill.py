@@ -91,6 +91,25 @@ def test_distillation_brings_the_student_nearer_the_teacher(distilled):
     assert 0.0 < measured["relative_error"] < 0.8 * measured["relative_error_start"]
 
 
+@pytest.mark.parametrize("train_merge", [False, True])
+def test_the_light_code_and_merge_learn_only_when_asked(distilled, tmp_path, train_merge):
+    """With no block after the merge the student still learns (the decoder, and with train_merge the light code and
+    the merge too); without train_merge those keep the teacher's weights, with it they move."""
+    _, config, _ = distilled
+    teacher = load_model(config.teacher)[0]
+    student_config = DistillConfig(teacher=config.teacher, post_light_blocks=0, objects=2, views=3, steps=20, batch=4,
+                                   resolution=24, categories=("stool",), train_merge=train_merge)
+    measured = distill(tmp_path / "student.safetensors", student_config, progress=False)
+    student, _, extra = load_model(tmp_path / "student.safetensors")
+    assert extra["distilled"]["train_merge"] is train_merge
+    assert measured["relative_error"] < measured["relative_error_start"]
+    ours, theirs = student.state_dict(), teacher.state_dict()
+    for prefix in ("light_decoder.merge.", "light_decoder.light_mlp."):
+        moved = [not torch.equal(ours[k], theirs[k]) for k in ours if k.startswith(prefix) and ours[k].is_floating_point()]
+        assert moved and any(moved) is train_merge, prefix
+    assert torch.equal(ours["voxel_encoder.stages.0.0.weight"], theirs["voxel_encoder.stages.0.0.weight"])
+
+
 def test_the_student_file_loads_and_says_what_it_was_distilled_from(distilled):
     path, config, measured = distilled
     model, loaded_config, extra = load_model(path)

@@ -2,8 +2,9 @@
 
 A light edit reruns everything from the light merge on (models/engine/), and on a 2-core CPU without AVX512 the
 96-channel residual blocks after the merge are a quarter of that. The student is the teacher with only the first
-`post_light_blocks` of them; those blocks and the decoder after them learn to give the teacher's decoder features
-for the same latent and light (mean squared error), and every other layer keeps the teacher's weights. No rendered
+`post_light_blocks` of them; those blocks and the decoder after them (with `train_merge`, the light code and the
+merge before them too) learn to give the teacher's decoder features for the same latent and light (mean squared
+error), and every other layer keeps the teacher's weights. No rendered
 images are needed: the latents are the teacher's voxel branch on procedurally generated training-split objects in
 random training views (renderer/dataset.py's protocol), and every step draws new lights, so the student sees the
 whole light box.
@@ -41,6 +42,9 @@ class DistillConfig:
     seed: int = 0
     resolution: int = DEFAULT_RESOLUTION  # of the objects' voxels, as the data sets have them
     categories: tuple[str, ...] = ("chair", "table", "sofa", "stool")  # the training sets' (renderer/objects/)
+    # The light code and the merge learn too (else they keep the teacher's weights): a student with no block after
+    # the merge has only the decoder to learn with otherwise.
+    train_merge: bool = False
 
     def check(self, teacher_blocks: int) -> None:
         """Refuse values no distillation can run with, naming the option (before anything is computed)."""
@@ -149,7 +153,10 @@ def distill(out: str | Path, config: DistillConfig, progress: bool = True) -> di
                     for rows in np.array_split(test_rows, max(1, math.ceil(len(test_rows) / config.batch)))]
 
     student = student_of(teacher, config.post_light_blocks)
-    trained = [*student.light_decoder.blocks.parameters(), *student.light_decoder.decoder.parameters()]
+    decoder = student.light_decoder
+    trained = [*decoder.blocks.parameters(), *decoder.decoder.parameters()]
+    if config.train_merge:
+        trained += [*decoder.light_mlp.parameters(), *decoder.merge.parameters()]
     student.requires_grad_(False)
     for parameter in trained:
         parameter.requires_grad_(True)
