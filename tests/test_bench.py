@@ -6,6 +6,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 from PIL import Image
 
 from app.cli import run
@@ -90,6 +91,18 @@ def test_figure_labels_overlap_nothing_and_crowded_points_are_keyed(tmp_path):
                         + [Point("far", "splatting", 5, 3000)], tmp_path / "f.png")
     image = Image.open(tmp_path / "f.png")
     assert image.height > HEIGHT and (image.height - HEIGHT - 10) % KEY_ROW == 0  # a key below for the numbers
+
+
+def test_a_label_set_away_from_its_point_is_joined_to_it_by_a_line():
+    from models.bench.plot import _leader
+
+    assert _leader(100.0, 100.0, (109.0, 84.0, 200.0, 100.0)) is None  # beside it, just above and right
+    assert _leader(100.0, 100.0, (0.0, 92.0, 91.0, 108.0)) is None  # beside it, left
+    x0, y0, x1, y1 = _leader(100.0, 100.0, (80.0, 40.0, 160.0, 56.0))  # 44 px straight above
+    assert (x0, y0, x1, y1) == pytest.approx((100.0, 94.0, 100.0, 56.0))  # from the circle's top to the box's bottom
+    x0, y0, x1, y1 = _leader(0.0, 0.0, (30.0, 40.0, 90.0, 56.0))  # up and to the right: to the box's nearest corner
+    assert (x1, y1) == (30.0, 40.0) and math.hypot(x0, y0) == pytest.approx(6.0)
+    assert (x0, y0) == pytest.approx((6.0 * 30.0 / 50.0, 6.0 * 40.0 / 50.0))
 
 
 def test_peak_memory_sees_a_native_allocation():

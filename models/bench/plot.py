@@ -17,6 +17,9 @@ from renderer.io import atomic_path
 WIDTH, HEIGHT = 1100, 760
 MARGIN_LEFT, MARGIN_RIGHT, MARGIN_TOP, MARGIN_BOTTOM = 90, 30, 50, 70
 KEY_ROW = 18  # pixels per row of the key below the plot (labels that found no place beside their points)
+LABEL_HEIGHT = 16  # pixels of a label's line
+POINT_RADIUS = 6  # pixels
+LEADER_FROM = 12  # pixels between a point and its label's box beyond which a line joins them
 FAMILY_COLORS = {"path tracing": (200, 80, 40), "splatting": (60, 140, 60), "voxel shader": (200, 150, 0), "NVR": (70, 110, 200), "NVR+": (130, 60, 170)}
 
 
@@ -63,8 +66,12 @@ def draw_speed_vs_error(points: list[Point], path: str | Path, error_name: str =
             draw.line([(x0, y0), (x1, y0), (x1, y1)], fill=(120, 120, 120), width=2)
         for p, (x, y), (text, left, top) in zip(points, centres, labels):
             color = FAMILY_COLORS.get(p.family, (0, 0, 0))
-            draw.ellipse([x - 6, y - 6, x + 6, y + 6], fill=color if p in front else "white", outline=color, width=2)
+            r = POINT_RADIUS
+            draw.ellipse([x - r, y - r, x + r, y + r], fill=color if p in front else "white", outline=color, width=2)
             draw.text((left, top), text, fill=color, font=font)
+            leader = _leader(x, y, (left, top, left + font.getlength(text), top + LABEL_HEIGHT))
+            if leader is not None:
+                draw.line(leader, fill=color, width=1)
         for k, (number, p) in enumerate(keyed):
             left = MARGIN_LEFT + (k % 2) * (WIDTH - MARGIN_LEFT - MARGIN_RIGHT) // 2
             draw.text((left, HEIGHT + 5 + KEY_ROW * (k // 2)), f"{number}: {p.label}",
@@ -72,6 +79,17 @@ def draw_speed_vs_error(points: list[Point], path: str | Path, error_name: str =
         _draw_legend(draw, font)
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG")
+
+
+def _leader(x: float, y: float, box: tuple[float, float, float, float]) -> tuple[float, float, float, float] | None:
+    """A line from the edge of the point's circle at (x, y) to the nearest point of its label's box (left, top, right,
+    bottom), where the label does not touch the circle: a label set further out is not read as a nearer point's."""
+    left, top, right, bottom = box
+    nx, ny = min(max(x, left), right), min(max(y, top), bottom)
+    distance = math.hypot(nx - x, ny - y)
+    if distance <= LEADER_FROM:
+        return None
+    return x + (nx - x) * POINT_RADIUS / distance, y + (ny - y) * POINT_RADIUS / distance, nx, ny
 
 
 def _place_labels(points: list[Point], centres: list[tuple[float, float]], font) -> list[tuple[str, float, float]]:
@@ -87,7 +105,7 @@ def _place_labels(points: list[Point], centres: list[tuple[float, float]], font)
             text = str(numbers)
             spot = _free_spot(text, x, y, font, taken, anywhere=True)
         left, top = spot
-        taken.append((left, top, left + font.getlength(text), top + 16))
+        taken.append((left, top, left + font.getlength(text), top + LABEL_HEIGHT))
         placed.append((text, left, top))
     return placed
 
@@ -102,8 +120,8 @@ def _free_spot(text: str, x: float, y: float, font, taken: list[tuple[float, flo
         candidates += sorted(((x + dx, y + dy) for dx in range(-120, 121, 12) for dy in range(-112, 113, 16)),
                              key=lambda spot: math.hypot(spot[0] - x, spot[1] - y))
     for left, top in candidates:
-        inside = MARGIN_LEFT < left and left + width < WIDTH - MARGIN_RIGHT and MARGIN_TOP < top and top + 16 < HEIGHT - MARGIN_BOTTOM
-        if inside and not any(left < x1 and left + width > x0 and top < y1 and top + 16 > y0 for x0, y0, x1, y1 in taken):
+        inside = MARGIN_LEFT < left and left + width < WIDTH - MARGIN_RIGHT and MARGIN_TOP < top and top + LABEL_HEIGHT < HEIGHT - MARGIN_BOTTOM
+        if inside and not any(left < x1 and left + width > x0 and top < y1 and top + LABEL_HEIGHT > y0 for x0, y0, x1, y1 in taken):
             return left, top
     return candidates[0] if anywhere else None
 
