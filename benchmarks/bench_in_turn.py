@@ -7,7 +7,8 @@ two rows can compare two phases. Here each round times, on the first view of up 
 a block of NVR+ frames after an object move per shader quality (6 per scene, alternating the move's two scenes),
 then a block of path-traced frames at 1 spp + OIDN (3 per scene), and prints the medians and each quality's share
 of path tracing's time; then the median of those shares over the rounds. An NVR+ frame right after a path-traced
-one runs cold (results.md, "Speed"), which the editor never sees: the first frame of each scene is not timed.
+one runs cold (results.md, "Speed"), which the editor never sees: the first two frames of each scene are not
+timed.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import argparse
 import statistics
 import time
 
-from models.bench.benchmark import SIZE, edit_pairs
+from models.bench.benchmark import SIZE, alternating_ms, edit_pairs
 from models.bench.scenes import data_scenes
 from models.engine.render_engine import RenderEngine
 from models.evaluation.evaluate import shipped_model
@@ -47,14 +48,7 @@ def main() -> None:
     for round_ in range(args.rounds):
         medians = {}
         for quality, engine in engines.items():
-            times = []
-            for pair in pairs:
-                engine.render(pair[1])
-                for k in range(NVR_FRAMES):
-                    start = time.perf_counter()
-                    engine.render(pair[k % 2])
-                    times.append((time.perf_counter() - start) * 1000.0)
-            medians[quality] = statistics.median(times)
+            medians[quality] = statistics.median(ms for pair in pairs for ms in alternating_ms(engine, pair, NVR_FRAMES))
         times = []
         for tracer in tracers:
             for k in range(PT_FRAMES):

@@ -156,7 +156,7 @@ class ShaderQuality:
     per side of the square light (shadow maps, soft shadows), rings of the normals' disc (NORMAL_RINGS; 0: the
     smoothed field's gradient alone) and the spread of a point's color over its pixel's footprint (COLOR_SPREAD
     pixel sides; 0: its voxel's color). FULL_QUALITY is what the networks were trained on; FAST_QUALITY takes about
-    a quarter off an NVR+ frame after an object move and errs more (docs/results.md, "Speed")."""
+    a fifth off an NVR+ frame after an object move and errs more (docs/results.md, "Speed")."""
 
     silhouette_rays: int = SUBPIXELS
     light_points: int = LIGHT_POINTS
