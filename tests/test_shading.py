@@ -322,6 +322,44 @@ def test_occluders_spaced_wider_than_texels_cover_their_footprint():
     assert uncovered[0] > 1000 and uncovered[1] == 0
 
 
+def _reference_shadow_map(occluders, radius, footprint, light, size):
+    """The nearest occluder per texel by the rule build_shadow_maps states, texel by texel over the whole map: an
+    occluder covers a texel whose centre lies within `footprint` of its projection, or within sqrt(r^2 + 1/2) of
+    it (r its radius in texels) and in the box of texels its disc spans."""
+    lx, ly, lz = light
+    h = ly - occluders[:, 1]
+    kept = h > radius
+    occluders, inv_h = occluders[kept], 1.0 / h[kept]
+    across = max(radius, footprint) * inv_h
+    a, b = (occluders[:, 0] - lx) * inv_h, (occluders[:, 2] - lz) * inv_h
+    a_min, b_min = (a - across).min(), (b - across).min()
+    texel = max((a + across).max() - a_min, (b + across).max() - b_min) / (size - 1)
+    scale = inv_h / texel
+    a = (occluders[:, 0] - lx) * scale - a_min / texel
+    b = (occluders[:, 2] - lz) * scale - b_min / texel
+    r, f = radius * scale, footprint * scale
+    centres = np.arange(size) + 0.5
+    d2 = (centres[None, :, None] - a[:, None, None]) ** 2 + (centres[None, None, :] - b[:, None, None]) ** 2
+    columns, rows = np.arange(size)[None, :, None], np.arange(size)[None, None, :]
+    in_box = ((columns >= (a - r).astype(int)[:, None, None]) & (columns <= (a + r).astype(int)[:, None, None])
+              & (rows >= (b - r).astype(int)[:, None, None]) & (rows <= (b + r).astype(int)[:, None, None]))
+    covered = (in_box & (d2 <= (r * r + 0.5)[:, None, None])) | (d2 <= (f * f)[:, None, None])
+    near = (ly - occluders[:, 1] - radius).astype(np.float32)
+    return np.where(covered, near[:, None, None], kernels.FAR).min(axis=0), (a_min, b_min, texel)
+
+
+@pytest.mark.parametrize("footprint", [0.0, 0.01, 0.05])  # none, under the discs' radius, over it
+def test_shadow_maps_hold_the_nearest_covering_occluder_per_texel(footprint):
+    occluders = np.random.default_rng(7).uniform([-0.5, 0.0, -0.5], [0.5, 1.5, 0.5], (400, 3))
+    lights = np.array([[0.1, 3.0, -0.2], [-0.3, 3.0, 0.25]])
+    maps, bounds = np.empty((2, 24, 24), dtype=np.float32), np.zeros((2, 3))
+    kernels.build_shadow_maps(occluders, 0.02, footprint, lights, 24, maps, bounds)
+    for k in range(2):
+        expected, expected_bounds = _reference_shadow_map(occluders, 0.02, footprint, lights[k], 24)
+        np.testing.assert_allclose(bounds[k], expected_bounds, rtol=1e-12)
+        np.testing.assert_array_equal(maps[k], expected)
+
+
 def test_shadow_maps_of_light_points_at_other_heights_are_each_points_own():
     # The maps keep 1 / height per occluder for the first point's height; a point at another height (and an
     # occluder above it) must give the map it gives alone.
