@@ -44,6 +44,10 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     assert all(n["gflop_frame"] > n["gflop_light_edit"] > 0 for n in results["networks"])
     text = report.read_text()
     assert "| path tracing | 1 spp + OIDN |" in text and "## Latency per edit" in text
+    # The shipped NVR+ in fp32 at both shader qualities, timed in turn with path tracing (one round when quick).
+    shares = results["in_turn"]["shares"]
+    assert set(shares) == {"full", "fast"} and all(len(v) == 1 and 0.0 < v[0] < 100.0 for v in shares.values())
+    assert set(results["in_turn"]["rows"].values()) <= labels and "timed in turn (1 round;" in text
     with Image.open(tmp_path / "speed_vs_error.png") as figure:
         assert figure.format == "PNG" and figure.width == 1100 and figure.height >= 760  # taller with a key
 
@@ -61,6 +65,24 @@ def test_quick_bench_never_writes_the_project_page(tmp_path, capsys):
     assert run(["bench", "--quick", "--report", str(tmp_path)]) == 2
     assert "exists" in capsys.readouterr().err
     assert (tmp_path / "benchmarks.md").read_text() == "earlier report"
+
+
+def test_the_pareto_target_is_judged_on_the_shares_timed_in_turn():
+    from models.bench.report import _in_turn
+
+    rival = {"label": "path tracing 1 spp + OIDN", "mse": 7.0}
+    rows = [{"label": "NVR+ a", "mse": 9.0}, {"label": "NVR+ b", "mse": 12.0}, rival]
+    results = {"renderers": rows, "in_turn": {"rows": {"full": "NVR+ a", "fast": "NVR+ b"},
+                                              "shares": {"full": [0.5, 0.4, 0.45], "fast": [0.3, 0.4, 0.32]}}}
+    line = _in_turn(results, rival)[0]
+    assert "full quality a median 0.450 of its time (0.400-0.500 by round)" in line and "(3 rounds;" in line
+    assert line.endswith("met at the fast quality.")  # median 0.32 <= 1/3, MSE 12 <= 3 x 7
+    results["in_turn"]["shares"]["fast"] = [0.3, 0.4, 0.35]
+    assert _in_turn(results, rival)[0].endswith("missed.")  # median 0.35
+    rows[1]["mse"] = 21.5  # over three times path tracing's
+    results["in_turn"]["shares"]["fast"] = [0.2]
+    assert _in_turn(results, rival)[0].endswith("missed.")
+    assert _in_turn({"renderers": rows, "in_turn": None}, rival) == []
 
 
 def test_pareto_front_by_hand():

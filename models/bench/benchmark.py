@@ -80,6 +80,7 @@ class BenchSettings:
     paper: bool = True  # time the paper configuration (seconds per frame on a CPU)
     full_grid_edits: bool = True  # also time every edit without the object crop
     matmul_size: int = 2048
+    in_turn_rounds: int = 6  # rounds of the shipped NVR+ timed in turn with path tracing (bench_in_turn)
 
     def repeats_for(self, spp: int) -> int:
         return self.repeats if spp <= 16 else max(1, self.repeats // (2 if spp <= 64 else 5))
@@ -87,7 +88,7 @@ class BenchSettings:
 
 FULL = BenchSettings()
 QUICK = BenchSettings(spps=(1, 4), reference_spp=32, repeats=3, edit_repeats=3, scenes=1, paper=False, full_grid_edits=False,
-                      matmul_size=1024)
+                      matmul_size=1024, in_turn_rounds=1)
 
 
 @dataclass
@@ -152,6 +153,16 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
                      and "shading the" not in e.model_name and e.shader_quality == "full"), None) or next(
             (e for e in candidates if e.kind == "nvr+" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
+        # The Pareto target's ratio, timed in turn with path tracing: the shipped NVR+ in float32 at both shader
+        # qualities (the rows above are timed apart, and this machine's speed may differ between them).
+        fast = next((e for e in trained if e.precision == "fp32" and e.shader_quality == "fast"
+                     and e.model_name.endswith(shipped) and "shading the" not in e.model_name), None)
+        in_turn = None
+        if live.precision == "fp32" and live.model_name.endswith(shipped) and fast is not None:
+            engines = {"full": live, "fast": fast}
+            in_turn = {"rows": {name: f"NVR+ {e.model_name}, {e.precision}" for name, e in engines.items()},
+                       "shares": bench_in_turn(engines, tracers, [move_pair(b.scene) for b in scenes],
+                                               settings.in_turn_rounds)}
         networks = bench_networks(settings)
     peak = matmul_peak_gflops(settings.matmul_size)
     for net in networks:
@@ -180,6 +191,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "renderers": [asdict(r) | {"label": r.label} for r in rows],
         "pareto_front": [p.label for p in front],
         "edits": edits,
+        "in_turn": in_turn,
         "networks": networks,
         "matmul_peak_gflops": peak,
     }
@@ -332,6 +344,38 @@ def alternating_ms(engine: RenderEngine | _PaintedShader, pair: tuple[Scene, Sce
         engine.render(pair[(k + 1) % 2])
         times.append(_ms_since(start))
     return times
+
+
+IN_TURN_NVR_FRAMES = 6  # per scene and round
+IN_TURN_PT_FRAMES = 3
+
+
+def bench_in_turn(engines: dict[str, RenderEngine], tracers: list[PathTracer], pairs: list[tuple[Scene, Scene]],
+                  rounds: int, progress: Callable[[str], None] | None = None) -> dict[str, list[float]]:
+    """Each engine's frame after an object move as a share of path tracing's at 1 spp + OIDN, per round: a round
+    times a block of frames per engine (IN_TURN_NVR_FRAMES per scene, alternating each pair's scenes), then a block of
+    path-traced ones (IN_TURN_PT_FRAMES per scene), so that both see the same phase of a machine whose speed swings
+    from minute to minute. An NVR+ frame right after a path-traced one runs cold, which the editor never sees:
+    alternating_ms renders each pair once before it times. `progress` gets a line per round."""
+    for tracer in tracers:  # compile Mitsuba's kernels and start OIDN outside the timings
+        tracer.render(spp=1, seed=0, denoise=True)
+    shares: dict[str, list[float]] = {name: [] for name in engines}
+    for round_ in range(rounds):
+        medians = {name: statistics.median(ms for pair in pairs for ms in alternating_ms(engine, pair, IN_TURN_NVR_FRAMES))
+                   for name, engine in engines.items()}
+        times = []
+        for tracer in tracers:
+            for k in range(IN_TURN_PT_FRAMES):
+                start = time.perf_counter()
+                tracer.render(spp=1, seed=k + 1, denoise=True)
+                times.append(_ms_since(start))
+        path_traced = statistics.median(times)
+        for name, ms in medians.items():
+            shares[name].append(ms / path_traced)
+        if progress is not None:
+            progress(f"round {round_ + 1}: path tracing 1 spp + OIDN {path_traced:.1f} ms; "
+                     + "; ".join(f"NVR+ {name} {ms:.1f} ms ({ms / path_traced:.3f})" for name, ms in medians.items()))
+    return shares
 
 
 # --- networks: FLOPs and the matmul peak ---------------------------------------------------------------
