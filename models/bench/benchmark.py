@@ -7,7 +7,8 @@ for timing only, the compact networks when they have no weights yet and the pape
 with random weights. For each: median time per frame at 256^2 and its interquartile range over
 all scenes and repeats, peak memory (models/bench/system.py), and MSE, DSSIM and the perceptual
 distance against a raw path-traced reference of the same scene (1024 spp; --quick: 32).
-Also: the engine's latency per edit type with the object crop and with the full grid, the FLOPs
+Also: the engine's latency per edit type with the object crop and with the full grid, the shipped NVR+'s
+frame timed in turn with path tracing at 1 spp + OIDN (bench_in_turn: the Pareto target's ratio), the FLOPs
 per frame of each network configuration, and the share of a measured fp32 matmul peak they imply.
 
 A network's time per frame is a re-render after an object move along the floor (resampling, voxel
