@@ -314,7 +314,7 @@ def test_the_editor_opens_on_the_shipped_nvr_plus(display, tmp_path, scene_file)
 def test_closing_asks_about_unsaved_changes_and_the_next_start_offers_them_back(display, tmp_path, scene_file,
                                                                                 model_file):
     state = tmp_path / "state"
-    recovery = state / "nvr-studio" / "recovery" / "scene.json"
+    recovery = state / "nvr-studio" / "recovery-headless" / "scene.json"  # a headless run's own autosave
     calm, asking = tmp_path / "calm.png", tmp_path / "asking.png"
     run_editor(display, tmp_path, scene_file, [
         {"action": "move_object", "translation": [0.4, 0.1]},
@@ -336,6 +336,26 @@ def test_closing_asks_about_unsaved_changes_and_the_next_start_offers_them_back(
     ], "--model", str(model_file), state=state)
     assert load_scene(tmp_path / "restored.json").object.translation == (0.4, 0.1)
     assert not recovery.exists()  # discarded on purpose: nothing to offer next time
+
+
+def test_a_headless_run_neither_offers_nor_replaces_the_interactive_autosave(display, tmp_path, scene_file,
+                                                                            monkeypatch):
+    from app.editor import state as editor_state
+
+    state = tmp_path / "state"
+    interactive = state / "nvr-studio" / "recovery" / "scene.json"
+    monkeypatch.setenv("XDG_STATE_HOME", str(state))
+    moved = load_scene(scene_file)
+    editor_state.write_recovery(replace(moved, object=replace(moved.object, translation=(0.3, -0.2))), scene_file)
+    before = interactive.read_bytes()  # unsaved changes an interactive session left
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "answer", "choice": "Restore"},  # nothing is offered: refused with a message
+        {"action": "move_object", "translation": [-0.4, 0.2]},  # ends unsaved: autosaved in its own place
+    ], state=state)
+    assert "no question to answer" in result.stderr
+    assert interactive.read_bytes() == before
+    headless = load_scene(state / "nvr-studio" / "recovery-headless" / "scene.json")
+    assert headless.object.translation == (-0.4, 0.2)
 
 
 def test_meshes_and_photos_load_and_bad_files_leave_the_scene_alone(display, tmp_path, scene_file, model_file):

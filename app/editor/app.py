@@ -129,8 +129,10 @@ class EditorApp:
     """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
 
     def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "nvr+",
-                 quality: str = "full"):
+                 quality: str = "full", recovery_slot: str = state.RECOVERY):
+        """`recovery_slot`: where the autosave is kept and looked for (state.HEADLESS_RECOVERY for scripted runs)."""
         self.window = window
+        self.recovery_slot = recovery_slot
         self.doc = document
         self.voxels = VoxelCache()
         self.live = LiveRender(self.voxels, model_path, renderer, quality)
@@ -192,7 +194,7 @@ class EditorApp:
         prompt.on_choice(choice)
 
     def _offer_recovery(self) -> None:
-        recovery = state.read_recovery()
+        recovery = state.read_recovery(self.recovery_slot)
         if recovery is None:
             return
         origin = recovery.origin.name if recovery.origin else "an unsaved scene"
@@ -204,7 +206,7 @@ class EditorApp:
                 self.doc.path = recovery.origin
                 self.say(f"restored the autosaved changes to {origin}")
             else:
-                state.clear_recovery()
+                state.clear_recovery(self.recovery_slot)
 
         self.ask("Restore unsaved changes?", text, ("Restore", "Discard"), choose)
 
@@ -320,7 +322,7 @@ class EditorApp:
             self.doc.cancel_preview()
             save_scene(state.adopt_capture(self.scene, target), target)
             self.doc.mark_saved(target)
-            state.clear_recovery()
+            state.clear_recovery(self.recovery_slot)
             state.remember_scene(target)
             return f"saved {target}"
 
@@ -596,9 +598,9 @@ class EditorApp:
         """Write the recovery file now if there are unsaved changes (else remove it)."""
         try:
             if self.doc.dirty:
-                state.write_recovery(self.doc.history.current, self.doc.path)
+                state.write_recovery(self.doc.history.current, self.doc.path, self.recovery_slot)
             else:
-                state.clear_recovery()
+                state.clear_recovery(self.recovery_slot)
         except (InputError, OSError) as exc:
             self.say(f"autosave failed: {exc}", error=True)
         self._autosaved = self.doc.revision
@@ -623,5 +625,5 @@ class EditorApp:
         if self.keep_recovery:
             self.autosave_now()
         else:
-            state.clear_recovery()
+            state.clear_recovery(self.recovery_slot)
         self.live.close()

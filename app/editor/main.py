@@ -98,7 +98,10 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
 
     headless = args.frames is not None
     renderer = args.renderer or "nvr+"
-    app = EditorApp(window, document, model_path=args.model, renderer=renderer, quality=args.quality)
+    from app.editor import state
+
+    app = EditorApp(window, document, model_path=args.model, renderer=renderer, quality=args.quality,
+                    recovery_slot=state.HEADLESS_RECOVERY if headless else state.RECOVERY)
     interface = Interface(app)
     frame, started, finishing = 0, time.monotonic(), False
     try:

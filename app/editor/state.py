@@ -2,6 +2,8 @@
 
 - recovery/scene.json and recovery/origin.json: the last autosaved scene and the file it was
   opened from, offered back on the next start when the editor ended with unsaved changes.
+  Headless runs (`nvr-editor --frames`, scripted) keep theirs in recovery-headless/ instead, so a
+  script never replaces, nor is offered, what an interactive session left.
 - captures/<hash>.npz: object voxels colored from a photo, named by their content, so a scene
   can point at them before it is saved anywhere.
 """
@@ -54,8 +56,12 @@ def remember_scene(path: str | Path) -> None:
         pass
 
 
-def _recovery_dir() -> Path:
-    return state_dir() / "recovery"
+RECOVERY = "recovery"  # the interactive editor's autosave
+HEADLESS_RECOVERY = "recovery-headless"  # a headless run's
+
+
+def _recovery_dir(slot: str) -> Path:
+    return state_dir() / slot
 
 
 @dataclass(frozen=True)
@@ -65,30 +71,30 @@ class Recovery:
     saved_at: float  # seconds since the epoch
 
 
-def write_recovery(scene: Scene, origin: Path | None) -> None:
+def write_recovery(scene: Scene, origin: Path | None, slot: str = RECOVERY) -> None:
     """Autosave `scene` (atomically) with the path of the file it came from."""
-    folder = _recovery_dir()
+    folder = _recovery_dir(slot)
     folder.mkdir(parents=True, exist_ok=True)
     save_json(folder / "origin.json", {"origin": None if origin is None else str(Path(origin).resolve())})
     save_scene(scene, folder / "scene.json")
 
 
-def read_recovery() -> Recovery | None:
+def read_recovery(slot: str = RECOVERY) -> Recovery | None:
     """The autosaved scene, or None when there is none or it no longer loads (e.g. its mesh is gone)."""
-    scene_file = _recovery_dir() / "scene.json"
+    scene_file = _recovery_dir(slot) / "scene.json"
     if not scene_file.is_file():
         return None
     try:
         scene = load_scene(scene_file)
-        origin = load_json(_recovery_dir() / "origin.json").get("origin")
+        origin = load_json(_recovery_dir(slot) / "origin.json").get("origin")
     except (InputError, AttributeError):
         return None
     return Recovery(scene, None if origin is None else Path(origin), scene_file.stat().st_mtime)
 
 
-def clear_recovery() -> None:
+def clear_recovery(slot: str = RECOVERY) -> None:
     for name in ("scene.json", "origin.json"):
-        (_recovery_dir() / name).unlink(missing_ok=True)
+        (_recovery_dir(slot) / name).unlink(missing_ok=True)
 
 
 def save_capture(rgba: np.ndarray) -> Path:
