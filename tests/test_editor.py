@@ -347,7 +347,7 @@ def test_a_headless_run_neither_offers_nor_replaces_the_interactive_autosave(dis
     monkeypatch.setenv("XDG_STATE_HOME", str(state))
     moved = load_scene(scene_file)
     editor_state.write_recovery(replace(moved, object=replace(moved.object, translation=(0.3, -0.2))), scene_file)
-    before = interactive.read_bytes()  # unsaved changes an interactive session left
+    before = interactive.read_bytes()  # unsaved changes the interactive editor left
     result = run_editor(display, tmp_path, scene_file, [
         {"action": "answer", "choice": "Restore"},  # nothing is offered: refused with a message
         {"action": "move_object", "translation": [-0.4, 0.2]},  # ends unsaved: autosaved in its own place

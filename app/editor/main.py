@@ -93,13 +93,12 @@ def _load_inputs(args: argparse.Namespace):
 
 
 def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
+    from app.editor import state
     from app.editor.app import FRAME_SECONDS, EditorApp
     from app.editor.panels import Interface
 
     headless = args.frames is not None
     renderer = args.renderer or "nvr+"
-    from app.editor import state
-
     app = EditorApp(window, document, model_path=args.model, renderer=renderer, quality=args.quality,
                     recovery_slot=state.HEADLESS_RECOVERY if headless else state.RECOVERY)
     interface = Interface(app)

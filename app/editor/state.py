@@ -3,7 +3,7 @@
 - recovery/scene.json and recovery/origin.json: the last autosaved scene and the file it was
   opened from, offered back on the next start when the editor ended with unsaved changes.
   Headless runs (`nvr-editor --frames`, scripted) keep theirs in recovery-headless/ instead, so a
-  script never replaces, nor is offered, what an interactive session left.
+  script never replaces, nor is offered, what the interactive editor left.
 - captures/<hash>.npz: object voxels colored from a photo, named by their content, so a scene
   can point at them before it is saved anywhere.
 """

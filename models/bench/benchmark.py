@@ -161,7 +161,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         in_turn = None
         if live.precision == "fp32" and live.model_name.endswith(shipped) and fast is not None:
             engines = {"full": live, "fast": fast}
-            in_turn = {"rows": {name: f"NVR+ {e.model_name}, {e.precision}" for name, e in engines.items()},
+            in_turn = {"rows": {name: f"{_family(e)} {_trained_setting(e)}" for name, e in engines.items()},
                        "shares": bench_in_turn(engines, tracers, [move_pair(b.scene) for b in scenes],
                                                settings.in_turn_rounds)}
         networks = bench_networks(settings)
@@ -273,9 +273,18 @@ def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: Benc
         images.append(engine.render(bench.scene))
         times += alternating_ms(engine, move_pair(bench.scene), repeats)
     errors = score(images) if score is not None else {}
-    setting = (f"{engine.model_name}, {engine.precision}" if score is not None
-               else f"{engine.config.name}, {engine.precision} (random weights: timing only)")
-    return Row(FAMILY["nvr_plus" if engine.kind == "nvr+" else "nvr"], setting, *_spread(times), memory.peak_mb(), **errors)
+    return Row(_family(engine), _trained_setting(engine) if score is not None
+              else f"{engine.config.name}, {engine.precision} (random weights: timing only)",
+              *_spread(times), memory.peak_mb(), **errors)
+
+
+def _family(engine: RenderEngine) -> str:
+    return FAMILY["nvr_plus" if engine.kind == "nvr+" else "nvr"]
+
+
+def _trained_setting(engine: RenderEngine) -> str:
+    """The setting column of a trained network's row (its label: family and setting)."""
+    return f"{engine.model_name}, {engine.precision}"
 
 
 def bench_edits(engine: RenderEngine, bench: BenchScene, settings: BenchSettings) -> dict[str, dict]:

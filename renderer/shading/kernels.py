@@ -502,7 +502,7 @@ def build_shadow_maps(occluders, radius, footprint, lights, size, depth, bounds)
                 du = u + 0.5 - a
                 du2 = du * du
                 # Covered: d2 <= reach inside the disc's box, or d2 <= f2 anywhere; as one bound on d2 per texel
-                # (10 % faster than the two tests joined, the same texels).
+                # (7-13 % faster than the two tests joined on the bench chairs, the same texels).
                 in_box = max(reach, f2) if (u >= u_lo) & (u <= u_hi) else f2
                 for v in range(v0, v1):  # without a branch: which texels a disc covers is unpredictable
                     dv = v + 0.5 - b
