@@ -402,6 +402,20 @@ def test_data_of_another_image_size_is_refused_before_the_run_folder_exists(tmp_
     assert not (tmp_path / "run").exists()
 
 
+def test_missing_loss_weights_or_init_file_leave_no_run_folder_and_the_same_command_then_runs(data, tmp_path):
+    """Found on a lent GPU machine without the perceptual weights: the refused run had written run.json, so the
+    same command, run again once the weights were there, was told the folder held a run to --resume."""
+    missing = str(tmp_path / "absent.safetensors")
+    with pytest.raises(InputError, match="absent.safetensors: file not found"):
+        train(tmp_path / "run", config(data, steps=1, perceptual_weights=missing), progress=False)
+    assert not (tmp_path / "run").exists()
+    with pytest.raises(InputError, match="absent.safetensors"):
+        train(tmp_path / "run", config(data, steps=1, init=missing), progress=False)
+    assert not (tmp_path / "run").exists()
+    train(tmp_path / "run", config(data, steps=1), progress=False)
+    assert (tmp_path / "run" / "run.json").exists()
+
+
 def test_a_broken_sample_is_refused_by_name_before_training(tmp_path):
     broken = make_fake_dataset(tmp_path / "set", samples=3)
     (broken / "images" / "s1.png").write_bytes(b"\x89PNG\r\n\x1a\n cut here")

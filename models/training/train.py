@@ -287,10 +287,6 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
                              shading=reads_shading(config.architecture, net_config),
                              shading_grid_factor=net_config.shading_grid_factor)
     dataset.check_samples(net_config.output_size)  # a broken or mis-sized sample is refused before step 0
-    started_from: dict[str, str] = {}
-    if dist_info.is_main:
-        started_from = _prepare_run(out, config, resume, net_config)
-        remove_stale_temporaries(out)  # a checkpoint half-written when a run was killed
     torch.manual_seed(config.seed)  # identical initial weights on every rank
     model = build_model(config.architecture, net_config)
     if config.init and not resume:
@@ -304,6 +300,12 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         model = convert_batchnorm(model, device)  # statistics over the global batch, as in one process
     loss_fn = RenderLoss(net_config.perceptual_weight, weights_path=config.perceptual_weights,
                          mse_weight=config.mse_weight).to(device)
+    # Only now, with the data, the --init file and the loss's weights read, is the run folder written: a run refused
+    # before it starts leaves no folder that the same command, run again, would take for a run to --resume.
+    started_from: dict[str, str] = {}
+    if dist_info.is_main:
+        started_from = _prepare_run(out, config, resume, net_config)
+        remove_stale_temporaries(out)  # a checkpoint half-written when a run was killed
     optimizer = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=config.lr)
     start_step = 0
     if resume and (out / CHECKPOINT).exists():
