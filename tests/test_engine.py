@@ -67,7 +67,8 @@ def random_model(config, architecture: str = "nvr_plus", seed: int = 0):
 
 
 def engine(model, crop: bool = True) -> RenderEngine:
-    return RenderEngine(model, crop=crop, threads=1, precision="fp32")  # exact comparisons: bf16 has its own test
+    """The CPU engine in fp32, whose images these tests compare exactly (bf16 and CUDA have their own tests)."""
+    return RenderEngine(model, crop=crop, threads=1, precision="fp32", device="cpu")
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +122,7 @@ def test_an_engine_given_the_object_voxels_renders_them_without_loading_the_obje
         rgba.flags.writeable = False
         return rgba
 
-    shared = RenderEngine(model, threads=1, precision="fp32", object_source=source)
+    shared = RenderEngine(model, threads=1, precision="fp32", device="cpu", object_source=source)
     for s in (scene, painted, scene):
         np.testing.assert_array_equal(shared.render(s), engine(model).render(s))
     assert given == ["box.npz"]
@@ -335,7 +336,7 @@ def test_no_narrow_ground_when_it_would_not_be_narrower():
 def test_load_checks_the_architecture(tmp_path, model, scene):
     path = tmp_path / "w.safetensors"
     save_model(path, model, TINY_COMPACT)
-    live = RenderEngine.load(path, kind="nvr+", threads=1, precision="fp32")
+    live = RenderEngine.load(path, kind="nvr+", threads=1, precision="fp32", device="cpu")
     assert live.output_size == 64 and "w.safetensors" in live.model_name
     np.testing.assert_allclose(live.render(scene), engine(model).render(scene), atol=1e-6)
     with pytest.raises(InputError, match="not nvr"):
@@ -350,7 +351,7 @@ def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():
             resolve_precision("bf16")
         pytest.skip("this CPU cannot run bf16 convolutions (oneDNN needs AVX512 or AVX-NE-CONVERT)")
     demo = load_scene(DEMO_DIR / "scene.json")
-    fp32, bf16 = (RenderEngine.load(None, threads=2, precision=p) for p in ("fp32", "bf16"))
+    fp32, bf16 = (RenderEngine.load(None, threads=2, precision=p, device="cpu") for p in ("fp32", "bf16"))
     assert bf16.dtype == torch.bfloat16 and next(bf16.model.parameters()).dtype == torch.bfloat16
     far = replace(demo.object, translation=(40.0, 40.0))  # the object outside the grid: the empty floor
     for light, placed in ((demo.light.position, demo.object), ((-1.5, 3.5, 1.5), demo.object),
@@ -486,7 +487,7 @@ def test_an_untrained_refiner_renders_the_shaded_image(scene, factor, engine_fac
     grid, unless the engine is told another factor. A slide and a turn keep the shader's geometry."""
     torch.manual_seed(0)
     model = build_model("nvr_plus", replace(TINY_REFINER, shading_grid_factor=factor)).eval()
-    live = RenderEngine(model, threads=1, precision="fp32", shading_grid_factor=engine_factor)
+    live = RenderEngine(model, threads=1, precision="fp32", device="cpu", shading_grid_factor=engine_factor)
     scene = replace(scene, object=replace(scene.object, translation=(0.1, -0.05)))
     np.testing.assert_allclose(live.render(scene), _shaded_image(scene, shaded_grid), rtol=0, atol=1e-6)
     slid = replace(scene, object=replace(scene.object, translation=(-0.12, 0.07)))
@@ -502,7 +503,7 @@ def test_at_the_fast_quality_an_untrained_refiner_renders_the_fast_shading(scene
     light edit too (only the light's stages rerun), and not the full one."""
     torch.manual_seed(0)
     model = build_model("nvr_plus", TINY_REFINER).eval()
-    fast = RenderEngine(model, threads=1, precision="fp32", shader_quality="fast")
+    fast = RenderEngine(model, threads=1, precision="fp32", device="cpu", shader_quality="fast")
     np.testing.assert_allclose(fast.render(scene), _shaded_image(scene, 64, FAST_QUALITY), rtol=0, atol=1e-6)
     lit = replace(scene, light=replace(scene.light, position=(-0.7, 2.5, 0.6)))
     image = fast.render(lit)
@@ -555,7 +556,7 @@ def test_refiner_cached_render_equals_uncached(scene, edit, resolution):
 def test_a_saved_refiner_renders_the_same_after_loading(scene, tmp_path, resolution):
     model = refiner(config=REFINERS[resolution])
     save_model(tmp_path / "refiner.safetensors", model, REFINERS[resolution])
-    loaded = RenderEngine.load(tmp_path / "refiner.safetensors", threads=1, precision="fp32")
+    loaded = RenderEngine.load(tmp_path / "refiner.safetensors", threads=1, precision="fp32", device="cpu")
     np.testing.assert_array_equal(loaded.render(scene), engine(model).render(scene))
     # The preview while dragging is the shaded image the full render corrects.
     preview = loaded.preview(scene.with_changes(object=replace(scene.object, translation=(0.2, 0.1))))
@@ -574,3 +575,19 @@ def test_compiled_image_passes_equal_torch_in_the_engine(scene, resolution):
         image = live.render(edited)
         np.testing.assert_allclose(image, with_torch.render(edited), rtol=0, atol=1e-5)
         assert np.abs(image - _shaded_image(edited, 128)).max() > 1e-2  # the correction is not nothing
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA GPU")
+@pytest.mark.parametrize("network", ["compact", "half-resolution refiner"])
+def test_on_a_cuda_gpu_every_edit_renders_what_a_fresh_engine_and_the_cpu_render(model, scene, network):
+    """A GPU sums in other orders than the CPU, and its convolutions pick their algorithms call by call, so its
+    images agree with a fresh engine's and the CPU's within float rounding, not bit for bit (seen on a lent H200)."""
+    network_model = model if network == "compact" else refiner(config=TINY_HALF_REFINER)
+    gpu = RenderEngine(network_model, threads=1, precision="fp32", device="cuda")
+    gpu.render(scene)
+    for name, (edit, _) in EDITS.items():
+        edited = edit(scene)
+        image = gpu.render(edited)
+        fresh = RenderEngine(network_model, threads=1, precision="fp32", device="cuda").render(edited)
+        np.testing.assert_allclose(image, fresh, rtol=0, atol=1e-5, err_msg=name)
+        np.testing.assert_allclose(image, engine(network_model).render(edited), rtol=0, atol=1e-3, err_msg=name)

@@ -70,7 +70,7 @@ def scenes(draw) -> tuple[Scene, np.ndarray]:
 
 @pytest.fixture(scope="module")
 def engine():
-    return RenderEngine(random_model(SMALL_NETWORK), threads=1, precision="fp32")
+    return RenderEngine(random_model(SMALL_NETWORK), threads=1, precision="fp32", device="cpu")
 
 
 @pytest.mark.filterwarnings("error::RuntimeWarning")  # an overflow or a 0/0 on the way is a failure too
