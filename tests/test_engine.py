@@ -580,8 +580,8 @@ def test_compiled_image_passes_equal_torch_in_the_engine(scene, resolution):
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA GPU")
 @pytest.mark.parametrize("network", ["compact", "half-resolution refiner"])
 def test_on_a_cuda_gpu_every_edit_renders_what_a_fresh_engine_and_the_cpu_render(model, scene, network):
-    """A GPU sums in other orders than the CPU, and its convolutions pick their algorithms call by call, so its
-    images agree with a fresh engine's and the CPU's within float rounding, not bit for bit (seen on a lent H200)."""
+    """A GPU's images agree with a fresh engine's and the CPU's within float rounding, not bit for bit (on a lent
+    H200 two engines rendered one scene up to 6e-8 apart)."""
     network_model = model if network == "compact" else refiner(config=TINY_HALF_REFINER)
     gpu = RenderEngine(network_model, threads=1, precision="fp32", device="cuda")
     gpu.render(scene)
