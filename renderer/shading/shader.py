@@ -155,13 +155,16 @@ class ShaderQuality:
     """How finely the shader samples its dearest terms: rays per side at silhouette pixels (anti-aliasing), points
     per side of the square light (shadow maps, soft shadows), rings of the normals' disc (NORMAL_RINGS; 0: the
     smoothed field's gradient alone) and the spread of a point's color over its pixel's footprint (COLOR_SPREAD
-    pixel sides; 0: its voxel's color). FULL_QUALITY is what the networks were trained on; FAST_QUALITY takes about
-    a fifth off an NVR+ frame after an object move and errs more (docs/results.md, "Speed")."""
+    pixel sides; 0: its voxel's color), and whether the sky light is occluded (`ambient_occlusion`: the object's
+    points probed along their normals, the floor's straight up; False: every point sees the whole sky, which changed
+    the fast NVR+'s error by under 1 %). FULL_QUALITY is what the networks were trained on; FAST_QUALITY takes about a
+    fifth off an NVR+ frame after an object move and errs more (docs/results.md, "Speed")."""
 
     silhouette_rays: int = SUBPIXELS
     light_points: int = LIGHT_POINTS
     normal_rings: int = NORMAL_RINGS
     color_spread: float = COLOR_SPREAD
+    ambient_occlusion: bool = True
 
     def __post_init__(self) -> None:
         if not (1 <= self.silhouette_rays <= 8 and 1 <= self.light_points <= 8):
@@ -173,7 +176,8 @@ class ShaderQuality:
 
 
 FULL_QUALITY = ShaderQuality()
-FAST_QUALITY = ShaderQuality(silhouette_rays=1, light_points=2, normal_rings=0, color_spread=0.0)
+FAST_QUALITY = ShaderQuality(silhouette_rays=1, light_points=2, normal_rings=0, color_spread=0.0,
+                             ambient_occlusion=False)
 QUALITIES = {"full": FULL_QUALITY, "fast": FAST_QUALITY}  # by the name the command line and the editor use
 
 
@@ -407,12 +411,14 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     for the colors twice. `quality`: its rays per side at silhouette pixels, normals' disc and colors' spread."""
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind, quality.silhouette_rays)
-    normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, quality.normal_rings)
+    normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, quality.normal_rings,
+                                                          quality.ambient_occlusion)
     points_world, normals_world, depth = _in_world(geometry, camera, points_crop, normals_crop)
     color_spread = quality.color_spread * np.maximum(depth, 0.0) / camera.focal_px  # pixel sides at its depth
 
     floor, floor_points, floor_extent = _floor_points(camera)
-    floor_occlusion = _floor_occlusion(geometry, floor_points, np.linalg.inv(geometry.voxel_to_world))
+    floor_occlusion = (_floor_occlusion(geometry, floor_points, np.linalg.inv(geometry.voxel_to_world))
+                       if quality.ambient_occlusion else np.ones(len(floor_points), dtype=np.float32))
     lookup = color_voxels if colors else np.full_like(color_voxels, -1)  # -1: no voxel, grey
     srgb, albedo = _surface_colors(geometry, lookup, color_spread)
     images = _surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
@@ -469,17 +475,19 @@ def _first_hits(geometry: ObjectGeometry, camera: Camera, cover_behind: bool = T
     return coverage, np.stack([rows[r_idx], cols[c_idx]], axis=1), point[r_idx, c_idx]
 
 
-def _point_normals(geometry: ObjectGeometry, points_crop: np.ndarray,
-                   rings: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _point_normals(geometry: ObjectGeometry, points_crop: np.ndarray, rings: int,
+                   occluded: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each crop point's normal (in crop coordinates, averaged over `rings` rings of the tangent plane's disc), the
-    crop index of the voxel its color is centred on (-1: none), and the sky light reaching it."""
+    crop index of the voxel its color is centred on (-1: none), and the sky light reaching it (all of it unless
+    `occluded`)."""
     normals = np.zeros((len(points_crop), 3))
     color_voxels = np.full((len(points_crop), 3), -1, dtype=np.int64)
     if not len(points_crop):
         return normals, color_voxels, np.ones(0, dtype=np.float32)
     kernels.surface_normals_and_voxels(geometry.gradient, geometry.coarse_gradient, geometry.occupied, points_crop,
                                        normals, color_voxels, NORMAL_DISC, rings, NORMAL_AGREE)
-    return normals, color_voxels, _surface_occlusion(geometry, points_crop, normals)
+    sky = _surface_occlusion(geometry, points_crop, normals) if occluded else np.ones(len(points_crop), np.float32)
+    return normals, color_voxels, sky
 
 
 def _in_world(geometry: ObjectGeometry, camera: Camera, points_crop: np.ndarray,
