@@ -395,7 +395,7 @@ def _add_quality_argument(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quality", choices=["full", "fast"], default="full",
                    help="the voxel shader's (shaded, nvr+): full, as the networks were trained; fast: one ray per "
                         "silhouette pixel, 2 x 2 light points, normals from the smoothed field alone, one voxel's color "
-                        "a point, faster, less accurate")
+                        "a point, no ambient occlusion: faster, less accurate")
 
 
 def _parse_resolutions(text: str) -> list[int]:

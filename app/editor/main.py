@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quality", choices=["full", "fast"], default="full",
                    help="the live render's voxel shader: full, as the network was trained; fast: one ray per "
                         "silhouette pixel, 2 x 2 light points, normals from the smoothed field alone, one voxel's "
-                        "color a point, for slower CPUs (exports stay full)")
+                        "color a point, no ambient occlusion, for slower CPUs (exports stay full)")
     p.add_argument("--frames", type=int, default=None, help="headless: draw at least N frames, then exit when idle")
     p.add_argument("--replay", default=None, help="JSON list of actions to perform (see app/editor/replay.py)")
     p.add_argument("--screenshot", default=None, help="with --frames: save the whole window as PNG at the end")
