@@ -157,7 +157,7 @@ class ShaderQuality:
     smoothed field's gradient alone) and the spread of a point's color over its pixel's footprint (COLOR_SPREAD
     pixel sides; 0: its voxel's color), and whether the sky light is occluded (`ambient_occlusion`: the object's
     points probed along their normals, the floor's straight up; False: every point sees the whole sky, which changed
-    the fast NVR+'s error by under 1 %). FULL_QUALITY is what the networks were trained on; FAST_QUALITY takes about a
+    the fast NVR+'s error by under 2 %). FULL_QUALITY is what the networks were trained on; FAST_QUALITY takes about a
     fifth off an NVR+ frame after an object move and errs more (docs/results.md, "Speed")."""
 
     silhouette_rays: int = SUBPIXELS
@@ -408,7 +408,8 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     that grazes a part and goes on to a part behind it covers its pixel (no floor shows through at a part drawn over
     another); False counts it as partly covered, for photo delighting, where such a pixel mixes two parts. `colors`:
     False leaves the object grey, for a caller that repaints the surface next (repaint_surface) and so need not pay
-    for the colors twice. `quality`: its rays per side at silhouette pixels, normals' disc and colors' spread."""
+    for the colors twice. `quality`: its rays per side at silhouette pixels, normals' disc, colors' spread and
+    ambient occlusion."""
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind, quality.silhouette_rays)
     normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, quality.normal_rings,
