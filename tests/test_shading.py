@@ -38,6 +38,7 @@ from renderer.shading import (
     visible_surface,
 )
 from renderer.shading.shader import (
+    COARSE_CELLS,
     COLOR_SPREAD,
     FLOOR_SHADOW_STEP,
     REFLECTION_BLUR,
@@ -570,12 +571,26 @@ def test_ray_candidates_leave_out_the_inside_of_a_solid():
     # (kernels.near_surface_cell_mask): every candidate cell lies near the sphere of its 20-voxel radius.
     geometry = geometry_of(ball(), ObjectSpec(voxels="v.npz"), 30.0)
     centre = np.argwhere(geometry.occupied).mean(axis=0) + 0.5
-    cells = geometry.surface_cells
-    assert len(cells) > 0
-    for k in (2, 3):  # a run's first and last cell; a cell spans voxel centres i..i+1, its middle at i + 1
-        middles = np.column_stack([cells[:, 0], cells[:, 1], cells[:, k]]) + 1.0
+    cells = geometry.surface_cells  # boxes: first and last i, j, k; here runs along k
+    assert len(cells) > 0 and np.all(cells[:, 0] == cells[:, 1]) and np.all(cells[:, 2] == cells[:, 3])
+    for k in (4, 5):  # a run's first and last cell; a cell spans voxel centres i..i+1, its middle at i + 1
+        middles = np.column_stack([cells[:, 0], cells[:, 2], cells[:, k]]) + 1.0
         radii = np.linalg.norm(middles - centre, axis=1)
         assert radii.min() > 20.0 - 3.0 and radii.max() < 20.0 + 3.0
+    # The coarse boxes hold the same cells, each within one block.
+    coarse = geometry.coarse_surface_cells
+    assert len(coarse) < len(cells) / 2
+    assert np.all(coarse[:, 1::2] - coarse[:, 0::2] < COARSE_CELLS)
+    assert np.all(coarse[:, 0::2] // COARSE_CELLS == coarse[:, 1::2] // COARSE_CELLS)
+
+    def marked(boxes):
+        out = np.zeros(np.array(geometry.occupied.shape) - 1, dtype=bool)
+        for i0, i1, j0, j1, k0, k1 in boxes:
+            out[i0:i1 + 1, j0:j1 + 1, k0:k1 + 1] = True
+        return out
+
+    fine = marked(cells)
+    assert np.all(marked(coarse) >= fine) and marked(coarse).sum() < 3 * fine.sum()
 
 
 
@@ -598,7 +613,8 @@ def test_candidate_cells_are_those_whose_corners_allow_a_hit():
 @pytest.mark.parametrize("shape, elevation, translation", [("ball", 30.0, (0.0, 0.0)), ("lattice", 30.0, (0.0, 0.0)),
                                                            ("lattice", 0.0, (0.0, 0.0)), ("lattice", 89.0, (0.0, 0.0)),
                                                            ("ball", 30.0, (1.1, 0.2))])
-def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, translation):
+@pytest.mark.parametrize("coarse", [False, True])
+def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, translation, coarse):
     # The centre pass traces only the pixels whose ray may stop on the surface, each from the depth nearer than which
     # no ray through its pixel can stop to the depth past which none can. Tracing every pixel of the window from those
     # depths, with or without the far one, must give the same hits, points and coverage, and the skip must leave out
@@ -610,7 +626,8 @@ def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, trans
     world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
     origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
     rows, cols = _pixel_window(geometry, camera)
-    candidates, nearest, farthest = _ray_candidates(geometry, camera, rows, cols)
+    cells = geometry.coarse_surface_cells if coarse else geometry.surface_cells
+    candidates, nearest, farthest = _ray_candidates(geometry, camera, rows, cols, cells)
     every = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5, nearest)
     bounded = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5, nearest,
                      farthest)

@@ -241,9 +241,9 @@ def near_surface_cell_mask(fields, level, thin, slack, depth):
 @njit(cache=True, parallel=True)
 def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest, farthest):
     """mask[r, c] = True (image pixel row0 + r, col0 + c) where the pixel's centre falls in the image rectangle of
-    one of `cells` (runs i, j, first k, last k of near_surface_cell_mask's cells, (K, 4) indices into a crop of
-    `shape` voxels; the cells at the crop's faces reach to its faces, where samples are clamped): a superset of the
-    pixels whose centre ray may stop in `trace_surface` (a run's box covers its cells').
+    one of `cells` (boxes i_first, i_last, j_first, j_last, k_first, k_last of near_surface_cell_mask's cells, (K, 6)
+    indices into a crop of `shape` voxels; the cells at the crop's faces reach to its faces, where samples are
+    clamped): a superset of the pixels whose centre ray may stop in `trace_surface` (a box covers its cells').
     nearest[p, r, c] = the least camera depth of the boxes of part p of `cells` whose rectangle reaches within half a
     pixel of the pixel's centre (left as it was where none does); the least over the parts is a depth nearer the
     camera than which no ray through any point of the pixel can stop. farthest[p, r, c] likewise the greatest depth:
@@ -254,10 +254,10 @@ def mark_surface_pixels(cells, shape, projection, row0, col0, mask, nearest, far
     parts = nearest.shape[0]
     for p in prange(parts):
         for q in range(p * cells.shape[0] // parts, (p + 1) * cells.shape[0] // parts):
-            i, j, k, k_last = cells[q, 0], cells[q, 1], cells[q, 2], cells[q, 3]
+            i, i_last, j, j_last, k, k_last = cells[q, 0], cells[q, 1], cells[q, 2], cells[q, 3], cells[q, 4], cells[q, 5]
             u0, u1, v0, v1, d0, d1 = 1e30, -1e30, 1e30, -1e30, 1e30, -1e30
-            for x in (0.0 if i == 0 else i + 0.5, n0 if i == n0 - 2 else i + 1.5):
-                for y in (0.0 if j == 0 else j + 0.5, n1 if j == n1 - 2 else j + 1.5):
+            for x in (0.0 if i == 0 else i + 0.5, n0 if i_last == n0 - 2 else i_last + 1.5):
+                for y in (0.0 if j == 0 else j + 0.5, n1 if j_last == n1 - 2 else j_last + 1.5):
                     for z in (0.0 if k == 0 else k + 0.5, n2 if k_last == n2 - 2 else k_last + 1.5):
                         pu = projection[0, 0] * x + projection[0, 1] * y + projection[0, 2] * z + projection[0, 3]
                         pv = projection[1, 0] * x + projection[1, 1] * y + projection[1, 2] * z + projection[1, 3]

@@ -148,6 +148,7 @@ REFLECTION_SCALE = 0.5
 CANDIDATE_SLACK = 0.01  # voxels of gap a cell may have beyond a hit's and still mark its pixels as ray candidates
 CANDIDATE_DEPTH = 0.25  # voxels of gap inside the surface a cell's points must reach to count (a ray stops within 0.1)
 CELL_RUN = 4  # cells along the last axis whose pixels are marked as one box (more: fewer boxes, more pixels traced)
+COARSE_CELLS = 4  # cells per side of the blocks marked as one box for the floor's reflection
 
 
 @dataclass(frozen=True)
@@ -207,8 +208,10 @@ class ObjectGeometry:
     # voxels in each block of voxels (OCCLUDER_CELLS)
     occluder_box: np.ndarray  # (2, 3) their least and greatest world coordinates (0s if none): kept for every light
     occluder_block: float  # voxels per side of the blocks each occluder stands for (OCCLUDER_CELLS; mean of the axes)
-    surface_cells: np.ndarray  # (K, 4) int: runs i, j, k_first, k_last of the crop's cells where a camera ray may
-    # meet the surface (any camera)
+    surface_cells: np.ndarray  # (K, 6) int: boxes (first and last i, j, k) of the crop's cells where a camera ray may
+    # meet the surface (any camera): runs along k
+    coarse_surface_cells: np.ndarray  # the same cells as one box per COARSE_CELLS^3 block of them: fewer boxes for an
+    # image whose pixels span several voxels (the floor's reflection)
 
     @property
     def empty(self) -> bool:
@@ -322,7 +325,8 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     occluders = (_block_centroids(found, blocks) + 0.5) @ voxel_to_world[:3, :3].T + voxel_to_world[:3, 3]
     return ObjectGeometry(
         elevation_deg=0.0, offset=lo, occupied=occupied, rgb=merged[..., :3], rgb_offset=lo,
-        distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core), gradient=gradient,
+        distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core),
+        coarse_surface_cells=_surface_cells(distance_and_core, COARSE_CELLS), gradient=gradient,
         coarse_gradient=coarse_gradient,
         broad=_broad(solid), voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=_box(occluders),
@@ -359,14 +363,18 @@ def _box(points: np.ndarray) -> np.ndarray:
     return np.array([[column.min() for column in columns], [column.max() for column in columns]])
 
 
-def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
-    """The cells of the crop where a traced ray may stop (kernels.near_surface_cell_mask), as runs of up to
-    CELL_RUN consecutive cells along the last axis (K, 4: i, j, first k, last k): the pixel mask projects one box
-    per run, not per cell. None in a crop thinner than two voxels, where every pixel is a candidate instead."""
+def _surface_cells(distance_and_core: np.ndarray, block: int = 1) -> np.ndarray:
+    """The cells of the crop where a traced ray may stop (kernels.near_surface_cell_mask), as boxes (K, 6: first and
+    last i, j, k) for the pixel mask to project: with `block` 1, runs of up to CELL_RUN consecutive cells along the
+    last axis; else the marked cells of each `block`^3 block of cells (for an image whose pixels span several voxels,
+    where finer boxes mark the same pixels). None in a crop thinner than two voxels, where every pixel is a
+    candidate instead."""
     if min(distance_and_core.shape[:3]) < 2:
-        return np.zeros((0, 4), dtype=np.int64)
+        return np.zeros((0, 6), dtype=np.int64)
     cells = filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
                                                                     CANDIDATE_SLACK, CANDIDATE_DEPTH))
+    if block > 1:
+        return _cells_by_block(cells, block)
     # A run starts where the cell before it (along k) is not marked or the run so far is CELL_RUN long.
     follows = np.zeros(len(cells), dtype=bool)
     follows[1:] = (cells[1:, 0] == cells[:-1, 0]) & (cells[1:, 1] == cells[:-1, 1]) & (cells[1:, 2] == cells[:-1, 2] + 1)
@@ -376,7 +384,24 @@ def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
     first = ~follows | (position % CELL_RUN == 0)
     heads = np.flatnonzero(first)
     lasts = np.append(heads[1:] - 1, len(cells) - 1)
-    return np.column_stack([cells[heads], cells[lasts, 2]]).astype(np.int64)
+    i, j = cells[heads, 0], cells[heads, 1]
+    return np.column_stack([i, i, j, j, cells[heads, 2], cells[lasts, 2]]).astype(np.int64)
+
+
+def _cells_by_block(cells: np.ndarray, block: int) -> np.ndarray:
+    """(K, 6): the least and greatest i, j, k of the `cells` (N, 3) in each `block`^3 block that holds any."""
+    if not len(cells):
+        return np.zeros((0, 6), dtype=np.int64)
+    keys = cells // block
+    dims = keys.max(axis=0) + 1
+    order = np.argsort((keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2], kind="stable")
+    linear = ((keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2])[order]
+    heads = np.flatnonzero(np.diff(linear, prepend=-1))
+    sorted_cells = cells[order]
+    columns = []
+    for axis in range(3):
+        columns += [np.minimum.reduceat(sorted_cells[:, axis], heads), np.maximum.reduceat(sorted_cells[:, axis], heads)]
+    return np.column_stack(columns).astype(np.int64)
 
 
 def placed(geometry: ObjectGeometry, object_spec: ObjectSpec, elevation_deg: float) -> ObjectGeometry:
@@ -431,17 +456,19 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
 
 
 def _first_hits(geometry: ObjectGeometry, camera: Camera, cover_behind: bool = True, subpixels: int = SUBPIXELS,
-                where: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                where: np.ndarray | None = None, coarse: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The coverage (H, W) of the object a camera sees, the pixels (N, 2: row, column) it covers, and the crop point
     (N, 3) of each, where its centre ray (or at a silhouette, its first `subpixels`^2 ray to hit) meets the surface.
-    `where` (H, W) bool: only these pixels are traced (the others are left uncovered)."""
+    `where` (H, W) bool: only these pixels are traced (the others are left uncovered). `coarse`: the pixels that may
+    meet the surface are found from the geometry's coarse boxes of cells."""
     coverage = np.zeros((camera.height, camera.width), dtype=np.float32)
     if geometry.empty:
         return coverage, np.zeros((0, 2), dtype=np.int64), np.zeros((0, 3))
     world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
     origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
     rows, cols = _pixel_window(geometry, camera)
-    candidates, nearest, farthest = _ray_candidates(geometry, camera, rows, cols)
+    cells = geometry.coarse_surface_cells if coarse else geometry.surface_cells
+    candidates, nearest, farthest = _ray_candidates(geometry, camera, rows, cols, cells)
     if where is not None:
         candidates &= where[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
     centre_t, centre_p, centre_cover = _trace_candidates(geometry, camera, world_to_voxel, origin, rows, cols,
@@ -513,7 +540,7 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
     mirrored = replace(geometry, voxel_to_world=_MIRROR @ geometry.voxel_to_world)
     # The reflection's pixels where any of the image's pixels they cover shows floor.
     where = downscaled_mask(surface.floor & (surface.coverage < 1.0), side, min_cover=1e-6)
-    coverage, pixels, points_crop = _first_hits(mirrored, camera, subpixels=1, where=where)
+    coverage, pixels, points_crop = _first_hits(mirrored, camera, subpixels=1, where=where, coarse=True)
     normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0)
     points, normals, _ = _in_world(mirrored, camera, points_crop, normals_crop)
     _, albedo = _surface_colors(mirrored, color_voxels, np.zeros(len(points)))
@@ -633,10 +660,11 @@ def _trace_candidates(geometry: ObjectGeometry, camera: Camera, world_to_voxel: 
     return t, points, cover
 
 
-def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray,
-                    cols: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray, cols: np.ndarray,
+                    cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For the pixel window (rows, cols): which pixels' centre rays may stop on the surface (bool), and the camera
-    depths nearer and farther than which no ray through the pixel can stop (kernels.mark_surface_pixels)."""
+    depths nearer and farther than which no ray through the pixel can stop (kernels.mark_surface_pixels of `cells`,
+    boxes of the cells where a ray may stop: ObjectGeometry.surface_cells or coarse_surface_cells)."""
     shape = (len(rows), len(cols))
     if min(geometry.occupied.shape) < 2:
         return np.ones(shape, dtype=bool), np.zeros(shape), np.full(shape, np.inf)
@@ -646,7 +674,7 @@ def _ray_candidates(geometry: ObjectGeometry, camera: Camera, rows: np.ndarray,
     voxel_to_camera = camera.world_to_camera()[:3] @ geometry.voxel_to_world
     crop_to_camera = voxel_to_camera + np.column_stack([np.zeros((3, 3)), voxel_to_camera[:, :3] @ geometry.offset])
     image = camera.intrinsics() @ np.diag([1.0, -1.0, -1.0])  # camera point -> (u, v, 1) * depth
-    kernels.mark_surface_pixels(geometry.surface_cells, np.asarray(geometry.occupied.shape), image @ crop_to_camera,
+    kernels.mark_surface_pixels(cells, np.asarray(geometry.occupied.shape), image @ crop_to_camera,
                                 int(rows[0]), int(cols[0]), mask, nearest, farthest)
     return mask, nearest.min(axis=0), farthest.max(axis=0)
 
