@@ -17,12 +17,14 @@ from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
 from app.editor.photo_capture import PhotoAlignment, object_shape, shape_key
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
+from app.editor.render_panel import ShadedEngine
 from app.editor.side_by_side import compose, scale_for
 from app.editor.voxel_cache import VoxelCache
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.paint import apply_paint
 from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene
+from renderer.shading import shade_scene
 from renderer.voxel_faces import exposed_faces, voxel_surface_mesh
 from renderer.voxels import save_voxels
 
@@ -210,6 +212,21 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
     assert cache.painted(one)[0] is first  # undo back to `one`: no repaint
 
 
+
+
+def test_the_voxel_shader_panel_keeps_the_shape_through_paint_and_draws_the_new_colors(box_scene):
+    # A stroke changes colors, never occupancy: the shaded renderer reruns only the colors and what they light, and its
+    # image is the one the shader draws from scratch.
+    engine = ShadedEngine(VoxelCache())
+    box_scene = replace(box_scene, image_size=48)
+    engine.render(box_scene)
+    stroke = edits.paint(box_scene, PaintOp("region", (0.1, 0.9, 0.1), seed=(3, 3, 3), tolerance=0.05))
+    image = engine.render(stroke)
+    assert set(engine.last_report.stage_ms) == {"pool", "colors", "reflection", "shade"}
+    rgba, floor = apply_paint(VoxelCache().object_rgba(stroke), stroke.floor.color, stroke.paint)
+    np.testing.assert_array_equal(image, shade_scene(stroke, rgba, floor).image)
+    before = shade_scene(box_scene, *apply_paint(VoxelCache().object_rgba(box_scene), box_scene.floor.color, ())).image
+    assert np.abs(image - before).max() > 0.1  # the top turned green
 
 @pytest.mark.parametrize("prepared", [False, True])
 def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_spares_nothing_holds(box_scene, monkeypatch,

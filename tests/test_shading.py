@@ -517,7 +517,8 @@ def test_a_part_in_front_of_another_shows_no_floor_at_its_outline():
 def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_size, quality):
     """Cached stages give the very image the uncached shader gives, after a move and turn, a move along the floor, a
     light move, a camera tilt, a floor color and a paint; with the object voxels merged as for the network's grid and
-    for the finer one a shader refiner reads. The voxel work (the geometry) reruns only for other voxels."""
+    for the finer one a shader refiner reads. The voxel work (the geometry) reruns only for another shape, and a paint
+    stroke reruns only the colors and what they light."""
     rgba = ball(24, color=(0.7, 0.3, 0.2))
     painted = rgba.copy()
     painted[:12, ..., :3] = (0.1, 0.5, 0.9)
@@ -542,7 +543,7 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
     ]
     staged, reran = StagedShader(grid_size, quality), {}
     for name, edited, voxels, floor in edits:
-        cached = staged.render(edited, id(voxels), voxels, floor, SIZE)
+        cached = staged.render(edited, id(voxels), voxels, floor, SIZE, shape_key="ball")  # paint keeps the shape
         reran[name] = set(staged.stage_ms)
         fresh = shade_scene(edited, voxels, floor, SIZE, grid_size, quality=quality)
         for part in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
@@ -550,9 +551,15 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
     assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
     assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
     # The geometry is placed: turns keep it.
-    assert reran["move"] == reran["slide"] == {"placed", "surface", "reflection", "shade"}
-    assert reran["camera"] == {"placed", "surface", "reflection", "floor", "shade"}
-    assert reran["paint"] == {"pool", "geometry", "placed", "surface", "reflection", "shade"}
+    assert reran["move"] == reran["slide"] == {"placed", "surface", "colors", "reflection", "shade"}
+    assert reran["camera"] == {"placed", "surface", "colors", "reflection", "floor", "shade"}
+    # Paint keeps the shape: what the camera sees stays, its colors and what they light change.
+    assert reran["paint"] == {"pool", "colors", "reflection", "shade"}
+    # Without a shape key the voxels' key names the shape too: other voxels are another object.
+    other = StagedShader(grid_size, quality)
+    other.render(tilted, "before", rgba, green, SIZE)
+    other.render(tilted, "after", painted, green, SIZE)
+    assert set(other.stage_ms) == {"pool", "geometry", "placed", "surface", "colors", "reflection", "shade"}
 
 
 def lattice(n: int = 40, bars: int = 4) -> np.ndarray:

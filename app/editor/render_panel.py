@@ -74,9 +74,10 @@ class ShadedEngine:
     def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
         start = time.perf_counter()
         rgba, floor_color = self._voxels.painted(scene)
-        key = (source_key(scene), tuple(op for op in scene.paint if op.target != "floor"))
+        shape = source_key(scene)  # paint keeps the occupancy: the shader keeps what the camera sees
+        key = (shape, tuple(op for op in scene.paint if op.target != "floor"))
         with self._lock:
-            image = self._shader.render(scene, key, rgba, floor_color, scene.image_size).image
+            image = self._shader.render(scene, key, rgba, floor_color, scene.image_size, shape_key=shape).image
             stages = dict(self._shader.stage_ms)
         self.last_report = RenderReport(tuple(stages), stages, (time.perf_counter() - start) * 1000.0, preview)
         return image

@@ -47,7 +47,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import coat_reflectance, lit_floor_terms
-from renderer.grid import dilate_cube, occupied_spans, pool_object, shader_pool_factors
+from renderer.grid import dilate_cube, occupied_spans, pool_voxels, shader_pool_factors
 from renderer.resample import downscaled_mask, resized
 from renderer.scene import (
     AMBIENT_RADIANCE,
@@ -286,7 +286,7 @@ class ShadedImage:
 
 def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int, int]) -> ObjectGeometry:
     """The shader's geometry of an object in its own voxels: `merged` (D, H, W, 4) are its N^3 voxels merged by
-    `factors` (renderer.grid.pool_object), and the result stands at the floor's origin, unturned and unscaled, until
+    `factors` (renderer.grid.pool_voxels), and the result stands at the floor's origin, unturned and unscaled, until
     `placed` puts it in a scene. It depends on the voxels' occupancy alone, so a caller keeps it through paint and every
     placement and camera edit (the merge factors change only with a scale across a merge threshold).
 
@@ -966,7 +966,7 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     network's input; `quality`: ShaderQuality)."""
     resolution = object_rgba.shape[0]
     factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
-    merged, _ = pool_object(object_rgba, factors)
+    merged = pool_voxels(object_rgba, factors)
     geometry = placed(object_geometry(merged, resolution, factors), scene.object, scene.camera.elevation_deg)
     size = scene.image_size if size is None else size
     surface = visible_surface(geometry, size, cover_behind, quality=quality)

@@ -2,31 +2,34 @@
 
     stage      depends on                                                  reruns after
     pool       object voxels after paint, merge factors (resolution, scale) paint, a scale that changes the factors
-    geometry   pool (the object's own voxels, in its own frame)            the same
+    geometry   the object's shape (occupancy), merge factors               another object, a scale across the factors
     placed     geometry, placement, elevation                              the same, any placement or camera edit
-    surface    placed, image size                                          the same
-    reflection placed, image size (the object mirrored in the floor)        the same
+    surface    placed, image size (what the camera sees, uncolored)        the same
+    colors     surface, pool (the seen points' colors)                     the same, paint
+    reflection colors (the object mirrored in the floor)                   the same
     floor      elevation, image size, light position, floor color          camera, floor color, a light move
-    shade      surface, floor                                              any of the above
+    shade      colors, reflection, floor                                   any of the above
 
-So a light move or a floor color reruns only `floor` and `shade`, an object move, turn or scale (within its merge
-factors) `placed`, `surface`, `reflection` and `shade`, a camera tilt those and `floor`: the geometry stands
-at the floor's origin in the object's own frame and `placed` puts it in the scene (renderer.shading.shader).
-The caller names the painted voxels by a key (anything hashable that changes when they do), so the cache never
-compares voxel arrays.
+So a light move or a floor color reruns only `floor` and `shade`; a paint stroke `pool`, `colors`, `reflection` and
+`shade` (paint keeps every voxel's occupancy, so the geometry and what the camera sees stay); an object move, turn or
+scale (within its merge factors) `placed` and the stages after it but `floor`; a camera tilt those and `floor`: the
+geometry stands at the floor's origin in the object's own frame and `placed` puts it in the scene
+(renderer.shading.shader). The caller names the painted voxels by a key (anything hashable that changes when they
+do) and their shape by another (one that changes when the occupancy does), so the cache never compares voxel arrays.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable, Hashable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
-from renderer.grid import pool_object, shader_pool_factors
+from renderer.grid import pool_voxels, shader_pool_factors
 from renderer.scene import SHADER_GRID_SIZE, Scene
 from renderer.shading.shader import (
     FULL_QUALITY,
@@ -35,6 +38,7 @@ from renderer.shading.shader import (
     floor_reflection,
     object_geometry,
     placed,
+    repaint_surface,
     shade,
     visible_surface,
 )
@@ -49,23 +53,29 @@ class StagedShader:
         self._memo: dict[str, tuple[Hashable, Any]] = {}
         self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
 
-    def render(self, scene: Scene, voxels_key: Hashable, object_rgba: np.ndarray, floor_color, size: int) -> ShadedImage:
-        """The shaded image of `scene` whose painted object voxels are `object_rgba` (named by `voxels_key`)."""
+    def render(self, scene: Scene, voxels_key: Hashable, object_rgba: np.ndarray, floor_color, size: int,
+               shape_key: Hashable | None = None) -> ShadedImage:
+        """The shaded image of `scene` whose painted object voxels are `object_rgba`, named by `voxels_key`; `shape_key`
+        names their occupancy (default: `voxels_key`), which paint keeps."""
         self.stage_ms = {}
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
         factors = shader_pool_factors(n, o.scale, self.grid_size)
-        merged, _ = self._stage("pool", (voxels_key, factors), lambda: pool_object(object_rgba, factors))
-        shape = self._stage("geometry", (voxels_key, factors), lambda: object_geometry(merged, n, factors))
-        placed_key = (voxels_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
-        geometry = self._stage("placed", placed_key, lambda: placed(shape, o, elevation))
-        surface = self._stage("surface", (placed_key, size), lambda: visible_surface(geometry, size, quality=self.quality))
-        reflection = self._stage("reflection", (placed_key, size), lambda: floor_reflection(geometry, surface))
+        shape_key = voxels_key if shape_key is None else shape_key
+        merged = self._stage("pool", (voxels_key, factors), lambda: pool_voxels(object_rgba, factors))
+        shape = self._stage("geometry", (shape_key, factors), lambda: object_geometry(merged, n, factors))
+        placed_key = (shape_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        where = replace(self._stage("placed", placed_key, lambda: placed(shape, o, elevation)), rgb=merged[..., :3])
+        seen = self._stage("surface", (placed_key, size), lambda: visible_surface(where, size, colors=False,
+                                                                                  quality=self.quality))
+        painted_key = (placed_key, size, voxels_key)
+        surface = self._stage("colors", painted_key, lambda: repaint_surface(seen, where))
+        reflection = self._stage("reflection", painted_key, lambda: floor_reflection(where, surface))
         light = scene.light.position
         floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
             Camera(elevation, width=size, height=size), light, floor))
-        return self._stage("shade", (placed_key, size, light, floor), lambda: shade(geometry, surface, light, floor,
-                                                                                 floor_terms, reflection, self.quality))
+        return self._stage("shade", (painted_key, light, floor), lambda: shade(where, surface, light, floor,
+                                                                            floor_terms, reflection, self.quality))
 
     def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
         if name in self._memo and self._memo[name][0] == key:
