@@ -869,6 +869,14 @@ def test_the_fast_quality_lets_every_point_see_the_whole_sky():
     assert np.all(np.isfinite(open_sky.image)) and np.all(open_sky.image >= occluded.image - 1e-6)
     assert (open_sky.image - occluded.image).max(axis=2)[blocked].mean() > 0.01
     np.testing.assert_array_equal(open_sky.coverage, occluded.coverage)  # the rest of the sampling is the same
+    # Nothing reads the broad occupancy then, so a geometry for the fast quality leaves it out; asked for an occluded
+    # sky, such a geometry says so rather than shading without it.
+    factors = shader_pool_factors(16, spec.scale, GRID_SIZE)
+    bare = placed(object_geometry(pool_object(cube(16), factors)[0], 16, factors, ambient_occlusion=False), spec, 30.0)
+    assert bare.broad is None and geometry_of(cube(16), spec, 30.0).broad is not None
+    np.testing.assert_array_equal(visible_surface(bare, SIZE, quality=FAST_QUALITY).images.occlusion, 1.0)
+    with pytest.raises(ValueError, match="without occlusion"):
+        visible_surface(bare, SIZE, quality=FULL_QUALITY)
 
 
 def test_the_fast_quality_colors_each_point_by_one_voxel():

@@ -435,7 +435,8 @@ class RenderEngine:
         else:  # the network's (shader_pool_factors are its merge factors on its own grid)
             pooled = self._network_pool(painted, keys)
         shape_key = (keys.pool[0][0], n, factors)
-        shape = self._stage("shade_geometry", shape_key, lambda: object_geometry(pooled.voxels, n, factors))
+        shape = self._stage("shade_geometry", shape_key, lambda: object_geometry(pooled.voxels, n, factors,
+                                                                                      self._quality.ambient_occlusion))
         # Where the scene has the object (its occluders moved: 1.6-2 ms on the demo chair, which a light edit need not
         # pay), in this paint's colors (kept geometry may hold an earlier paint's).
         where = self._stage("shade_placement", (shape_key, keys.placement),

@@ -202,7 +202,7 @@ class ObjectGeometry:
     # the least of that within CORE_SIZE voxels (side by side: a ray's step reads both with one lookup)
     gradient: np.ndarray  # (D, H, W, 3): the gradient of the distance blurred by NORMAL_SIGMA, the normals' field
     coarse_gradient: np.ndarray  # the same of the distance averaged over 2^3 blocks: read for the normals' disc
-    broad: np.ndarray  # occupancy blurred by BROAD_SIGMA
+    broad: np.ndarray | None  # occupancy blurred by BROAD_SIGMA (None: made without ambient occlusion)
     voxel_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
     occluders: np.ndarray  # (M, 3) float64 world positions of the shadow occluders: the mean centre of the occupied
     # voxels in each block of voxels (OCCLUDER_CELLS)
@@ -284,7 +284,8 @@ class ShadedImage:
 # --- stage 1 ----------------------------------------------------------------------------------
 
 
-def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int, int]) -> ObjectGeometry:
+def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int, int],
+                    ambient_occlusion: bool = True) -> ObjectGeometry:
     """The shader's geometry of an object in its own voxels: `merged` (D, H, W, 4) are its N^3 voxels merged by
     `factors` (renderer.grid.pool_voxels), and the result stands at the floor's origin, unturned and unscaled, until
     `placed` puts it in a scene. It depends on the voxels' occupancy alone, so a caller keeps it through paint and every
@@ -292,7 +293,8 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
 
     The object's own voxels, not a camera-aligned grid resampled from them: nothing is skipped or doubled where a grid
     would be turned against them (thin bars keep their width and place), and a turn or a camera tilt redoes no voxel
-    work (docs/results.md, "Design choices")."""
+    work (docs/results.md, "Design choices"). `ambient_occlusion`: False leaves out the broad occupancy that only the
+    ambient occlusion reads (ShaderQuality.ambient_occlusion)."""
     merged = np.asarray(merged)
     if merged.ndim != 4 or merged.shape[3] != 4:
         raise InputError(f"merged object voxels must be (D, H, W, 4), got {merged.shape}")
@@ -328,7 +330,7 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
         distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core),
         coarse_surface_cells=_surface_cells(distance_and_core, COARSE_CELLS), gradient=gradient,
         coarse_gradient=coarse_gradient,
-        broad=_broad(solid), voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
+        broad=_broad(solid) if ambient_occlusion else None, voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
         occluder_box=_box(occluders),
         occluder_block=float(np.prod(blocks)) ** (1.0 / 3.0))
 
@@ -435,6 +437,8 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     False leaves the object grey, for a caller that repaints the surface next (repaint_surface) and so need not pay
     for the colors twice. `quality`: its rays per side at silhouette pixels, normals' disc, colors' spread and
     ambient occlusion."""
+    if quality.ambient_occlusion and geometry.broad is None:
+        raise ValueError("visible_surface: this quality occludes the sky, and the geometry was made without occlusion")
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind, quality.silhouette_rays)
     normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, quality.normal_rings,
@@ -534,14 +538,16 @@ _MIRROR = np.diag([1.0, -1.0, 1.0, 1.0])  # world y -> -y: the floor (y = 0) as 
 def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> FloorReflection:
     """The object mirrored in the floor as the camera sees it past the object in `surface` (a ray the coat reflects
     off the floor goes on as the camera's ray through the same pixel goes on to the object mirrored below the floor).
-    Blurred and faint, it is drawn from centre rays alone, normals without the disc and one voxel's color."""
+    Blurred and faint, it is drawn from centre rays alone, normals without the disc and one voxel's color, its sky
+    occluded if the geometry was made with the ambient occlusion."""
     side = max(surface.size // REFLECTION_SUBSAMPLING, 1)
     camera = Camera(geometry.elevation_deg, width=side, height=side)
     mirrored = replace(geometry, voxel_to_world=_MIRROR @ geometry.voxel_to_world)
     # The reflection's pixels where any of the image's pixels they cover shows floor.
     where = downscaled_mask(surface.floor & (surface.coverage < 1.0), side, min_cover=1e-6)
     coverage, pixels, points_crop = _first_hits(mirrored, camera, subpixels=1, where=where, coarse=True)
-    normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0)
+    normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0,
+                                                          occluded=geometry.broad is not None)
     points, normals, _ = _in_world(mirrored, camera, points_crop, normals_crop)
     _, albedo = _surface_colors(mirrored, color_voxels, np.zeros(len(points)))
     flip = _MIRROR.diagonal()[:3]
@@ -967,7 +973,8 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     resolution = object_rgba.shape[0]
     factors = shader_pool_factors(resolution, scene.object.scale, grid_size)
     merged = pool_voxels(object_rgba, factors)
-    geometry = placed(object_geometry(merged, resolution, factors), scene.object, scene.camera.elevation_deg)
+    geometry = placed(object_geometry(merged, resolution, factors, quality.ambient_occlusion), scene.object,
+                      scene.camera.elevation_deg)
     size = scene.image_size if size is None else size
     surface = visible_surface(geometry, size, cover_behind, quality=quality)
     mirrored = floor_reflection(geometry, surface) if reflection else None

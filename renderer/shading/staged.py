@@ -63,7 +63,8 @@ class StagedShader:
         factors = shader_pool_factors(n, o.scale, self.grid_size)
         shape_key = voxels_key if shape_key is None else shape_key
         merged = self._stage("pool", (voxels_key, factors), lambda: pool_voxels(object_rgba, factors))
-        shape = self._stage("geometry", (shape_key, factors), lambda: object_geometry(merged, n, factors))
+        shape = self._stage("geometry", (shape_key, factors), lambda: object_geometry(merged, n, factors,
+                                                                                    self.quality.ambient_occlusion))
         placed_key = (shape_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
         where = replace(self._stage("placed", placed_key, lambda: placed(shape, o, elevation)), rgb=merged[..., :3])
         seen = self._stage("surface", (placed_key, size), lambda: visible_surface(where, size, colors=False,
