@@ -105,7 +105,7 @@ def test_the_coarse_shading_is_interpolated_bilinearly(width, height):
     at_c = np.interp(np.arange(width) + 0.5, cols, np.arange(len(cols)))
     rr, cc = np.meshgrid(at_r, at_c, indexing="ij")
     expected = np.stack([ndimage.map_coordinates(coarse[..., k], [rr, cc], order=1) for k in range(4)], axis=-1)
-    np.testing.assert_allclose(_upsample(coarse, geometry), expected, atol=1e-5)
+    np.testing.assert_allclose(_upsample(coarse, geometry.row_weights, geometry.col_weights), expected, atol=1e-5)
 
 
 @pytest.mark.parametrize("light,color,match", [

@@ -713,9 +713,13 @@ def test_normals_stay_sharp_up_to_a_cubes_edges():
 
 
 def test_the_composite_lays_the_object_over_the_lit_floor_by_its_coverage():
+    # The floor's two terms come on a coarse grid with, per image row and column, the coarse rows and columns around
+    # it and the weights between them: the composite interpolates them bilinearly.
     rng = np.random.default_rng(4)
-    size = 12
-    from_light, from_ambient = (rng.random((size, size, 3), dtype=np.float32) for _ in range(2))
+    size, coarse = 12, (4, 5)
+    from_light, from_ambient = (rng.random(coarse + (3,), dtype=np.float32) for _ in range(2))
+    top, left = rng.integers(0, coarse[0] - 1, size), rng.integers(0, coarse[1] - 1, size)
+    down, across = (rng.random(size, dtype=np.float32) for _ in range(2))
     floor = rng.random((size, size)) < 0.7
     visibility, floor_occlusion = (rng.random((size, size), dtype=np.float32) for _ in range(2))
     background = np.array([0.1, 0.2, 0.3], dtype=np.float32)
@@ -723,13 +727,21 @@ def test_the_composite_lays_the_object_over_the_lit_floor_by_its_coverage():
     radiance = rng.random((3, 3), dtype=np.float32)
     cover = np.array([1.0, 0.25, 0.0], dtype=np.float32)
     out = np.empty((size, size, 3), dtype=np.float32)
-    kernels.composite(from_light, from_ambient, floor, visibility, floor_occlusion, background, rows, cols, radiance,
-                      cover, out)
-    ground = np.where(floor[..., None], from_light * visibility[..., None] + from_ambient * floor_occlusion[..., None],
+    kernels.composite(from_light, from_ambient, top, top + 1, down, left, left + 1, across, floor, visibility,
+                      floor_occlusion, background, rows, cols, radiance, cover, out)
+
+    def full(term):
+        d, a = down[:, None, None], across[None, :, None]
+        upper = term[top][:, left] * (1 - a) + term[top][:, left + 1] * a
+        lower = term[top + 1][:, left] * (1 - a) + term[top + 1][:, left + 1] * a
+        return upper * (1 - d) + lower * d
+
+    ground = np.where(floor[..., None],
+                      full(from_light) * visibility[..., None] + full(from_ambient) * floor_occlusion[..., None],
                       background)
     expected = ground.copy()
     expected[rows, cols] = ground[rows, cols] * (1.0 - cover[:, None]) + radiance * cover[:, None]
-    np.testing.assert_allclose(out, expected, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(out, expected, rtol=1e-5, atol=1e-6)
 
 
 def test_network_buffers_hold_the_shaded_image_and_its_buffers_in_order():

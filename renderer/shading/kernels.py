@@ -14,6 +14,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from renderer.floor_light import bilinear_at
+
 FAR = np.float32(3.0e38)
 SOFT_SHADOW_TAPS = 4  # per side: samples of a light point's square of the shadow map (light_visibility)
 HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
@@ -765,17 +767,21 @@ def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, parallel=True)
-def composite(from_light, from_ambient, floor, visibility, floor_occlusion, background, rows, cols, radiance, cover,
-              out):
+def composite(from_light, from_ambient, top, bottom, down, left, right, across, floor, visibility, floor_occlusion,
+              background, rows, cols, radiance, cover, out):
     """The shaded image in linear light, in one pass: the lit floor (its light times `visibility`, its ambient
-    times `floor_occlusion`) or the `background` where there is no floor, then the object's `radiance` over it
-    at pixels (rows, cols) by their coverage."""
+    times `floor_occlusion`; both terms interpolated from the coarse grid they are evaluated on, as FloorTerms says)
+    or the `background` where there is no floor, then the object's `radiance` over it at pixels (rows, cols) by
+    their coverage."""
     for r in prange(out.shape[0]):
+        t, b, wd = top[r], bottom[r], down[r]
         for c in range(out.shape[1]):
             if floor[r, c]:
                 lit, sky = visibility[r, c], floor_occlusion[r, c]
+                lc, rc, wa = left[c], right[c], across[c]
                 for k in range(3):
-                    out[r, c, k] = from_light[r, c, k] * lit + from_ambient[r, c, k] * sky
+                    out[r, c, k] = (bilinear_at(from_light, t, b, wd, lc, rc, wa, k) * lit
+                                    + bilinear_at(from_ambient, t, b, wd, lc, rc, wa, k) * sky)
             else:
                 for k in range(3):
                     out[r, c, k] = background[k]

@@ -46,7 +46,7 @@ from scipy import ndimage, special
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
-from renderer.floor_light import coat_reflectance, lit_floor_terms
+from renderer.floor_light import FloorTerms, coat_reflectance, lit_floor_terms
 from renderer.grid import dilate_cube, occupied_spans, pool_voxels, shader_pool_factors
 from renderer.resample import downscaled_mask, resized
 from renderer.scene import (
@@ -809,7 +809,7 @@ def light_points(light_position, per_side: int = LIGHT_POINTS) -> np.ndarray:
 
 
 def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
-          floor_terms: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+          floor_terms: FloorTerms | None = None,
           reflection: FloorReflection | None = None, quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
     """The shaded image of the visible surface under the light at `light_position` (world). `floor_terms`: the
     empty floor's lighting, lit_floor_terms(camera, light_position, floor_color), if the caller keeps it (it does
@@ -818,7 +818,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     if floor_terms is None:
         floor_terms = lit_floor_terms(Camera(geometry.elevation_deg, width=surface.size, height=surface.size),
                                       light_position, floor_color)
-    from_light, from_ambient, floor = floor_terms
+    floor = floor_terms.floor
     lights = light_points(light_position, quality.light_points)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
     maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
@@ -839,7 +839,8 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
         radiance, seen = _object_radiance(surface.points, surface.normals, surface.albedo, surface.occlusion,
                                           light_position, lights, maps, bounds, nearest, block, floor_color)
     r, c = surface.pixels[:, 0], surface.pixels[:, 1]
-    kernels.composite(from_light, from_ambient, floor, visibility, surface.images.floor_occlusion,
+    kernels.composite(floor_terms.from_light, floor_terms.from_ambient, *floor_terms.row_weights,
+                      *floor_terms.col_weights, floor, visibility, surface.images.floor_occlusion,
                       np.full(3, AMBIENT_RADIANCE, dtype=np.float32), r, c, radiance, surface.coverage[r, c], image)
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, light_position, lights, maps, bounds, nearest, block, floor_color)
