@@ -30,6 +30,7 @@ from numba import njit, prange
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
+from renderer.resample import bilinear_at, linear_weights
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_IOR, FLOOR_ROUGHNESS, LIGHT_RADIANCE, LIGHT_SIZE
 from renderer.splat import cached_floor_mask
 
@@ -62,9 +63,9 @@ def lit_floor_image(camera: Camera, light_position, floor_color) -> np.ndarray:
 class FloorTerms:
     """The empty floor's linear radiance split by source, so a shader can shadow and occlude each: what the area light
     gives (diffuse and glossy) and what the ambient light gives, on the coarse grid of pixel centres the shading is
-    evaluated on, with the floor mask and the weights that interpolate them to every pixel (`bilinear_at`). A shader
-    interpolates them where it composites, without full-size copies (two 256^2 images made for each light edit,
-    0.4-0.7 ms each)."""
+    evaluated on, with the floor mask and the weights that interpolate them to every pixel
+    (renderer.resample.bilinear_at). A shader interpolates them where it composites, without full-size copies (two
+    256^2 images made for each light edit, 0.4-0.7 ms each)."""
 
     from_light: np.ndarray  # (h, w, 3) float32
     from_ambient: np.ndarray  # (h, w, 3) float32
@@ -127,8 +128,8 @@ class _Geometry:
         self.cos_view = np.clip(self.view[..., 1], 1e-4, 1.0)
         self.view_fresnel = coat_reflectance(self.cos_view)
         self.view_masking = _smith_g1(self.cos_view)
-        self.row_weights = _linear_weights(rows, camera.height)
-        self.col_weights = _linear_weights(cols, camera.width)
+        self.row_weights = linear_weights(rows, camera.height)
+        self.col_weights = linear_weights(cols, camera.width)
         for array in (self.floor, self.points, self.view):
             array.flags.writeable = False
 
@@ -204,16 +205,6 @@ def coat_reflectance(cos_theta):
 # --- interpolation ---------------------------------------------------------------------------
 
 
-def _linear_weights(samples: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For each of `size` pixel centres: the sample left of it, the one right of it, and the weight of
-    the right one, interpolating linearly between values at pixel-centre positions `samples`."""
-    centres = np.arange(size) + 0.5
-    right = np.clip(np.searchsorted(samples, centres, side="right"), 1, len(samples) - 1)
-    left = right - 1
-    weight = np.clip((centres - samples[left]) / (samples[right] - samples[left]), 0.0, 1.0)
-    return left, right, weight.astype(np.float32)
-
-
 def _upsample(coarse: np.ndarray, row_weights: tuple, col_weights: tuple,
               floor: np.ndarray | None = None) -> np.ndarray:
     """Bilinear interpolation of (h, w, c) coarse float32 values to the full image (0 off the `floor`, if given)."""
@@ -239,13 +230,3 @@ def _bilinear(coarse, top, bottom, down, left, right, across, floor, on_floor, o
                 continue
             for k in range(out.shape[2]):
                 out[r, c, k] = bilinear_at(coarse, t, b, wd, left[c], right[c], across[c], k)
-
-
-@njit(cache=True, inline="always")
-def bilinear_at(coarse, top, bottom, down, left, right, across, k):
-    """Channel k of the (h, w, c) `coarse` values between rows `top`, `bottom` and columns `left`, `right`, the lower
-    row weighing `down` and the right column `across` (FloorTerms.row_weights and col_weights at a pixel)."""
-    one = np.float32(1.0)  # float32 throughout (the values and weights are)
-    upper = coarse[top, left, k] * (one - across) + coarse[top, right, k] * across
-    lower = coarse[bottom, left, k] * (one - across) + coarse[bottom, right, k] * across
-    return upper * (one - down) + lower * down

@@ -1,9 +1,12 @@
 """Float images resized with Pillow's filters, per channel in 32-bit float mode ("F"): no 8-bit rounding, pixel
-centres aligned, and area averaging (BOX) when made smaller."""
+centres aligned, and area averaging (BOX) when made smaller; and bilinear interpolation of a coarse grid inside a
+compiled loop (`linear_weights`, `bilinear_at`), for a shader that reads coarse values where it writes pixels
+instead of making a full-size image of them first."""
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from PIL import Image
 
 
@@ -28,3 +31,23 @@ def downscaled_mask(mask: np.ndarray, long_side: int, min_cover: float = 0.25) -
     """A boolean mask with its long side at most `long_side`, set where at least `min_cover` of a pixel's area was:
     a part half a new pixel wide keeps a line of pixels, where sampling the nearest pixel breaks it up."""
     return downscaled(np.asarray(mask, dtype=np.float32), long_side) >= min_cover
+
+
+def linear_weights(samples: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each of `size` pixel centres: the sample left of it, the one right of it, and the weight of
+    the right one, interpolating linearly between values at pixel-centre positions `samples`."""
+    centres = np.arange(size) + 0.5
+    right = np.clip(np.searchsorted(samples, centres, side="right"), 1, len(samples) - 1)
+    left = right - 1
+    weight = np.clip((centres - samples[left]) / (samples[right] - samples[left]), 0.0, 1.0)
+    return left, right, weight.astype(np.float32)
+
+
+@njit(cache=True, inline="always")
+def bilinear_at(coarse, top, bottom, down, left, right, across, k):
+    """Channel k of the (h, w, c) `coarse` values between rows `top`, `bottom` and columns `left`, `right`, the lower
+    row weighing `down` and the right column `across` (`linear_weights` of its row and column)."""
+    one = np.float32(1.0)  # float32 throughout (the values and weights are)
+    upper = coarse[top, left, k] * (one - across) + coarse[top, right, k] * across
+    lower = coarse[bottom, left, k] * (one - across) + coarse[bottom, right, k] * across
+    return upper * (one - down) + lower * down

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from renderer.floor_light import bilinear_at
+from renderer.resample import bilinear_at
 
 FAR = np.float32(3.0e38)
 SOFT_SHADOW_TAPS = 4  # per side: samples of a light point's square of the shadow map (light_visibility)
@@ -789,6 +789,21 @@ def composite(from_light, from_ambient, top, bottom, down, left, right, across, 
         r, c, share = rows[i], cols[i], cover[i]
         for k in range(3):
             out[r, c, k] = out[r, c, k] * (1.0 - share) + radiance[i, k] * share
+
+
+@njit(cache=True, parallel=True)
+def add_upsampled(image, change, top, bottom, down, left, right, across, row0, col0, floor, coverage):
+    """image[row0 + r, col0 + c] += the (h, w, 3) `change` interpolated bilinearly at that pixel (bilinear_at, with
+    the weights of row r and column c) times the share of the pixel that shows the floor (0 where none), kept at
+    0 or more: the floor's reflection of the object added from its coarse image where the floor shows."""
+    for r in prange(top.shape[0]):
+        y = row0 + r
+        for c in range(left.shape[0]):
+            x = col0 + c
+            shown = np.float32(1.0) - coverage[y, x] if floor[y, x] else np.float32(0.0)
+            for k in range(3):
+                added = bilinear_at(change, top[r], bottom[r], down[r], left[c], right[c], across[c], k) * shown
+                image[y, x, k] = max(image[y, x, k] + added, np.float32(0.0))
 
 
 @njit(cache=True, parallel=True)

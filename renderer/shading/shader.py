@@ -40,7 +40,6 @@ from functools import lru_cache
 
 import numba
 import numpy as np
-from PIL import Image
 from scipy import ndimage, special
 
 from renderer.camera import Camera
@@ -48,7 +47,7 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.floor_light import FloorTerms, coat_reflectance, lit_floor_terms
 from renderer.grid import dilate_cube, occupied_spans, pool_voxels, shader_pool_factors
-from renderer.resample import downscaled_mask, resized
+from renderer.resample import downscaled_mask, linear_weights
 from renderer.scene import (
     AMBIENT_RADIANCE,
     CAMERA_DISTANCE,
@@ -933,16 +932,17 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
         reflection.weight[:, None] * (radiance - AMBIENT_RADIANCE))
     change = ndimage.gaussian_filter(change, (REFLECTION_BLUR, REFLECTION_BLUR, 0), mode="constant",
                                      truncate=BLUR_TRUNCATE)
+    # Interpolated where it is added, over the image rows and columns the box reaches (its pixels' centres at
+    # (i + 0.5) * step), clamped at the box's edges.
     step = surface.size / reflection.side
     top, left = round(r0 * step), round(c0 * step)
     bottom, right = round(r1 * step), round(c1 * step)
-    change = resized(change, (right - left, bottom - top), Image.Resampling.BILINEAR)
-    rows, cols = slice(max(top, 0), min(bottom, surface.size)), slice(max(left, 0), min(right, surface.size))
-    change = change[rows.start - top:rows.stop - top, cols.start - left:cols.stop - left]
-    shown = np.where(surface.floor[rows, cols], 1.0 - surface.coverage[rows, cols], 0.0).astype(np.float32)
-    window = image[rows, cols]
-    window += change * shown[..., None]
-    np.maximum(window, 0.0, out=window)
+    rows = linear_weights((np.arange(r1 - r0) + 0.5) * ((bottom - top) / (r1 - r0)), bottom - top)
+    cols = linear_weights((np.arange(c1 - c0) + 0.5) * ((right - left) / (c1 - c0)), right - left)
+    first_row, first_col = max(top, 0), max(left, 0)
+    rows = [w[first_row - top:min(bottom, surface.size) - top] for w in rows]
+    cols = [w[first_col - left:min(right, surface.size) - left] for w in cols]
+    kernels.add_upsampled(image, change, *rows, *cols, first_row, first_col, surface.floor, surface.coverage)
 
 
 # --- what a network reads ---------------------------------------------------------------------
