@@ -770,18 +770,26 @@ def distance_to_occupied(occupied: np.ndarray) -> np.ndarray:
 def composite(from_light, from_ambient, top, bottom, down, left, right, across, floor, visibility, floor_occlusion,
               background, rows, cols, radiance, cover, out):
     """The shaded image in linear light, in one pass: the lit floor (its light times `visibility`, its ambient
-    times `floor_occlusion`; both terms interpolated from the coarse grid they are evaluated on, as FloorTerms says)
-    or the `background` where there is no floor, then the object's `radiance` over it at pixels (rows, cols) by
-    their coverage."""
+    times `floor_occlusion`; both terms interpolated bilinearly from the coarse grid they are evaluated on, with the
+    weights FloorTerms holds: between the coarse rows once per image row, then across) or the `background` where
+    there is no floor, then the object's `radiance` over it at pixels (rows, cols) by their coverage."""
+    one = np.float32(1.0)
     for r in prange(out.shape[0]):
         t, b, wd = top[r], bottom[r], down[r]
+        light_row = np.empty((from_light.shape[1], 3), dtype=np.float32)
+        ambient_row = np.empty((from_ambient.shape[1], 3), dtype=np.float32)
+        for j in range(light_row.shape[0]):
+            for k in range(3):
+                light_row[j, k] = from_light[t, j, k] * (one - wd) + from_light[b, j, k] * wd
+                ambient_row[j, k] = from_ambient[t, j, k] * (one - wd) + from_ambient[b, j, k] * wd
         for c in range(out.shape[1]):
             if floor[r, c]:
                 lit, sky = visibility[r, c], floor_occlusion[r, c]
                 lc, rc, wa = left[c], right[c], across[c]
                 for k in range(3):
-                    out[r, c, k] = (bilinear_at(from_light, t, b, wd, lc, rc, wa, k) * lit
-                                    + bilinear_at(from_ambient, t, b, wd, lc, rc, wa, k) * sky)
+                    light = light_row[lc, k] * (one - wa) + light_row[rc, k] * wa
+                    ambient = ambient_row[lc, k] * (one - wa) + ambient_row[rc, k] * wa
+                    out[r, c, k] = light * lit + ambient * sky
             else:
                 for k in range(3):
                     out[r, c, k] = background[k]
