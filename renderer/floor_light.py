@@ -14,8 +14,8 @@ Cost: the shading varies slowly over the floor, so it is evaluated on a coarse g
 centres (COARSE_STEP pixels apart) with LIGHT_SAMPLES^2 points on the light, interpolated
 bilinearly to full size, and cut at the horizon with the exact floor mask. The voxel shader's terms
 (FloorTerms) stay on the coarse grid and are interpolated where it composites its image: at 256^2 they
-took 0.9-1.3 ms a light edit against 1.7-2.8 with both terms drawn at full size first (the composite
-0.2 ms slower; Intel Xeon with AVX512-BF16, 2026-12-01).
+took 0.9-1.3 ms a light edit against 1.7-2.8 with both terms drawn at full size first, the composite,
+which interpolates them, 0.1-0.3 ms more (Intel Xeon with AVX512-BF16, 2026-12-01).
 """
 
 from __future__ import annotations
