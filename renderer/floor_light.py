@@ -73,11 +73,6 @@ class FloorTerms:
     row_weights: tuple[np.ndarray, np.ndarray, np.ndarray]  # per image row: the coarse rows around it, the lower's weight
     col_weights: tuple[np.ndarray, np.ndarray, np.ndarray]  # per image column: likewise
 
-    def images(self) -> tuple[np.ndarray, np.ndarray]:
-        """The two terms at every pixel, (H, W, 3) float32 each, 0 off the floor."""
-        return tuple(_upsample(term, self.row_weights, self.col_weights, self.floor) for term in (self.from_light,
-                                                                                                 self.from_ambient))
-
 
 def lit_floor_terms(camera: Camera, light_position, floor_color) -> FloorTerms:
     """The empty floor's lighting for a shader that shadows and occludes it (FloorTerms)."""
@@ -205,28 +200,21 @@ def coat_reflectance(cos_theta):
 # --- interpolation ---------------------------------------------------------------------------
 
 
-def _upsample(coarse: np.ndarray, row_weights: tuple, col_weights: tuple,
-              floor: np.ndarray | None = None) -> np.ndarray:
-    """Bilinear interpolation of (h, w, c) coarse float32 values to the full image (0 off the `floor`, if given)."""
+def _upsample(coarse: np.ndarray, row_weights: tuple, col_weights: tuple) -> np.ndarray:
+    """Bilinear interpolation of (h, w, c) coarse float32 values to the full image."""
     top, bottom, down = row_weights
     left, right, across = col_weights
     out = np.empty((len(top), len(left), coarse.shape[2]), dtype=np.float32)
-    on_floor = floor is not None
-    _bilinear(np.ascontiguousarray(coarse, dtype=np.float32), top, bottom, down, left, right, across,
-              floor if on_floor else np.ones((1, 1), dtype=bool), on_floor, out)
+    _bilinear(np.ascontiguousarray(coarse, dtype=np.float32), top, bottom, down, left, right, across, out)
     return out
 
 
 @njit(cache=True, parallel=True)
-def _bilinear(coarse, top, bottom, down, left, right, across, floor, on_floor, out):
-    """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c] (0 where
-    `on_floor` and not floor[r, c]): compiled, one pass over the image (numpy's gathers took 1 ms a light edit; its
-    BLAS fought the network's threads)."""
+def _bilinear(coarse, top, bottom, down, left, right, across, out):
+    """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c]: compiled, one
+    pass over the image (numpy's gathers took 1 ms a light edit; its BLAS fought the network's threads)."""
     for r in prange(out.shape[0]):
         t, b, wd = top[r], bottom[r], down[r]
         for c in range(out.shape[1]):
-            if on_floor and not floor[r, c]:
-                out[r, c, :] = 0.0
-                continue
             for k in range(out.shape[2]):
                 out[r, c, k] = bilinear_at(coarse, t, b, wd, left[c], right[c], across[c], k)

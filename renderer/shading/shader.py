@@ -329,8 +329,8 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
         distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core),
         coarse_surface_cells=_surface_cells(distance_and_core, COARSE_CELLS), gradient=gradient,
         coarse_gradient=coarse_gradient,
-        broad=_broad(solid) if ambient_occlusion else None, voxel_to_world=voxel_to_world, occluders=np.ascontiguousarray(occluders),
-        occluder_box=_box(occluders),
+        broad=_broad(solid) if ambient_occlusion else None, voxel_to_world=voxel_to_world,
+        occluders=np.ascontiguousarray(occluders), occluder_box=_box(occluders),
         occluder_block=float(np.prod(blocks)) ** (1.0 / 3.0))
 
 
@@ -395,9 +395,9 @@ def _cells_by_block(cells: np.ndarray, block: int) -> np.ndarray:
         return np.zeros((0, 6), dtype=np.int64)
     keys = cells // block
     dims = keys.max(axis=0) + 1
-    order = np.argsort((keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2], kind="stable")
-    linear = ((keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2])[order]
-    heads = np.flatnonzero(np.diff(linear, prepend=-1))
+    linear = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
+    order = np.argsort(linear, kind="stable")
+    heads = np.flatnonzero(np.diff(linear[order], prepend=-1))  # each block's first cell in that order
     sorted_cells = cells[order]
     columns = []
     for axis in range(3):
