@@ -413,7 +413,7 @@ def _parse_resolutions(text: str) -> list[int]:
 
 
 def cmd_bench(args: argparse.Namespace) -> None:
-    from models.bench.benchmark import DOCS, FULL, QUICK, REPORT_FILES, run_bench, write_outputs
+    from models.bench.benchmark import DOCS, FULL, QUICK, report_files, run_bench, write_outputs
 
     folder = Path(args.report) if args.report else Path("out") / ("bench-quick" if args.quick else "bench")
     if args.quick and folder.resolve() == DOCS:
@@ -424,11 +424,11 @@ def cmd_bench(args: argparse.Namespace) -> None:
             folder.mkdir(parents=True)
         except OSError as exc:
             raise InputError(f"cannot create the report folder: {exc.strerror}", folder) from None
-    for name in REPORT_FILES:
-        _output_path(str(folder / name), args.force)
+    for path in report_files(folder):
+        _output_path(str(path), args.force)
     results = run_bench(QUICK if args.quick else FULL, data=args.data, model_paths=args.model, note=args.note)
     write_outputs(results, folder)
-    print(f"wrote {', '.join(str(folder / name) for name in REPORT_FILES)}: light edit "
+    print(f"wrote {', '.join(str(path) for path in report_files(folder))}: light edit "
           f"{results['nvrplus_light_edit_ms']:.1f} ms, frame {results['nvrplus_frame_ms']:.1f} ms, "
           f"path tracing 1 spp + OIDN {results['pathtrace_1spp_oidn_ms']:.1f} ms")
 
@@ -636,7 +636,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="a CI-sized subset (one scene, 1 and 4 spp, no paper config)")
     p.add_argument("--report", default=None, metavar="DIR",
                    help="folder for benchmarks.md, benchmarks.json and speed_vs_error.png (default out/bench, "
-                        "or out/bench-quick with --quick); `--report docs` updates the project's page (full runs only)")
+                        "or out/bench-quick with --quick); `--report docs` updates the project's page (full runs "
+                        "only; a CPU with native bfloat16 writes benchmarks_avx512_bf16.md and its files)")
     p.add_argument("--force", action="store_true", help="replace an earlier report in that folder")
     p.add_argument("--note", default="", help="a line for the report, e.g. what else ran on the machine")
     p.set_defaults(func=cmd_bench)

@@ -67,6 +67,21 @@ def test_quick_bench_never_writes_the_project_page(tmp_path, capsys):
     assert (tmp_path / "benchmarks.md").read_text() == "earlier report"
 
 
+@pytest.mark.parametrize("native_bf16", [False, True])
+def test_a_cpu_with_native_bfloat16_keeps_its_own_page_in_the_docs(tmp_path, monkeypatch, native_bf16):
+    # The docs hold the page of the CPU without bfloat16 (the targets' CPU) and one of a CPU with it: a run on the
+    # latter writes its own files there and never replaces the former; elsewhere the names stay plain.
+    from models.bench import benchmark
+    from models.engine import onednn
+
+    monkeypatch.setattr(onednn, "cpu_has_native_bfloat16", lambda: native_bf16)
+    monkeypatch.setattr(benchmark, "DOCS", tmp_path.resolve())
+    names = [p.name for p in benchmark.report_files(tmp_path)]
+    suffix = "_avx512_bf16" if native_bf16 else ""
+    assert names == [f"benchmarks{suffix}.md", f"benchmarks{suffix}.json", f"speed_vs_error{suffix}.png"]
+    assert [p.name for p in benchmark.report_files(tmp_path / "elsewhere")] == list(benchmark.REPORT_FILES)
+
+
 def test_the_pareto_target_is_judged_on_the_shares_timed_in_turn():
     from models.bench.report import _in_turn
 

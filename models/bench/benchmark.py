@@ -550,14 +550,25 @@ def _point(row: Row) -> Point:
 
 
 REPORT_FILES = ("benchmarks.md", "benchmarks.json", "speed_vs_error.png")
+NATIVE_BF16_SUFFIX = "_avx512_bf16"  # the project page's report of a CPU with native bfloat16
+
+
+def report_files(folder: Path) -> tuple[Path, Path, Path]:
+    """Where a run writes its report, numbers and figure (REPORT_FILES) in `folder`. In the project's docs a CPU with
+    native bfloat16 writes its own (benchmarks_avx512_bf16.md, ...), beside the page of the CPU without it that the
+    speed targets are set for, which it must not replace."""
+    from models.engine.onednn import cpu_has_native_bfloat16
+
+    suffix = NATIVE_BF16_SUFFIX if folder.resolve() == DOCS and cpu_has_native_bfloat16() else ""
+    return tuple(folder / name.replace(".", f"{suffix}.", 1) for name in REPORT_FILES)
 
 
 def write_outputs(results: dict[str, Any], folder: Path) -> None:
-    """The Markdown report, the JSON numbers and the speed-against-error figure, in one folder."""
+    """The Markdown report, the JSON numbers and the speed-against-error figure, in one folder (report_files)."""
     from models.bench.report import write_report
 
     folder.mkdir(parents=True, exist_ok=True)
-    report, numbers, figure = (folder / name for name in REPORT_FILES)
+    report, numbers, figure = report_files(folder)
     rows = [r for r in results["renderers"] if r["mse"] is not None]
     # The figure's labels leave out the weights file names, which the table gives.
     draw_speed_vs_error([Point(re.sub(r" \([^)]*\.safetensors\)", "", r["label"]), r["family"], r["ms"], r["mse"])
