@@ -322,12 +322,13 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     kernels.field_gradient(coarse, coarse_gradient)
     core = filters.minimum_filter(distance, CORE_SIZE)
     distance_and_core = np.stack([distance, core], axis=-1)
+    cells = _surface_cells(distance_and_core)
     blocks = _occluder_blocks(resolution, factors)
     occluders = (_block_centroids(found, blocks) + 0.5) @ voxel_to_world[:3, :3].T + voxel_to_world[:3, 3]
     return ObjectGeometry(
         elevation_deg=0.0, offset=lo, occupied=occupied, rgb=merged[..., :3], rgb_offset=lo,
-        distance_and_core=distance_and_core, surface_cells=_surface_cells(distance_and_core),
-        coarse_surface_cells=_surface_cells(distance_and_core, COARSE_CELLS), gradient=gradient,
+        distance_and_core=distance_and_core, surface_cells=_cell_runs(cells),
+        coarse_surface_cells=_cells_by_block(cells, COARSE_CELLS), gradient=gradient,
         coarse_gradient=coarse_gradient,
         broad=_broad(solid) if ambient_occlusion else None, voxel_to_world=voxel_to_world,
         occluders=np.ascontiguousarray(occluders), occluder_box=_box(occluders),
@@ -364,18 +365,21 @@ def _box(points: np.ndarray) -> np.ndarray:
     return np.array([[column.min() for column in columns], [column.max() for column in columns]])
 
 
-def _surface_cells(distance_and_core: np.ndarray, block: int = 1) -> np.ndarray:
-    """The cells of the crop where a traced ray may stop (kernels.near_surface_cell_mask), as boxes (K, 6: first and
-    last i, j, k) for the pixel mask to project: with `block` 1, runs of up to CELL_RUN consecutive cells along the
-    last axis; else the marked cells of each `block`^3 block of cells (for an image whose pixels span several voxels,
-    where finer boxes mark the same pixels). None in a crop thinner than two voxels, where every pixel is a
-    candidate instead."""
+def _surface_cells(distance_and_core: np.ndarray) -> np.ndarray:
+    """(N, 3) indices of the crop's cells where a traced ray may stop (kernels.near_surface_cell_mask), in C order;
+    none in a crop thinner than two voxels, where every pixel is a candidate instead. The pixel mask projects them
+    as boxes: `_cell_runs` for the camera's image, `_cells_by_block` for one whose pixels span several voxels."""
     if min(distance_and_core.shape[:3]) < 2:
+        return np.zeros((0, 3), dtype=np.int64)
+    return filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
+                                                                   CANDIDATE_SLACK, CANDIDATE_DEPTH))
+
+
+def _cell_runs(cells: np.ndarray) -> np.ndarray:
+    """(K, 6): boxes (first and last i, j, k) of runs of up to CELL_RUN consecutive `cells` (N, 3, C order) along the
+    last axis."""
+    if not len(cells):
         return np.zeros((0, 6), dtype=np.int64)
-    cells = filters.occupied_indices(kernels.near_surface_cell_mask(distance_and_core, SURFACE_LEVEL, THIN_LEVEL,
-                                                                    CANDIDATE_SLACK, CANDIDATE_DEPTH))
-    if block > 1:
-        return _cells_by_block(cells, block)
     # A run starts where the cell before it (along k) is not marked or the run so far is CELL_RUN long.
     follows = np.zeros(len(cells), dtype=bool)
     follows[1:] = (cells[1:, 0] == cells[:-1, 0]) & (cells[1:, 1] == cells[:-1, 1]) & (cells[1:, 2] == cells[:-1, 2] + 1)
@@ -390,7 +394,7 @@ def _surface_cells(distance_and_core: np.ndarray, block: int = 1) -> np.ndarray:
 
 
 def _cells_by_block(cells: np.ndarray, block: int) -> np.ndarray:
-    """(K, 6): the least and greatest i, j, k of the `cells` (N, 3) in each `block`^3 block that holds any."""
+    """(K, 6): boxes (the least and greatest i, j, k) of the `cells` (N, 3) in each `block`^3 block that holds any."""
     if not len(cells):
         return np.zeros((0, 6), dtype=np.int64)
     keys = cells // block
