@@ -424,11 +424,12 @@ def cmd_bench(args: argparse.Namespace) -> None:
             folder.mkdir(parents=True)
         except OSError as exc:
             raise InputError(f"cannot create the report folder: {exc.strerror}", folder) from None
-    for path in report_files(folder):
+    paths = report_files(folder)
+    for path in paths:
         _output_path(str(path), args.force)
     results = run_bench(QUICK if args.quick else FULL, data=args.data, model_paths=args.model, note=args.note)
     write_outputs(results, folder)
-    print(f"wrote {', '.join(str(path) for path in report_files(folder))}: light edit "
+    print(f"wrote {', '.join(str(path) for path in paths)}: light edit "
           f"{results['nvrplus_light_edit_ms']:.1f} ms, frame {results['nvrplus_frame_ms']:.1f} ms, "
           f"path tracing 1 spp + OIDN {results['pathtrace_1spp_oidn_ms']:.1f} ms")
 

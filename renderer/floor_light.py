@@ -65,7 +65,7 @@ class FloorTerms:
     gives (diffuse and glossy) and what the ambient light gives, on the coarse grid of pixel centres the shading is
     evaluated on, with the floor mask and the weights that interpolate them to every pixel
     (renderer.resample.bilinear_at). A shader interpolates them where it composites, without full-size copies (two
-    256^2 images made for each light edit, 0.4-0.7 ms each)."""
+    256^2 images made for each light edit, 0.35-0.7 ms each)."""
 
     from_light: np.ndarray  # (h, w, 3) float32
     from_ambient: np.ndarray  # (h, w, 3) float32
