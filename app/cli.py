@@ -109,12 +109,14 @@ def _render_network(scene, size: int, args: argparse.Namespace):
 
     engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device,
                                shader_quality=args.quality)
-    if size != engine.output_size:
+    if size != engine.output_size and not engine.renders_any_size:
         asked = f"--size {size}" if args.size is not None else f"the scene's image_size {size}"
         raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; {asked} is not supported "
                          f"(pass --size {engine.output_size})", "--size" if args.size is not None else args.scene)
-    image = engine.render(scene)
-    return image, f", model {engine.model_name}, {engine.precision} on {engine.device.type}{_quality_detail(args.quality)}"
+    image = engine.render_sized(scene, size)
+    corrected = "" if size == engine.output_size else f", corrected at {engine.output_size} px"
+    return image, (f", model {engine.model_name}, {engine.precision} on {engine.device.type}{corrected}"
+                   f"{_quality_detail(args.quality)}")
 
 
 # --- nvr voxelize / info ------------------------------------------------------------------
@@ -445,9 +447,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene file (JSON, version 1)")
     p.add_argument("-o", "--output", required=True, help="PNG to write")
     p.add_argument("--renderer", choices=["nvr+", "shaded", "splat", "pathtrace", "nvr"], default="nvr+",
-                   help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (256 px); "
+                   help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (any size: the "
+                        "correction computed at 256 px); "
                         "shaded: the voxels lit physically (soft shadows, lit floor; any size); splat: voxel colors; "
-                        "pathtrace: the mesh in Mitsuba 3; nvr: the paper's network without the splat")
+                        "pathtrace: the mesh in Mitsuba 3; nvr: the paper's network without the splat (256 px)")
     p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
     p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
     p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")
@@ -506,7 +509,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sweep", choices=["rotation", "light"], default="rotation",
                    help="rotation: the object turns; light: the light circles at its height")
     p.add_argument("--renderer", choices=["shaded", "nvr+", "nvr", "splat", "pathtrace"], default="shaded")
-    p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's; networks: 256)")
+    p.add_argument("--size", type=int, default=None,
+                   help="image side in pixels (default: the scene's; nvr, which draws the image itself: 256)")
     p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel (denoised)")
     p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
     p.add_argument("--force", action="store_true", help="replace an existing GIF or frames")

@@ -35,7 +35,7 @@ class TurntableConfig:
     frames: int = 36
     sweep: str = "rotation"
     renderer: str = "shaded"
-    size: int | None = None  # None: the scene's (the networks: theirs)
+    size: int | None = None  # None: the scene's (a network that draws the image itself, like NVR: its own)
     spp: int = 64  # path tracing only
     model: str | None = None  # network weights; None: the shipped model
 
@@ -91,9 +91,12 @@ def frame_renderer(scene: Scene, config: TurntableConfig) -> tuple[Callable[[Sce
     from models.engine.render_engine import RenderEngine
 
     engine = RenderEngine.load(config.model, kind=config.renderer)
-    if config.size is not None and config.size != engine.output_size:
-        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {config.size} is not supported")
-    return engine.render, f"{config.renderer} {engine.model_name}"
+    if not engine.renders_any_size:
+        if config.size is not None and config.size != engine.output_size:
+            raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {config.size} is not "
+                             "supported")
+        return engine.render, f"{config.renderer} {engine.model_name}"
+    return lambda s: engine.render_sized(s, size), f"{config.renderer} {engine.model_name}"
 
 
 def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = True,

@@ -60,16 +60,30 @@ def test_existing_output_is_kept_without_force(scene_dir):
     assert (scene_dir / "out.png").read_bytes() == b"precious"
 
 
-def test_a_network_render_at_a_size_it_does_not_make_says_which_size_to_ask_for(scene_dir):
+def test_a_network_that_draws_the_image_at_another_size_says_which_size_to_ask_for(scene_dir):
     data = json.loads((scene_dir / "scene.json").read_text())
     data["image_size"] = 96
     (scene_dir / "scene.json").write_text(json.dumps(data))
     out = scene_dir / "out.png"
-    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr+"),
+    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr"),
                       "renders 256x256", "the scene's image_size 96", "--size 256")
-    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr+", "--size", "128"),
+    assert_user_error(nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr+", "--model",
+                          ROOT / "assets/models/nvrplus_compact.safetensors", "--size", "128"),
                       "--size 128 is not supported")
     assert not out.exists()
+
+
+def test_the_shipped_nvr_plus_renders_any_size_from_the_shaded_image_at_that_size(scene_dir):
+    """It corrects the voxel shader's image: at 96 px the shader's 96 px image, corrected at the network's 256 px."""
+    out = scene_dir / "out.png"
+    result = nvr("render", scene_dir / "scene.json", "-o", out, "--renderer", "nvr+", "--size", "96")
+    assert result.returncode == 0, result.stderr
+    assert "corrected at 256 px" in result.stdout
+    shaded = scene_dir / "shaded.png"
+    assert nvr("render", scene_dir / "scene.json", "-o", shaded, "--renderer", "shaded", "--size", "96").returncode == 0
+    image, shader = (np.asarray(Image.open(path)).astype(float) for path in (out, shaded))
+    assert image.shape == (96, 96, 3)
+    assert 1.0 < np.mean((image - shader) ** 2) < 400.0  # corrected, and still the same picture
 
 
 def test_voxelize_and_info(scene_dir):

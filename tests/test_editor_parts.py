@@ -453,3 +453,31 @@ def test_a_dialog_runs_the_program_and_returns_its_choice(tmp_path, monkeypatch)
     assert cancelled.path is None and cancelled.error is None
     missing = _finish(FileDialog(["no-such-dialog-program", "--file-selection"]))
     assert missing.path is None and "cannot start the file dialog no-such-dialog-program" in missing.error
+
+
+def test_an_nvr_plus_that_corrects_the_shader_exports_other_sizes_drawn_at_that_size(box_scene, tmp_path):
+    """The File tab's export at another size than the network's: for a network that corrects the shader's image, the
+    engine's image at that size (the shaded image at that size, corrected), not the network's image resized."""
+    import torch
+    from PIL import Image
+
+    from app.editor.render_panel import export_render
+    from models.engine.render_engine import RenderEngine
+    from models.networks.checkpoint import save_model
+    from models.networks.config import ShaderRefinerConfig
+    from models.networks.nvr import build_model
+    from renderer.color import to_uint8
+
+    config = ShaderRefinerConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16,
+                                 light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", config).eval()
+    for parameter in model.rerender.to_rgb.parameters():  # a correction that is not nothing
+        parameter.data.normal_(0.0, 0.05)
+    save_model(tmp_path / "refiner.safetensors", model, config)
+    used = export_render(box_scene, tmp_path / "out.png", str(tmp_path / "refiner.safetensors"), "nvr+",
+                         VoxelCache(), size=96)
+    assert "corrected at 64 px" in used and "upscaled" not in used
+    engine = RenderEngine.load(tmp_path / "refiner.safetensors")  # as the editor loads it
+    np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "out.png")),
+                                  to_uint8(engine.render_sized(box_scene, 96)))

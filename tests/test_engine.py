@@ -474,10 +474,10 @@ def refiner(seed: int = 0, trained: bool = True, config: ShaderRefinerConfig = T
     return model
 
 
-def _shaded_image(scene, grid_size: int, quality: ShaderQuality = FULL_QUALITY) -> np.ndarray:
-    """The voxel shader's image of `scene` as a network reads it (no reflection of the object in the floor), its object
-    voxels merged as for a grid of `grid_size`^3, computed without the engine."""
-    return shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, 64, grid_size,
+def _shaded_image(scene, grid_size: int, quality: ShaderQuality = FULL_QUALITY, size: int = 64) -> np.ndarray:
+    """The voxel shader's `size`^2 image of `scene` as a network reads it (no reflection of the object in the floor),
+    its object voxels merged as for a grid of `grid_size`^3, computed without the engine."""
+    return shade_scene(scene, load_voxels(scene.voxels_path()), scene.floor.color, size, grid_size,
                        reflection=False, quality=quality).image
 
 
@@ -575,6 +575,51 @@ def test_compiled_image_passes_equal_torch_in_the_engine(scene, resolution):
         image = live.render(edited)
         np.testing.assert_allclose(image, with_torch.render(edited), rtol=0, atol=1e-5)
         assert np.abs(image - _shaded_image(edited, 128)).max() > 1e-2  # the correction is not nothing
+
+
+@pytest.mark.parametrize("resolution", REFINERS)
+def test_a_refiner_renders_any_size_as_the_shaded_image_at_that_size_corrected(scene, resolution):
+    """render_sized at another size than the network's 64: the shader's image at that size, corrected by the gain and
+    offset the network computes at its own. Untrained (no correction), that is the shaded image itself; with the
+    correction layer giving a constant gain and offset, the shaded image times exp(gain) plus the offset."""
+    untrained = engine(refiner(trained=False, config=REFINERS[resolution]))
+    for size in (48, 96):
+        np.testing.assert_allclose(untrained.render_sized(scene, size), _shaded_image(scene, 128, size=size),
+                                   rtol=0, atol=1e-6)
+    model = refiner(trained=False, config=REFINERS[resolution])
+    with torch.no_grad():
+        model.rerender.to_rgb[0].weight.zero_()
+        model.rerender.to_rgb[0].bias.copy_(torch.tensor([-0.3, 0.2, 0.0, 0.05, -0.02, 0.1]))
+    gain, offset = np.exp(np.float32([-0.3, 0.2, 0.0])), np.float32([0.05, -0.02, 0.1])
+    expected = np.clip(_shaded_image(scene, 128, size=96) * gain + offset, 0.0, 1.0)
+    np.testing.assert_allclose(engine(model).render_sized(scene, 96), expected, rtol=0, atol=1e-5)
+
+
+def test_render_sized_keeps_the_live_stages_and_shows_the_networks_picture(scene):
+    """At the network's own size render_sized is render; at another it leaves the live caches as they were (the next
+    live render of the scene runs nothing), and its image, area-averaged to the network's size, differs from the
+    network's image about as the shader's own images at the two sizes differ (along the silhouette, which the larger
+    one draws finer): the correction is the same picture at both sizes."""
+    live = engine(refiner())
+    image = live.render(scene)
+    np.testing.assert_array_equal(live.render_sized(scene, 64), image)
+    larger = live.render_sized(scene, 128)
+    live.render(scene)
+    assert live.last_report.stages_run == ()
+
+    def mse_to_its_average(small: np.ndarray, large: np.ndarray) -> float:
+        return float(np.mean((large.reshape(64, 2, 64, 2, 3).mean(axis=(1, 3)) - small) ** 2)) * 255**2
+
+    shader_alone = mse_to_its_average(_shaded_image(scene, 128), _shaded_image(scene, 128, size=128))
+    assert 1.0 < shader_alone < mse_to_its_average(image, larger) < shader_alone + 2.0  # measured: 5.6 and 6.4
+
+
+def test_a_network_that_draws_the_image_renders_its_own_size_only(model, scene):
+    live = engine(model)
+    assert not live.renders_any_size
+    with pytest.raises(InputError, match="renders 64x64 only"):
+        live.render_sized(scene, 96)
+    np.testing.assert_array_equal(live.render_sized(scene, 64), live.render(scene))
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA GPU")

@@ -398,10 +398,10 @@ class Interface:
                 act(path)
             if key == "export":
                 imgui.set_next_item_width(200)
-                shader = app.live.renderer == "shaded"
+                any_size = app.live.renders_any_size
                 scene_size = f"{app.scene.image_size} px (the scene's)"
                 _, f.export_size = imgui.combo("export size", f.export_size,
-                                               [scene_size] + [f"{s} px" + ("" if shader else " (upscaled)")
+                                               [scene_size] + [f"{s} px" + ("" if any_size else " (upscaled)")
                                                                for s in EXPORT_SIZES[1:]])
 
     def _browse(self, key: str, kind: FileKind, field_name: str) -> None:

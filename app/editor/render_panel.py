@@ -175,6 +175,12 @@ class LiveRender:
         return self._labels[self.renderer][1]
 
     @property
+    def renders_any_size(self) -> bool:
+        """Whether an export of another size than the live image's is rendered at that size (the shader, the splat,
+        an NVR+ that corrects the shader's image), not resized."""
+        return not isinstance(self.engine, RenderEngine) or self.engine.renders_any_size
+
+    @property
     def neural(self) -> bool:
         """False when NVR+ was chosen but no model loaded (the splat stands in)."""
         return self._labels[self.renderer][2]
@@ -228,8 +234,9 @@ class _Selected:
 
 def final_render(scene: Scene, model_path: str | None = None, renderer: str = "nvr+",
                  voxels: VoxelCache | None = None) -> tuple[np.ndarray, str]:
-    """The panel renderer's image of `scene` and what made it: the voxel shader's at the scene's size, the NVR+'s at the
-    network's own (256 px, whatever the scene's), or the splat when no model loads."""
+    """The panel renderer's image of `scene` at the scene's size and what made it: the voxel shader's; the NVR+'s (a
+    network that corrects the shader's image renders any size, one that draws it itself its own 256 px); or the splat
+    when no model loads."""
     voxels = voxels or VoxelCache()  # the editor's: the object is not voxelised again
     if renderer == "shaded":
         return ShadedEngine(voxels).render(scene), RENDERERS["shaded"]
@@ -239,21 +246,23 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
         if model_path is not None:
             raise
         return splat_scene(scene, *voxels.painted(scene)), "splat, no trained model"
-    return engine.render(scene), f"nvr+ {engine.model_name}"
+    if not engine.renders_any_size:
+        return engine.render(scene), f"nvr+ {engine.model_name}"
+    size = scene.image_size
+    corrected = "" if size == engine.output_size else f", corrected at {engine.output_size} px"
+    return engine.render_sized(scene, size), f"nvr+ {engine.model_name}{corrected}"
 
 
 def export_render(scene: Scene, path: str | Path, model_path: str | None = None, renderer: str = "nvr+",
                   voxels: VoxelCache | None = None, size: int | None = None) -> str:
     """Write the panel renderer's image of `scene` at `size` (default the scene's); returns what was used. The voxel
-    shader renders any size; a network's 256 px image of another size is resized (Lanczos), and says so."""
+    shader and an NVR+ that corrects its image render any size; a network's 256 px image of another size is resized
+    (Lanczos), and says so."""
     size = size or scene.image_size
-    if renderer == "shaded":
-        image, used = final_render(replace(scene, image_size=size), model_path, renderer, voxels)
-    else:
-        image, used = final_render(scene, model_path, renderer, voxels)
-        native = image.shape[0]
-        if native != size:
-            image = np.asarray(Image.fromarray(to_uint8(image)).resize((size, size), Image.Resampling.LANCZOS))
-            used += f", {'upscaled' if size > native else 'downscaled'} from {native} px"
+    image, used = final_render(replace(scene, image_size=size), model_path, renderer, voxels)
+    native = image.shape[0]
+    if native != size:
+        image = np.asarray(Image.fromarray(to_uint8(image)).resize((size, size), Image.Resampling.LANCZOS))
+        used += f", {'upscaled' if size > native else 'downscaled'} from {native} px"
     save_png(path, image)
     return used

@@ -170,6 +170,19 @@ class _Keys(NamedTuple):
     splat_branch: tuple
 
 
+class _NetworkInputs(NamedTuple):
+    """What the network's light stage reads (RenderEngine._network_inputs) and where it came from."""
+
+    latent: torch.Tensor
+    light: torch.Tensor
+    features: torch.Tensor | None  # the splat branch's (None for NVR)
+    buffers: Callable[[], np.ndarray | None]  # the shader's buffers, made on the first call (None: the network reads none)
+    buffers_tensor: Callable[[], torch.Tensor | None]  # the same as the network's input tensor
+    keys: _Keys
+    painted: np.ndarray
+    floor: tuple
+
+
 @dataclass
 class _Recording:
     stage_ms: dict[str, float] = field(default_factory=dict)
@@ -266,7 +279,48 @@ class RenderEngine:
         self._finish(start, preview=True)
         return image.copy()
 
+    @property
+    def renders_any_size(self) -> bool:
+        """Whether `render_sized` renders sizes other than output_size: a network that corrects the shader's image."""
+        return self._reads_shading
+
+    def render_sized(self, scene: Scene, size: int) -> np.ndarray:
+        """The image (size, size, 3) float32 sRGB of `scene`: at output_size, `render`'s. At another size (an export),
+        for a network that corrects the voxel shader's image, the shader's image at `size` corrected by the gain and
+        offset the network computes from its usual inputs at its own size: they are smooth (computed at
+        config.network_size and upsampled bilinearly either way), so edges and texture come from the shader at the
+        asked resolution instead of a resized image. The live caches keep their own size's stages. A network that
+        draws the image itself renders its own size only (InputError)."""
+        if size == self.output_size:
+            return self.render(scene)
+        if not self.renders_any_size:
+            raise InputError(f"the model renders {self.output_size}x{self.output_size} only ({self.config.name} draws "
+                             f"the image itself), not {size}x{size}")
+        start = self._begin()
+        with torch.inference_mode():
+            inputs = self._network_inputs(scene)
+            correction = self.model.correction_from_latent(inputs.latent, inputs.light, inputs.features)
+            shaded = self._shaded(scene, inputs.painted, inputs.floor, inputs.keys, size)
+            image = apply_correction(_to_array(correction.cpu()), shaded.image)
+        self._finish(start, preview=False)
+        return image
+
     def _render(self, scene: Scene) -> np.ndarray:
+        inputs = self._network_inputs(scene)
+        latent, light, features, keys = inputs.latent, inputs.light, inputs.features, inputs.keys
+        key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
+
+        def render() -> np.ndarray:
+            if self._passes_on_cpu:  # the correction applied in compiled passes (models/engine/image_passes.py)
+                correction = self.model.correction_from_latent(latent, light, features)
+                return apply_correction(_to_array(correction), inputs.buffers()[..., :IMAGE_CHANNELS])
+            shaded = None if inputs.buffers_tensor() is None else inputs.buffers_tensor()[:, :IMAGE_CHANNELS]
+            return _to_image(self.model.render_from_latent(latent, light, features, shaded))
+
+        return self._stage("light", key, render)
+
+    def _network_inputs(self, scene: Scene) -> _NetworkInputs:
+        """What the light stage reads, from the stages before it."""
         painted, floor, paint_key = self._painted(scene)
         keys = self._keys(scene, painted, floor, paint_key)
         latent = self._latent(scene, painted, floor, keys)
@@ -281,17 +335,8 @@ class RenderEngine:
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
-        light = light.to(self.device, self.dtype)
-        key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
-
-        def render() -> np.ndarray:
-            if self._passes_on_cpu:  # the correction applied in compiled passes (models/engine/image_passes.py)
-                correction = self.model.correction_from_latent(latent, light, features)
-                return apply_correction(_to_array(correction), buffers()[..., :IMAGE_CHANNELS])
-            shaded = None if buffers_tensor() is None else buffers_tensor()[:, :IMAGE_CHANNELS]
-            return _to_image(self.model.render_from_latent(latent, light, features, shaded))
-
-        return self._stage("light", key, render)
+        return _NetworkInputs(latent, light.to(self.device, self.dtype), features, buffers, buffers_tensor, keys,
+                              painted, floor)
 
     def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
                       buffers: Callable[[], np.ndarray | None], buffers_tensor: Callable[[], torch.Tensor | None]
@@ -420,9 +465,11 @@ class RenderEngine:
         layout = self._splat_layout(scene, painted, keys)
         return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
 
-    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> ShadedImage:
+    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys,
+                size: int | None = None) -> ShadedImage:
         """The voxel shader's image of the scene, from its cached stages (renderer/shading/), drawing the object voxels
-        merged as for the grid the network's shader input stands for (config.shading_grid_size).
+        merged as for the grid the network's shader input stands for (config.shading_grid_size). `size`: another size
+        than the network's (render_sized), whose stages from the surface on are computed, not cached.
 
         The object's geometry is kept on its occupancy and merge factors alone (a paint stroke keeps every voxel's
         occupancy; `placed` puts the geometry where the scene has the object and sets the camera), the surface the
@@ -442,13 +489,15 @@ class RenderEngine:
         where = self._stage("shade_placement", (shape_key, keys.placement),
                             lambda: placed(shape, scene.object, scene.camera.elevation_deg))
         geometry = replace(where, rgb=pooled.voxels[..., :3])
-        traced = self._stage("shade_surface", keys.placement,  # its colors come next, from the painted voxels
-                             lambda: visible_surface(geometry, self.output_size, colors=False, quality=self._quality))
-        surface = self._stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
-        floor_terms = self._stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
-            Camera.from_scene(scene, self.output_size), scene.light.position, floor))
-        return self._stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor,
-                                                              floor_terms, quality=self._quality))
+        size = size or self.output_size
+        stage = self._stage if size == self.output_size else lambda name, key, compute: compute()
+        traced = stage("shade_surface", keys.placement,  # its colors come next, from the painted voxels
+                       lambda: visible_surface(geometry, size, colors=False, quality=self._quality))
+        surface = stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
+        floor_terms = stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
+            Camera.from_scene(scene, size), scene.light.position, floor))
+        return stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor, floor_terms,
+                                                        quality=self._quality))
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
