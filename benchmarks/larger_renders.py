@@ -20,7 +20,6 @@ import time
 from collections import defaultdict
 
 import numpy as np
-import torch
 from PIL import Image
 
 from models.bench.scenes import data_scenes
@@ -46,6 +45,7 @@ def main() -> None:
     p.add_argument("--precision", choices=["fp32", "bf16"], default="fp32")
     p.add_argument("--figure", default=None, help="PNG: resized, corrected and target, a row per folder")
     args = p.parse_args()
+    import torch  # after models.engine (imported with models.bench), which sets OpenMP's waiting first
 
     engine = RenderEngine.load(None, precision=args.precision)
     scores: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
