@@ -455,29 +455,81 @@ def test_a_dialog_runs_the_program_and_returns_its_choice(tmp_path, monkeypatch)
     assert missing.path is None and "cannot start the file dialog no-such-dialog-program" in missing.error
 
 
-def test_an_nvr_plus_that_corrects_the_shader_exports_other_sizes_drawn_at_that_size(box_scene, tmp_path):
-    """The File tab's export at another size than the network's: for a network that corrects the shader's image, the
-    engine's image at that size (the shaded image at that size, corrected), not the network's image resized."""
+@pytest.fixture(scope="module")
+def refiner_file(tmp_path_factory):
+    """A small NVR+ that corrects the shader's 64 px image, its correction layer random (a fresh one is zero)."""
     import torch
-    from PIL import Image
 
-    from app.editor.render_panel import export_render
-    from models.engine.render_engine import RenderEngine
     from models.networks.checkpoint import save_model
     from models.networks.config import ShaderRefinerConfig
     from models.networks.nvr import build_model
-    from renderer.color import to_uint8
 
     config = ShaderRefinerConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16,
                                  light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
     torch.manual_seed(0)
     model = build_model("nvr_plus", config).eval()
-    for parameter in model.rerender.to_rgb.parameters():  # a correction that is not nothing
+    for parameter in model.rerender.to_rgb.parameters():
         parameter.data.normal_(0.0, 0.05)
-    save_model(tmp_path / "refiner.safetensors", model, config)
-    used = export_render(box_scene, tmp_path / "out.png", str(tmp_path / "refiner.safetensors"), "nvr+",
-                         VoxelCache(), size=96)
+    path = tmp_path_factory.mktemp("refiner") / "refiner.safetensors"
+    save_model(path, model, config)
+    return path
+
+
+def test_an_nvr_plus_that_corrects_the_shader_exports_other_sizes_drawn_at_that_size(box_scene, tmp_path,
+                                                                                     refiner_file):
+    """The File tab's export at another size than the network's: for a network that corrects the shader's image, the
+    engine's image at that size (the shaded image at that size, corrected), not the network's image resized."""
+    from PIL import Image
+
+    from app.editor.render_panel import export_render
+    from models.engine.render_engine import RenderEngine
+    from renderer.color import to_uint8
+
+    used = export_render(box_scene, tmp_path / "out.png", str(refiner_file), "nvr+", VoxelCache(), size=96)
     assert "corrected at 64 px" in used and "upscaled" not in used
-    engine = RenderEngine.load(tmp_path / "refiner.safetensors")  # as the editor loads it
+    engine = RenderEngine.load(refiner_file)  # as the editor loads it
     np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "out.png")),
                                   to_uint8(engine.render_sized(box_scene, 96)))
+
+
+def _next_frame(live, timeout: float = 30.0):
+    """The next frame LiveRender hands out (refining when one is due), or a failure after `timeout` seconds."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        live.refine()
+        frame = live.poll()
+        if frame is not None:
+            return frame
+        time.sleep(0.005)
+    raise AssertionError("no frame")
+
+
+def test_a_settled_nvr_plus_image_is_drawn_again_at_the_panels_size(box_scene, refiner_file):
+    """The render panel shows the network's 64 px image stretched to its size; once that image has stood, the scene
+    is drawn again at the panel's size (the shaded image there, corrected), unless an edit came first."""
+    from app.editor.render_panel import LiveRender
+    from models.engine.render_engine import RenderEngine
+
+    live = LiveRender(VoxelCache(), str(refiner_file), "nvr+", detail_delay=0.0)
+    try:
+        live.panel_size = 96
+        live.submit(box_scene)
+        frame = _next_frame(live)
+        assert not frame.detail and frame.image.shape == (64, 64, 3)
+        assert not live.idle  # the larger image is due
+        detail = _next_frame(live)
+        assert detail.detail and detail.scene == box_scene and live.idle
+        np.testing.assert_array_equal(detail.image, RenderEngine.load(refiner_file).render_sized(box_scene, 96))
+        # An edit before the settled image is refined: only the edit is rendered, then refined in turn.
+        lit = box_scene.with_changes(light=LightSpec((-1.0, 2.5, 0.3)))
+        live.submit(box_scene.with_changes(light=LightSpec((1.0, 2.5, 0.3))))
+        assert not _next_frame(live).detail
+        live.submit(lit)
+        frames = [_next_frame(live), _next_frame(live)]
+        assert [(f.detail, f.scene == lit, f.image.shape[0]) for f in frames] == [(False, True, 64), (True, True, 96)]
+        # The voxel shader's panel image is not redrawn: it renders the scene's size itself.
+        live.select("shaded")
+        live.submit(box_scene)
+        assert not _next_frame(live).detail and live.idle
+    finally:
+        live.close()

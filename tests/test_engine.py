@@ -425,6 +425,17 @@ def test_superseded_requests_are_dropped_and_never_overwrite_newer_frames():
     assert worker.latest() is frame
 
 
+def test_a_request_with_a_size_renders_the_final_image_at_that_size(scene):
+    live = engine(refiner())
+    worker = AsyncRenderer(live)
+    try:
+        frame = worker.wait_for(worker.submit(scene, size=96), 10)
+    finally:
+        worker.close()
+    assert frame.error is None and not frame.preview
+    np.testing.assert_array_equal(frame.image, live.render_sized(scene, 96))
+
+
 def test_a_failing_scene_reports_its_error_and_the_worker_goes_on(scene, model):
     worker = AsyncRenderer(engine(model))
     try:

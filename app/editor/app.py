@@ -22,7 +22,7 @@ from app.editor.document import Document
 from app.editor.jobs import BackgroundJob, Progress
 from app.editor.orbit_view import HOME, viewport_camera
 from app.editor.photo_tool import PhotoTool
-from app.editor.render_panel import LiveRender, RenderedFrame, export_render, final_render
+from app.editor.render_panel import DETAIL_DELAY_S, LiveRender, RenderedFrame, export_render, final_render
 from app.editor.viewport import ViewportRenderer
 from app.editor.voxel_cache import VoxelCache, source_key
 from app.editor.window import Window, upload_image
@@ -129,13 +129,15 @@ class EditorApp:
     """The editor: one document, its voxels, the live render, the viewport and the tools' settings."""
 
     def __init__(self, window: Window, document: Document, model_path: str | None = None, renderer: str = "nvr+",
-                 quality: str = "full", recovery_slot: str = state.RECOVERY):
-        """`recovery_slot`: where the autosave is kept and looked for (state.HEADLESS_RECOVERY for scripted runs)."""
+                 quality: str = "full", recovery_slot: str = state.RECOVERY, detail_delay: float = DETAIL_DELAY_S):
+        """`recovery_slot`: where the autosave is kept and looked for (state.HEADLESS_RECOVERY for scripted runs);
+        `detail_delay`: how long a settled render stands before it is drawn again at the panel's size (scripted runs:
+        0, as they wait for the editor to be idle between actions anyway)."""
         self.window = window
         self.recovery_slot = recovery_slot
         self.doc = document
         self.voxels = VoxelCache()
-        self.live = LiveRender(self.voxels, model_path, renderer, quality)
+        self.live = LiveRender(self.voxels, model_path, renderer, quality, detail_delay)
         self.viewport = ViewportRenderer(window.ctx)
         self.view = HOME
         self.render_texture = None
@@ -536,10 +538,12 @@ class EditorApp:
         if self._synced != self.doc.revision:
             self._sync()
         self.photo.follow_object()
+        self.live.refine()
         frame = self.live.poll()
         if frame is not None:
-            self.shown_frame = frame
-            self.stats.renders.append(frame.seconds)
+            if not frame.detail:  # a detail frame redraws the shown one larger: its status and timings stay
+                self.shown_frame = frame
+                self.stats.renders.append(frame.seconds)
             self.render_texture = upload_image(self.window.ctx, self.render_texture, frame.image)
             self.render_uploads += 1
         if self.live.error:

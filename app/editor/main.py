@@ -96,11 +96,13 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
     from app.editor import state
     from app.editor.app import FRAME_SECONDS, EditorApp
     from app.editor.panels import Interface
+    from app.editor.render_panel import DETAIL_DELAY_S
 
     headless = args.frames is not None
     renderer = args.renderer or "nvr+"
     app = EditorApp(window, document, model_path=args.model, renderer=renderer, quality=args.quality,
-                    recovery_slot=state.HEADLESS_RECOVERY if headless else state.RECOVERY)
+                    recovery_slot=state.HEADLESS_RECOVERY if headless else state.RECOVERY,
+                    detail_delay=0.0 if headless else DETAIL_DELAY_S)
     interface = Interface(app)
     frame, started, finishing = 0, time.monotonic(), False
     try:

@@ -275,6 +275,7 @@ class Interface:
         if not app.live.neural:
             imgui.same_line()
             imgui.text_colored(AMBER, app.live.label)
+        app.live.panel_size = int(min(image.width, image.height))  # what a settled image is drawn again at
         if app.render_texture is not None:
             imgui.set_cursor_screen_pos(imgui.ImVec2(image.x, image.y))
             imgui.image(imgui.ImTextureRef(app.render_texture.glo), imgui.ImVec2(image.width, image.height))

@@ -4,7 +4,8 @@
 the newest request; a request still waiting when a newer one arrives is dropped unrendered.
 Each finished frame carries its request's number and is kept (and passed to `on_frame`) only if
 it is newer than the frame already shown. While the user drags, submit with preview=True (the
-engine's fast preview); on release submit the final scene with preview=False.
+engine's fast preview); on release submit the final scene with preview=False; `size` asks for the
+final image at another size than the engine's own (its render_sized).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ class Engine(Protocol):
 
     def preview(self, scene: Scene) -> np.ndarray: ...
 
+    def render_sized(self, scene: Scene, size: int) -> np.ndarray: ...
+
 
 @dataclass(frozen=True)
 class Frame:
@@ -48,7 +51,7 @@ class AsyncRenderer:
         self.engine = engine
         self.on_frame = on_frame
         self._cond = threading.Condition()
-        self._pending: tuple[int, Scene, bool] | None = None
+        self._pending: tuple[int, Scene, bool, int | None] | None = None
         self._latest: Frame | None = None
         self._submitted = 0
         self._busy = False
@@ -56,13 +59,14 @@ class AsyncRenderer:
         self._worker = threading.Thread(target=self._run, name="nvr-render", daemon=True)
         self._worker.start()
 
-    def submit(self, scene: Scene, preview: bool = False) -> int:
-        """Queue `scene`, replacing any request not yet started; returns its sequence number."""
+    def submit(self, scene: Scene, preview: bool = False, size: int | None = None) -> int:
+        """Queue `scene` (the final image at `size`, if given), replacing any request not yet started; returns its
+        sequence number."""
         with self._cond:
             if self._closed:
                 raise RuntimeError("the renderer is closed")
             self._submitted += 1
-            self._pending = (self._submitted, scene, preview)
+            self._pending = (self._submitted, scene, preview, size)
             self._cond.notify_all()
             return self._submitted
 
@@ -96,9 +100,9 @@ class AsyncRenderer:
                 self._cond.wait_for(lambda: self._pending is not None or self._closed)
                 if self._closed:
                     return
-                sequence, scene, preview = self._pending
+                sequence, scene, preview, size = self._pending
                 self._pending, self._busy = None, True
-            frame = self._render(sequence, scene, preview)
+            frame = self._render(sequence, scene, preview, size)
             with self._cond:
                 shown = self._latest is None or frame.sequence > self._latest.sequence
                 if shown:
@@ -108,9 +112,12 @@ class AsyncRenderer:
             if shown and self.on_frame is not None:
                 self.on_frame(frame)
 
-    def _render(self, sequence: int, scene: Scene, preview: bool) -> Frame:
+    def _render(self, sequence: int, scene: Scene, preview: bool, size: int | None) -> Frame:
         try:
-            image = self.engine.preview(scene) if preview else self.engine.render(scene)
+            if preview:
+                image = self.engine.preview(scene)
+            else:
+                image = self.engine.render(scene) if size is None else self.engine.render_sized(scene, size)
         except InputError as exc:  # a bad scene file or mesh: show the message
             return Frame(sequence, preview, None, error=str(exc))
         except Exception as exc:  # a failed frame must not stop the worker; the UI shows the error

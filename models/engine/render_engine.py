@@ -285,12 +285,12 @@ class RenderEngine:
         return self._reads_shading
 
     def render_sized(self, scene: Scene, size: int) -> np.ndarray:
-        """The image (size, size, 3) float32 sRGB of `scene`: at output_size, `render`'s. At another size (an export),
-        for a network that corrects the voxel shader's image, the shader's image at `size` corrected by the gain and
-        offset the network computes from its usual inputs at its own size: they are smooth (computed at
-        config.network_size and upsampled bilinearly either way), so edges and texture come from the shader at the
-        asked resolution instead of a resized image. The live caches keep their own size's stages. A network that
-        draws the image itself renders its own size only (InputError)."""
+        """The image (size, size, 3) float32 sRGB of `scene`: at output_size, `render`'s. At another size (an export, the
+        editor panel's redraw of a settled image), for a network that corrects the voxel shader's image, the shader's
+        image at `size` corrected by the gain and offset the network computes from its usual inputs at its own size:
+        they are smooth (computed at config.network_size and upsampled bilinearly either way), so edges and texture
+        come from the shader at the asked resolution instead of a resized image. The live caches keep their own size's
+        stages. A network that draws the image itself renders its own size only (InputError)."""
         if size == self.output_size:
             return self.render(scene)
         if not self.renders_any_size:
