@@ -506,7 +506,8 @@ def _next_frame(live, timeout: float = 30.0):
 
 def test_a_settled_nvr_plus_image_is_drawn_again_at_the_panels_size(box_scene, refiner_file):
     """The render panel shows the network's 64 px image stretched to its size; once that image has stood, the scene
-    is drawn again at the panel's size (the shaded image there, corrected), unless an edit came first."""
+    is drawn again at the panel's size (the shaded image there, corrected), unless an edit came first; likewise the
+    voxel shader's."""
     from app.editor.render_panel import LiveRender
     from models.engine.render_engine import RenderEngine
 
@@ -527,9 +528,13 @@ def test_a_settled_nvr_plus_image_is_drawn_again_at_the_panels_size(box_scene, r
         live.submit(lit)
         frames = [_next_frame(live), _next_frame(live)]
         assert [(f.detail, f.scene == lit, f.image.shape[0]) for f in frames] == [(False, True, 64), (True, True, 96)]
-        # The voxel shader's panel image is not redrawn: it renders the scene's size itself.
+        # The voxel shader's is redrawn too: its image at the panel's size (the live size's stages kept).
         live.select("shaded")
-        live.submit(box_scene)
-        assert not _next_frame(live).detail and live.idle
+        small = replace(box_scene, image_size=64)  # the shader renders the scene's size
+        live.submit(small)
+        assert not _next_frame(live).detail
+        detail = _next_frame(live)
+        assert detail.detail and live.idle
+        np.testing.assert_array_equal(detail.image, shade_scene(small, *VoxelCache().painted(small), 96).image)
     finally:
         live.close()

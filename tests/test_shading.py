@@ -562,6 +562,19 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
     assert set(other.stage_ms) == {"pool", "geometry", "placed", "surface", "colors", "reflection", "shade"}
 
 
+def test_an_image_of_another_size_not_kept_leaves_the_live_stages():
+    """`keep=False` (the editor's redraw of a settled image at its panel's size): the image at that size equals the
+    shader's from scratch, and the stages kept for the live size stay, so the next live render reruns nothing."""
+    rgba = ball(24, color=(0.7, 0.3, 0.2))
+    scene = Scene(object=ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7)), light=LightSpec((0.6, 2.7, 0.4)))
+    staged = StagedShader()
+    live = staged.render(scene, "ball", rgba, FLOOR, SIZE).image
+    larger = staged.render(scene, "ball", rgba, FLOOR, 2 * SIZE, keep=False).image
+    np.testing.assert_array_equal(larger, shade_scene(scene, rgba, FLOOR, 2 * SIZE).image)
+    np.testing.assert_array_equal(staged.render(scene, "ball", rgba, FLOOR, SIZE).image, live)
+    assert staged.stage_ms == {}
+
+
 def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
     """One-voxel bars along all three axes, `bars` per side: thin parts and many openings."""
     rgba = np.zeros((n, n, n, 4), dtype=np.float32)

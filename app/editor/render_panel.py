@@ -51,6 +51,8 @@ class RenderedFrame:
 class SplatEngine:
     """The engine's interface over the splatted image, for when no trained model is available."""
 
+    renders_any_size = True
+
     def __init__(self, voxels: VoxelCache):
         self._voxels = voxels
         self.last_report: RenderReport | None = None
@@ -65,9 +67,14 @@ class SplatEngine:
     def preview(self, scene: Scene) -> np.ndarray:
         return self.render(scene, preview=True)
 
+    def render_sized(self, scene: Scene, size: int) -> np.ndarray:
+        return self.render(replace(scene, image_size=size))
+
 
 class ShadedEngine:
     """The engine's interface over the voxel shader, its stages cached (a light move reruns only the light's)."""
+
+    renders_any_size = True
 
     def __init__(self, voxels: VoxelCache, quality: str = "full"):
         self._voxels = voxels
@@ -75,19 +82,24 @@ class ShadedEngine:
         self._lock = threading.Lock()  # exports on the UI thread and the render thread share the stages
         self.last_report: RenderReport | None = None
 
-    def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
+    def render(self, scene: Scene, preview: bool = False, size: int | None = None) -> np.ndarray:
+        """The scene at its image size, or at `size` without keeping the stages that depend on it."""
         start = time.perf_counter()
         rgba, floor_color = self._voxels.painted(scene)
         shape = source_key(scene)  # paint keeps the occupancy: the shader keeps what the camera sees
         key = (shape, tuple(op for op in scene.paint if op.target != "floor"))
         with self._lock:
-            image = self._shader.render(scene, key, rgba, floor_color, scene.image_size, shape_key=shape).image
+            image = self._shader.render(scene, key, rgba, floor_color, size or scene.image_size, shape_key=shape,
+                                        keep=size is None).image
             stages = dict(self._shader.stage_ms)
         self.last_report = RenderReport(tuple(stages), stages, (time.perf_counter() - start) * 1000.0, preview)
         return image
 
     def preview(self, scene: Scene) -> np.ndarray:
         return self.render(scene, preview=True)
+
+    def render_sized(self, scene: Scene, size: int) -> np.ndarray:
+        return self.render(scene, size=size)
 
 
 class LowPriority:
@@ -189,9 +201,9 @@ class LiveRender:
 
     @property
     def renders_any_size(self) -> bool:
-        """Whether an export of another size than the live image's is rendered at that size (the shader, the splat,
-        an NVR+ that corrects the shader's image), not resized."""
-        return not isinstance(self.engine, RenderEngine) or self.engine.renders_any_size
+        """Whether an image of another size than the live one is rendered at that size (the shader, the splat, an NVR+
+        that corrects the shader's image), not resized: exports, and the panel's redraw of a settled image."""
+        return self.engine.renders_any_size
 
     @property
     def neural(self) -> bool:
@@ -221,8 +233,8 @@ class LiveRender:
 
     def refine(self) -> None:
         """Once the last final image has stood detail_delay seconds with nothing else asked, render it again at the
-        panel's size: the network's 256 px image, shown larger, is blurred, and an NVR+ that corrects the shader's
-        image draws any size (RenderEngine.render_sized). Call once per UI frame."""
+        panel's size: the 256 px image, shown larger, is blurred, and the shader, an NVR+ that corrects its image
+        (RenderEngine.render_sized) and the splat draw any size. Call once per UI frame."""
         if self._settled is None or time.monotonic() - self._settled[1] < self.detail_delay:
             return
         scene, _ = self._settled
@@ -234,8 +246,7 @@ class LiveRender:
     def _detail_size(self, image: np.ndarray) -> int | None:
         """The side to draw `image`'s scene again at: the panel's, if it is larger and the engine draws any size."""
         larger = self.panel_size is not None and self.panel_size > image.shape[0]
-        any_size = isinstance(self.engine, RenderEngine) and self.engine.renders_any_size
-        return self.panel_size if larger and any_size else None
+        return self.panel_size if larger and self.renders_any_size else None
 
     @property
     def idle(self) -> bool:

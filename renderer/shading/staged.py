@@ -54,9 +54,11 @@ class StagedShader:
         self.stage_ms: dict[str, float] = {}  # the stages the last render ran, and their times
 
     def render(self, scene: Scene, voxels_key: Hashable, object_rgba: np.ndarray, floor_color, size: int,
-               shape_key: Hashable | None = None) -> ShadedImage:
+               shape_key: Hashable | None = None, keep: bool = True) -> ShadedImage:
         """The shaded image of `scene` whose painted object voxels are `object_rgba`, named by `voxels_key`; `shape_key`
-        names their occupancy (default: `voxels_key`), which paint keeps."""
+        names their occupancy (default: `voxels_key`), which paint keeps. `keep`: False computes the stages that depend
+        on the image size without keeping them, for a one-off image of another size (the kept ones stay for the
+        next live render)."""
         self.stage_ms = {}
         o, elevation, floor = scene.object, scene.camera.elevation_deg, tuple(floor_color)
         n = object_rgba.shape[0]
@@ -67,16 +69,17 @@ class StagedShader:
                                                                                     self.quality.ambient_occlusion))
         placed_key = (shape_key, factors, o.translation, o.rotation_deg, o.scale, elevation)
         where = replace(self._stage("placed", placed_key, lambda: placed(shape, o, elevation)), rgb=merged[..., :3])
-        seen = self._stage("surface", (placed_key, size), lambda: visible_surface(where, size, colors=False,
-                                                                                  quality=self.quality))
+        sized = self._stage if keep else lambda name, key, compute: compute()
+        seen = sized("surface", (placed_key, size), lambda: visible_surface(where, size, colors=False,
+                                                                           quality=self.quality))
         painted_key = (placed_key, size, voxels_key)
-        surface = self._stage("colors", painted_key, lambda: repaint_surface(seen, where))
-        reflection = self._stage("reflection", painted_key, lambda: floor_reflection(where, surface))
+        surface = sized("colors", painted_key, lambda: repaint_surface(seen, where))
+        reflection = sized("reflection", painted_key, lambda: floor_reflection(where, surface))
         light = scene.light.position
-        floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
+        floor_terms = sized("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
             Camera(elevation, width=size, height=size), light, floor))
-        return self._stage("shade", (painted_key, light, floor), lambda: shade(where, surface, light, floor,
-                                                                            floor_terms, reflection, self.quality))
+        return sized("shade", (painted_key, light, floor), lambda: shade(where, surface, light, floor, floor_terms,
+                                                                     reflection, self.quality))
 
     def _stage(self, name: str, key: Hashable, compute: Callable[[], Any]) -> Any:
         if name in self._memo and self._memo[name][0] == key:
