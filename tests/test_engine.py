@@ -594,7 +594,7 @@ def test_a_refiner_renders_any_size_as_the_shaded_image_at_that_size_corrected(s
     offset the network computes at its own. Untrained (no correction), that is the shaded image itself; with the
     correction layer giving a constant gain and offset, the shaded image times exp(gain) plus the offset."""
     untrained = engine(refiner(trained=False, config=REFINERS[resolution]))
-    for size in (48, 96):
+    for size in (16, 17, 48, 96):  # the least size, an odd one (the correction sampled, not area-averaged), larger
         np.testing.assert_allclose(untrained.render_sized(scene, size), _shaded_image(scene, 128, size=size),
                                    rtol=0, atol=1e-6)
     model = refiner(trained=False, config=REFINERS[resolution])
@@ -602,8 +602,9 @@ def test_a_refiner_renders_any_size_as_the_shaded_image_at_that_size_corrected(s
         model.rerender.to_rgb[0].weight.zero_()
         model.rerender.to_rgb[0].bias.copy_(torch.tensor([-0.3, 0.2, 0.0, 0.05, -0.02, 0.1]))
     gain, offset = np.exp(np.float32([-0.3, 0.2, 0.0])), np.float32([0.05, -0.02, 0.1])
-    expected = np.clip(_shaded_image(scene, 128, size=96) * gain + offset, 0.0, 1.0)
-    np.testing.assert_allclose(engine(model).render_sized(scene, 96), expected, rtol=0, atol=1e-5)
+    for size in (17, 96):
+        expected = np.clip(_shaded_image(scene, 128, size=size) * gain + offset, 0.0, 1.0)
+        np.testing.assert_allclose(engine(model).render_sized(scene, size), expected, rtol=0, atol=1e-5)
 
 
 def test_render_sized_keeps_the_live_stages_and_shows_the_networks_picture(scene):
