@@ -34,8 +34,8 @@ NO_MODEL_LABEL = "no trained model: showing splat"
 # The renderers the panel offers, by the name `nvr render --renderer` uses, with what the panel shows.
 RENDERERS = {"shaded": "voxel shader", "nvr+": "NVR+ network"}
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
-# A settled NVR+ image is drawn again at the panel's size once the scene has stood this long (seconds), so that the
-# next edit, if it comes at once, does not wait behind it (66-108 ms at 422 px on the bench scenes, 2 cores).
+# A settled image is drawn again at the panel's size once the scene has stood this long (seconds), so that the next
+# edit, if it comes at once, does not wait behind it (the NVR+: 66-108 ms at 422 px on the bench scenes, 2 cores).
 DETAIL_DELAY_S = 0.3
 
 
