@@ -7,8 +7,9 @@ Usage: python -m benchmarks.larger_renders [--data DIR ...] [--objects N] [--siz
 The first view of up to N objects per test folder (nvr bench's scenes: the data set's photo-colored voxels, meshes
 rebuilt from their seeds), path traced at S px with P spp + OIDN as the data sets' targets are. Prints each view's MSE
 (0-255) and DSSIM per renderer, then per folder and over all views, and the median seconds of a larger render after
-the 256 px render of the same scene (its cached stages kept, as after an edit in the editor). `--figure`: rows of
-resized, corrected and target for the first view of each folder.
+the 256 px render of the same scene (its cached stages kept, as after an edit in the editor). `--figure`: for the first
+view of each folder, a row of resized, corrected and target at the size, each cut to the half of the image around
+the object (where the shader covers it), so the pixels are the images' own.
 """
 
 from __future__ import annotations
@@ -61,8 +62,8 @@ def main() -> None:
             resized = np.asarray(Image.fromarray(to_uint8(native)).resize((args.size, args.size),
                                                                           Image.Resampling.LANCZOS)) / 255.0
             rgba, floor = painted_voxels(scene, object_voxels(scene))
-            shaded = shade_scene(scene, rgba, floor, args.size, engine.config.shading_grid_size).image
-            images = dict(zip(RENDERERS, (corrected, resized, shaded)))
+            shader = shade_scene(scene, rgba, floor, args.size, engine.config.shading_grid_size)
+            images = dict(zip(RENDERERS, (corrected, resized, shader.image)))
             line = {"view": bench.name}
             for name, image in images.items():
                 pair = [torch.from_numpy(np.ascontiguousarray(np.clip(x, 0.0, 1.0).transpose(2, 0, 1)))[None]
@@ -72,7 +73,9 @@ def main() -> None:
                 line[name] = [round(mse, 2), round(structure, 4)]
             print(json.dumps(line), flush=True)
             if k == 0:
-                rows.append(np.concatenate([resized, np.clip(corrected, 0, 1), target], axis=1))
+                window = _around_the_object(shader.coverage, args.size // 2)
+                rows.append(np.concatenate([image[window] for image in (resized, np.clip(corrected, 0, 1), target)],
+                                           axis=1))
     print(f"\n{args.size} px against path tracing at {args.spp} spp + OIDN (MSE 0-255 / DSSIM), {args.precision}:")
     everything: dict[str, list] = defaultdict(list)
     for folder, by_renderer in scores.items():
@@ -85,6 +88,15 @@ def main() -> None:
           f"({min(seconds):.2f}-{max(seconds):.2f})")
     if args.figure:
         save_png(args.figure, np.concatenate(rows, axis=0))
+
+
+def _around_the_object(coverage: np.ndarray, side: int) -> tuple[slice, slice]:
+    """The `side`^2 window of the image centred on the object's box (the image's centre if nothing is covered)."""
+    rows, cols = np.nonzero(coverage > 0.0)
+    size = coverage.shape[0]
+    centre = [(a.min() + a.max()) // 2 if len(a) else size // 2 for a in (rows, cols)]
+    starts = [min(max(c - side // 2, 0), size - side) for c in centre]
+    return slice(starts[0], starts[0] + side), slice(starts[1], starts[1] + side)
 
 
 def _mean(values: list[tuple[float, float]]) -> str:
