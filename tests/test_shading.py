@@ -39,6 +39,7 @@ from renderer.shading import (
 )
 from renderer.shading.shader import (
     COARSE_CELLS,
+    COLOR_LEAST,
     COLOR_SPREAD,
     FLOOR_SHADOW_STEP,
     REFLECTION_BLUR,
@@ -794,39 +795,66 @@ def test_a_repainted_surface_is_the_surface_of_the_painted_object():
     assert 0 < blue.sum() < repainted.pixels.shape[0]  # part of the ball was painted blue, and it shows
 
 
-def gaussian_mean_colors(rgb, occupied, index, sides, sigma):
-    """The Gaussian-weighted mean color (no truncation) of the occupied voxels around voxel `index`."""
+def gaussian_mean_colors(rgb, occupied, centre, sides, sigma):
+    """The Gaussian-weighted mean color of the occupied voxels around `centre` (voxel index units), those further
+    than 2.8 sigmas along an axis left out (the kernel's reach)."""
     cells = np.argwhere(occupied)
-    d2 = ((((cells - np.asarray(index)) * np.asarray(sides)) ** 2).sum(axis=1))
-    weights = np.exp(-d2 / (2.0 * sigma**2))
+    offsets = (cells - np.asarray(centre)) * np.asarray(sides)
+    weights = np.exp(-(offsets**2).sum(axis=1) / (2.0 * sigma**2)) * np.all(np.abs(offsets) <= 2.8 * sigma, axis=1)
     return (weights[:, None] * rgb[tuple(cells.T)]).sum(axis=0) / weights.sum()
 
 
-@pytest.mark.parametrize("sides", [(1.0, 1.0, 1.0), (2.0, 1.0, 0.5)])
-def test_filtered_colors_average_the_voxels_around_by_their_distance(sides):
-    """A plate half red, half blue: the color of a voxel on the seam is the Gaussian mean of the plate's voxels
-    around it (weights by world distance, anisotropic voxels too); far from the seam it stays pure; spread 0 takes
-    the voxel's own color; no voxel gives grey."""
+def _plate():
+    """A plate of voxels, half red, half blue (the seam between indices 5 and 6 along the first axis), and its colors
+    as filtered_colors reads them (at crop index + (1, 1, 1))."""
     occupied = np.zeros((12, 12, 3), dtype=bool)
     occupied[:, :, 1] = True
-    rgb = np.zeros((14, 14, 5, 3), dtype=np.float32)  # indexed at crop index + (1, 1, 1)
+    rgb = np.zeros((14, 14, 5, 3), dtype=np.float32)
     rgb[1:7, 1:13, 2] = (0.9, 0.1, 0.1)
     rgb[7:13, 1:13, 2] = (0.1, 0.2, 0.9)
-    sigma = 0.5  # world units: a weight beyond the kernel's reach (2.8 sigmas) is below 4e-4 of the centre's
+    return occupied, rgb
+
+
+@pytest.mark.parametrize("sides", [(1.0, 1.0, 1.0), (2.0, 1.0, 0.5)])
+def test_filtered_colors_average_the_voxels_around_the_point_by_their_distance(sides):
+    """On the plate, the color of a point near the seam is the Gaussian mean of the plate's voxels around the point
+    (weights by world distance, anisotropic voxels too); far from the seam it stays pure; spread 0 takes the voxel's
+    own color; no voxel gives grey."""
+    occupied, rgb = _plate()
+    sigma = 0.5  # world units
     voxels = np.array([[5, 6, 1], [6, 6, 1], [0, 6, 1], [11, 3, 1], [-1, -1, -1]], dtype=np.int64)
+    points = voxels + np.array([[0.75, 0.5, 0.5], [0.3, 0.6, 0.5], [0.5, 0.5, 0.5], [0.9, 0.1, 0.5], [0.5, 0.5, 0.5]])
     spread = np.array([sigma, sigma, sigma, 0.0, sigma])
     out = np.empty((len(voxels), 3), dtype=np.float32)
-    kernels.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, np.asarray(sides), spread, out)
+    kernels.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, points, np.asarray(sides),
+                            spread, 0.0, out)
     crop_rgb = rgb[1:13, 1:13, 1:4]
     for row in (0, 1):
-        expected = gaussian_mean_colors(crop_rgb, occupied, voxels[row], sides, sigma)
+        expected = gaussian_mean_colors(crop_rgb, occupied, points[row] - 0.5, sides, sigma)
         np.testing.assert_allclose(out[row], expected, atol=2e-3)
         if sides[0] == 1.0:
             assert 0.11 < out[row, 0] < 0.89  # a mix of the two halves
-    far = gaussian_mean_colors(crop_rgb, occupied, voxels[2], sides, sigma)
+    far = gaussian_mean_colors(crop_rgb, occupied, points[2] - 0.5, sides, sigma)
     np.testing.assert_allclose(out[2], far, atol=2e-3)
     np.testing.assert_allclose(out[3], (0.1, 0.2, 0.9))
     np.testing.assert_array_equal(out[4], (0.5, 0.5, 0.5))
+
+
+def test_filtered_colors_change_smoothly_across_a_voxel_at_a_small_spread():
+    """A close-up spreads a point's color over much less than a voxel; with the least spread (COLOR_LEAST voxel sides)
+    the color still goes from red to blue across the seam in small steps, as the point moves, not in one jump at the
+    voxel's edge, and in order."""
+    occupied, rgb = _plate()
+    along = np.linspace(4.0, 8.0, 81)  # the point's first coordinate: across the seam at 6
+    points = np.stack([along, np.full_like(along, 6.5), np.full_like(along, 1.5)], axis=1)
+    voxels = np.stack([np.floor(along).astype(np.int64), np.full(len(along), 6), np.full(len(along), 1)], axis=1)
+    out = np.empty((len(along), 3), dtype=np.float32)
+    kernels.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, points,
+                            np.ones(3), np.full(len(along), 0.05), COLOR_LEAST, out)
+    red = out[:, 0]
+    assert red[0] > 0.85 and red[-1] < 0.15
+    assert np.all(np.diff(red) <= 1e-6)  # from red to blue, never back
+    assert np.abs(np.diff(red)).max() < 0.08  # 0.05 voxels a step: no jump of the whole 0.8 at the seam
 
 
 def test_a_points_color_is_averaged_over_its_pixels_footprint():

@@ -418,27 +418,30 @@ def _nearest_occupied(occupied, x, y, z, ci, cj, ck, reach, out):
 
 
 @njit(cache=True, inline="always")
-def _axis_weights(sigma, side):
-    """The reach along an axis of voxel side `side` (the voxels whose weight is above 0.02, 2.8 sigmas, at most 2)
-    and the Gaussian weights of the voxels one and two steps away."""
+def _axis_range(centre, voxel, sigma, count):
+    """The voxel indices along an axis whose centres lie within 2.8 `sigma` of `centre` (index units: voxel a's centre
+    at a; weights above 0.02), within 2 of `voxel` and inside [0, count), `voxel` always: first, stop."""
     if sigma <= 0.0:
-        return 0, 0.0, 0.0
-    return (min(int(2.8 * sigma / side), 2), math.exp(-0.5 * (side / sigma) ** 2),
-            math.exp(-0.5 * (2.0 * side / sigma) ** 2))
+        return voxel, voxel + 1
+    first = max(min(int(math.ceil(centre - 2.8 * sigma)), voxel), voxel - 2, 0)
+    last = min(max(int(math.floor(centre + 2.8 * sigma)), voxel), voxel + 2, count - 1)
+    return first, last + 1
 
 
 @njit(cache=True, inline="always")
-def _step_weight(step, one, two):
-    """The weight of a voxel `step` voxels from the centre along one axis (0, +-1 or +-2), from `_axis_weights`."""
-    return 1.0 if step == 0 else one if abs(step) == 1 else two
+def _gauss(offset, sigma):
+    """The Gaussian weight of a voxel centre `offset` voxel sides from the point (`sigma` in voxel sides; 1 if 0)."""
+    return 1.0 if sigma <= 0.0 else math.exp(-0.5 * (offset / sigma) ** 2)
 
 
 @njit(cache=True, parallel=True)
-def filtered_colors(rgb, rgb_offset, occupied, voxels, sides, spread, out):
-    """out[i] = the colors of the occupied voxels around crop index voxels[i] averaged with Gaussian weights of
-    standard deviation spread[i] (world units; `sides`: a voxel's side along each crop axis) out to 2.8 of them and
-    at most 2 voxels; 0.5 grey where voxels[i] is -1. Spread 0 takes the voxel's own color. `rgb` holds the colors
-    at crop index + `rgb_offset`. A weight is a product of one per axis: 6 exponentials a point."""
+def filtered_colors(rgb, rgb_offset, occupied, voxels, points, sides, spread, least, out):
+    """out[i] = the colors of the occupied voxels around crop index voxels[i] averaged with Gaussian weights centred
+    on the crop point points[i], of standard deviation spread[i] (world units; `sides`: a voxel's side along each crop
+    axis) but at least `least` voxel sides, out to 2.8 of them and at most 2 voxels from voxels[i]; 0.5 grey where
+    voxels[i] is -1. Spread 0 takes the voxel's own color. `rgb` holds the colors at crop index + `rgb_offset`.
+    Centred on the point, not on its voxel, the color varies smoothly across a voxel instead of in blocks (seen at
+    a few pixels a voxel)."""
     n0, n1, n2 = occupied.shape
     m0, m1, m2 = rgb.shape[0], rgb.shape[1], rgb.shape[2]
     for i in prange(voxels.shape[0]):
@@ -446,20 +449,24 @@ def filtered_colors(rgb, rgb_offset, occupied, voxels, sides, spread, out):
         if ci < 0:
             out[i, 0], out[i, 1], out[i, 2] = 0.5, 0.5, 0.5
             continue
-        ri, i1, i2 = _axis_weights(spread[i], sides[0])
-        rj, j1, j2 = _axis_weights(spread[i], sides[1])
-        rk, k1, k2 = _axis_weights(spread[i], sides[2])
+        s0 = 0.0 if spread[i] <= 0.0 else max(spread[i] / sides[0], least)  # in voxel sides
+        s1 = 0.0 if spread[i] <= 0.0 else max(spread[i] / sides[1], least)
+        s2 = 0.0 if spread[i] <= 0.0 else max(spread[i] / sides[2], least)
+        px, py, pz = points[i, 0] - 0.5, points[i, 1] - 0.5, points[i, 2] - 0.5  # voxel a's centre is at a + 0.5
+        a0, a1 = _axis_range(px, ci, s0, n0)
+        e0, e1 = _axis_range(py, cj, s1, n1)
+        c0, c1 = _axis_range(pz, ck, s2, n2)
         r, g, b, total = 0.0, 0.0, 0.0, 0.0
-        for a in range(max(ci - ri, 0), min(ci + ri + 1, n0)):
-            wa = _step_weight(a - ci, i1, i2)
+        for a in range(a0, a1):
+            wa = _gauss(a - px, s0)
             x = a + rgb_offset[0]
-            for e in range(max(cj - rj, 0), min(cj + rj + 1, n1)):
-                wae = wa * _step_weight(e - cj, j1, j2)
+            for e in range(e0, e1):
+                wae = wa * _gauss(e - py, s1)
                 y = e + rgb_offset[1]
-                for c in range(max(ck - rk, 0), min(ck + rk + 1, n2)):
+                for c in range(c0, c1):
                     z = c + rgb_offset[2]
                     if occupied[a, e, c] and 0 <= x < m0 and 0 <= y < m1 and 0 <= z < m2:
-                        w = wae * _step_weight(c - ck, k1, k2)
+                        w = wae * _gauss(c - pz, s2)
                         r, g, b, total = r + w * rgb[x, y, z, 0], g + w * rgb[x, y, z, 1], b + w * rgb[x, y, z, 2], total + w
         if total > 0.0:
             out[i, 0], out[i, 1], out[i, 2] = r / total, g / total, b / total

@@ -116,6 +116,7 @@ FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object poi
 # weighted by a Gaussian of COLOR_SPREAD pixel sides at its depth, not its voxel's color alone. On every third
 # textured test image the NVR+ scored MSE 23.8 instead of 25.1 (0.3: 24.7, 0.5: 23.9, 0.75: 23.9, 0.9: 24.1).
 COLOR_SPREAD = 0.6
+COLOR_LEAST = 0.5  # voxel sides: the least spread, so that a close-up's colors blend between voxels, not in blocks
 # Rays per side at silhouette pixels: 3 gave the same error on the test split (MSE within 0.2) with the surface stage
 # taking 1.3x as long; 1 made the NVR+ err 1.6 more on single-colored chairs (docs/results.md).
 SUBPIXELS = 2
@@ -226,7 +227,8 @@ class VisibleSurface:
     pixels: np.ndarray  # (N, 2) int: row, column of the pixels with an object point
     points: np.ndarray  # (N, 3) world
     normals: np.ndarray  # (N, 3) world, unit
-    color_voxels: np.ndarray  # (N, 3) int: crop index of the voxel the point's color is centred on (-1: none, grey)
+    color_voxels: np.ndarray  # (N, 3) int: crop index of the voxel the point's color is looked up around (-1: grey)
+    color_points: np.ndarray  # (N, 3) the points in crop coordinates, where their colors' weights are centred
     color_spread: np.ndarray  # (N,) world units: how far around that voxel the color is averaged (COLOR_SPREAD)
     albedo: np.ndarray  # (N, 3) linear
     occlusion: np.ndarray  # (N,) ambient light reaching the point from the sky, 0..1
@@ -453,10 +455,11 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     floor_occlusion = (_floor_occlusion(geometry, floor_points, np.linalg.inv(geometry.voxel_to_world))
                        if quality.ambient_occlusion else np.ones(len(floor_points), dtype=np.float32))
     lookup = color_voxels if colors else np.full_like(color_voxels, -1)  # -1: no voxel, grey
-    srgb, albedo = _surface_colors(geometry, lookup, color_spread)
+    srgb, albedo = _surface_colors(geometry, lookup, points_crop, color_spread)
     images = _surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
-                          color_voxels=color_voxels, color_spread=color_spread, albedo=albedo, occlusion=occlusion,
+                          color_voxels=color_voxels, color_points=points_crop, color_spread=color_spread, albedo=albedo,
+                          occlusion=occlusion,
                           depth=depth, floor=floor, floor_points=floor_points, floor_extent=floor_extent,
                           floor_occlusion=floor_occlusion,
                           images=images)
@@ -552,7 +555,7 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
     normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0,
                                                           occluded=geometry.broad is not None)
     points, normals, _ = _in_world(mirrored, camera, points_crop, normals_crop)
-    _, albedo = _surface_colors(mirrored, color_voxels, np.zeros(len(points)))
+    _, albedo = _surface_colors(mirrored, color_voxels, points_crop, np.zeros(len(points)))
     flip = _MIRROR.diagonal()[:3]
     _, directions = camera.pixel_rays(pixels[:, 1] + 0.5, pixels[:, 0] + 0.5)
     reflectance = coat_reflectance(np.clip(-directions[:, 1], 0.0, 1.0))
@@ -564,20 +567,21 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
 def repaint_surface(surface: VisibleSurface, geometry: ObjectGeometry) -> VisibleSurface:
     """`surface` with the colors of `geometry`, an object of the same shape and placement painted differently: a
     paint stroke keeps every voxel's occupancy, so what the camera sees stays and only its colors are looked up."""
-    colors, albedo = _surface_colors(geometry, surface.color_voxels, surface.color_spread)
+    colors, albedo = _surface_colors(geometry, surface.color_voxels, surface.color_points, surface.color_spread)
     return replace(surface, albedo=albedo, images=replace(surface.images, **_color_images(surface.size, surface.pixels,
                                                                                            colors, albedo)))
 
 
-def _surface_colors(geometry: ObjectGeometry, color_voxels: np.ndarray,
+def _surface_colors(geometry: ObjectGeometry, color_voxels: np.ndarray, points: np.ndarray,
                     spread: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The sRGB colors (clipped to [0, 1]) and linear albedos (N, 3) float32 of the visible points: the colors of
-    the voxels around crop indices `color_voxels` averaged over `spread` (world units; kernels.filtered_colors; grey
-    where -1)."""
+    """The sRGB colors (clipped to [0, 1]) and linear albedos (N, 3) float32 of the visible points (`points`, crop
+    coordinates): the colors of the voxels around crop indices `color_voxels` averaged over `spread` (world units, at
+    least COLOR_LEAST voxel sides; kernels.filtered_colors; grey where -1)."""
     colors = np.empty(color_voxels.shape, dtype=np.float32)
     sides = np.linalg.norm(geometry.voxel_to_world[:3, :3], axis=0)  # a voxel's side along each crop axis
     kernels.filtered_colors(geometry.rgb, np.asarray(geometry.rgb_offset, dtype=np.int64), geometry.occupied,
-                            color_voxels, sides, np.asarray(spread, dtype=np.float64), colors)
+                            color_voxels, np.ascontiguousarray(points, dtype=np.float64), sides,
+                            np.asarray(spread, dtype=np.float64), COLOR_LEAST, colors)
     colors = np.clip(colors, 0.0, 1.0)
     return colors, srgb_to_linear(colors).astype(np.float32)
 
