@@ -231,7 +231,7 @@ class VisibleSurface:
     normals: np.ndarray  # (N, 3) world, unit
     color_voxels: np.ndarray  # (N, 3) int: crop index of the voxel the point's color is looked up around (-1: grey)
     color_points: np.ndarray  # (N, 3) the points in crop coordinates, where their colors' weights are centred
-    color_spread: np.ndarray  # (N,) world units: how far around that voxel the color is averaged (COLOR_SPREAD)
+    color_spread: np.ndarray  # (N,) world units: how far around the point the color is averaged (COLOR_SPREAD)
     albedo: np.ndarray  # (N, 3) linear
     occlusion: np.ndarray  # (N,) ambient light reaching the point from the sky, 0..1
     depth: np.ndarray  # (N,) distance along the view axis
@@ -460,11 +460,9 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     srgb, albedo = _surface_colors(geometry, lookup, points_crop, color_spread)
     images = _surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
-                          color_voxels=color_voxels, color_points=points_crop, color_spread=color_spread, albedo=albedo,
-                          occlusion=occlusion,
-                          depth=depth, floor=floor, floor_points=floor_points, floor_extent=floor_extent,
-                          floor_occlusion=floor_occlusion,
-                          images=images)
+                          color_voxels=color_voxels, color_points=points_crop, color_spread=color_spread,
+                          albedo=albedo, occlusion=occlusion, depth=depth, floor=floor, floor_points=floor_points,
+                          floor_extent=floor_extent, floor_occlusion=floor_occlusion, images=images)
 
 
 def _first_hits(geometry: ObjectGeometry, camera: Camera, cover_behind: bool = True, subpixels: int = SUBPIXELS,
