@@ -35,7 +35,7 @@ NO_MODEL_LABEL = "no trained model: showing splat"
 RENDERERS = {"shaded": "voxel shader", "nvr+": "NVR+ network"}
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 # A settled image is drawn again at the panel's size once the scene has stood this long (seconds), so that the next
-# edit, if it comes at once, does not wait behind it (the NVR+: 66-108 ms at 422 px on the bench scenes, 2 cores).
+# edit, if it comes at once, does not wait behind it (the NVR+: 63-109 ms at 422 px on the bench scenes, 2 cores).
 DETAIL_DELAY_S = 0.3
 
 
@@ -226,7 +226,7 @@ class LiveRender:
         if frame.image is None:
             self.error = frame.error
             return None
-        if not frame.preview and not detail and not self._scenes and self._detail_size(frame.image) is not None:
+        if not frame.preview and not detail and not self._scenes and self._redraw_larger(frame.image):
             self._settled = (scene, time.monotonic())
         seconds = frame.report.total_ms / 1000.0 if frame.report is not None else 0.0
         return RenderedFrame(frame.image, scene, frame.preview, seconds, detail)
@@ -243,10 +243,9 @@ class LiveRender:
         if size is not None and self._renderer.wait_idle(timeout=0) and not self._scenes:
             self._scenes[self._renderer.submit(scene, size=size)] = (scene, True)
 
-    def _detail_size(self, image: np.ndarray) -> int | None:
-        """The side to draw `image`'s scene again at: the panel's, if it is larger and the engine draws any size."""
-        larger = self.panel_size is not None and self.panel_size > image.shape[0]
-        return self.panel_size if larger and self.renders_any_size else None
+    def _redraw_larger(self, image: np.ndarray) -> bool:
+        """Whether `image`'s scene is to be drawn again at the panel's size: it is larger, and the engine draws any size."""
+        return self.panel_size is not None and self.panel_size > image.shape[0] and self.renders_any_size
 
     @property
     def idle(self) -> bool:

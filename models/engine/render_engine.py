@@ -299,23 +299,29 @@ class RenderEngine:
         start = self._begin()
         with torch.inference_mode():
             inputs = self._network_inputs(scene)
-            correction = self.model.correction_from_latent(inputs.latent, inputs.light, inputs.features)
+            _, correction = self._light(scene, inputs)  # kept by the light stage: a redraw after a render reuses it
             shaded = self._shaded(scene, inputs.painted, inputs.floor, inputs.keys, size)
             image = apply_correction(_to_array(correction.cpu()), shaded.image)
         self._finish(start, preview=False)
         return image
 
     def _render(self, scene: Scene) -> np.ndarray:
-        inputs = self._network_inputs(scene)
+        return self._light(scene, self._network_inputs(scene))[0]
+
+    def _light(self, scene: Scene, inputs: _NetworkInputs) -> tuple[np.ndarray, torch.Tensor | None]:
+        """The light stage: the image, and for a network that corrects the shader's image the correction it applied
+        (correction_from_latent's output), which render_sized applies at other sizes."""
         latent, light, features, keys = inputs.latent, inputs.light, inputs.features, inputs.keys
         key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
 
-        def render() -> np.ndarray:
+        def render() -> tuple[np.ndarray, torch.Tensor | None]:
+            if not self._reads_shading:
+                return _to_image(self.model.render_from_latent(latent, light, features)), None
+            correction = self.model.correction_from_latent(latent, light, features)
             if self._passes_on_cpu:  # the correction applied in compiled passes (models/engine/image_passes.py)
-                correction = self.model.correction_from_latent(latent, light, features)
-                return apply_correction(_to_array(correction), inputs.buffers()[..., :IMAGE_CHANNELS])
-            shaded = None if inputs.buffers_tensor() is None else inputs.buffers_tensor()[:, :IMAGE_CHANNELS]
-            return _to_image(self.model.render_from_latent(latent, light, features, shaded))
+                return apply_correction(_to_array(correction), inputs.buffers()[..., :IMAGE_CHANNELS]), correction
+            shaded = inputs.buffers_tensor()[:, :IMAGE_CHANNELS]
+            return _to_image(self.model.apply_correction(correction, shaded)), correction
 
         return self._stage("light", key, render)
 
