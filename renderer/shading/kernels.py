@@ -17,6 +17,7 @@ from numba import njit, prange
 from renderer.resample import bilinear_at
 
 FAR = np.float32(3.0e38)
+MAP_PARTS = 2  # shares of the occluders each shadow map is drawn from in parallel (build_shadow_maps)
 SOFT_SHADOW_TAPS = 4  # per side: samples of a light point's square of the shadow map (light_visibility)
 HIT_GAP = 0.02  # a ray stops where its gap (how far outside the surface) falls below this
 STEP_MIN = 0.3  # voxels: the least step a sphere-traced ray takes (near a surface its gap is tiny)
@@ -122,6 +123,7 @@ def _gap(fields, level, thin, x, y, z):
 RAY_GROUP = 4
 _MARCH, _BISECT, _BEHIND, _DONE = 0, 1, 2, 3  # what a ray's next sample is for
 BISECTIONS = 6  # halvings of the last step that passed the surface
+FULL_MARGIN = 1e-6  # voxels: how far past full coverage a ray's probe must reach to stop early (rounding)
 
 
 @njit(cache=True, parallel=True, fastmath=True, error_model="numpy")
@@ -138,9 +140,10 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
     stops marching there. A ray takes at most 256 steps; one that steps past the surface bisects its last step
     BISECTIONS times.
     hits[i] = ray parameter (FAR if none),
-    points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how
-    far inside the ray goes: a ray that only grazes a part stays near the level), cores[i] = `core` at
-    the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part, more in a thin one).
+    points[i] = the crop point, deepest[i] = the least distance within `probe` voxels past the hit (how far inside
+    the ray goes, sought until it covers its pixel fully: a ray that only grazes a part stays near the level),
+    cores[i] = `core` at the hit (the least distance of the part around it, fields[..., 1]: 0 inside a thick part,
+    more in a thin one).
     behind[i] (if `look_behind`, else False) = whether a ray that only grazes the part it hit (its coverage,
     (surface level - deepest) / ((surface level - core) * `full`), under 1) leaves it by EXIT_GAP and goes on to
     reach a surface behind it (within HIT_GAP, or stepping inside) in 256 steps:
@@ -225,12 +228,17 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
                     hits[i] = at
                     points[i, 0], points[i, 1], points[i, 2] = x, y, z
                     least, cores[i] = sample_pair(fields, x, y, z)
+                    surface = max(level, cores[i] + thin)
+                    # A ray this deep covers its pixel fully (coverage clipped at 1, no look behind): the probe's
+                    # remaining samples could change nothing (most rays inside a part's outline stop after two).
+                    enough = surface - (surface - cores[i]) * full - FULL_MARGIN
                     for k in range(1, 9):
+                        if least <= enough:
+                            break
                         s = at + probe * k / 8.0
                         least = min(least, sample_pair(fields, origin[0] + s * dx, origin[1] + s * dy,
                                                        origin[2] + s * dz)[0])
                     deepest[i] = least
-                    surface = max(level, cores[i] + thin)
                     if look_behind and surface - least < (surface - cores[i]) * full:
                         t[i], steps[i], left[i], phase[i] = at + probe, 0, False, _BEHIND
                     else:
@@ -434,7 +442,19 @@ def _gauss(offset, sigma):
     return 1.0 if sigma <= 0.0 else math.exp(-0.5 * (offset / sigma) ** 2)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, inline="always")
+def _axis_weights(first, stop, centre, sigma):
+    """_gauss of the voxel indices first..stop - 1 (at most 5: _axis_range) from `centre`, as a 5-tuple (0 past stop):
+    computed once per axis, not once per voxel of the 3D neighbourhood."""
+    w0 = _gauss(first - centre, sigma)
+    w1 = _gauss(first + 1 - centre, sigma) if first + 1 < stop else 0.0
+    w2 = _gauss(first + 2 - centre, sigma) if first + 2 < stop else 0.0
+    w3 = _gauss(first + 3 - centre, sigma) if first + 3 < stop else 0.0
+    w4 = _gauss(first + 4 - centre, sigma) if first + 4 < stop else 0.0
+    return (w0, w1, w2, w3, w4)
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
 def filtered_colors(rgb, rgb_offset, occupied, voxels, points, sides, spread, least, out):
     """out[i] = the colors of the occupied voxels around crop index voxels[i] averaged with Gaussian weights centred
     on the crop point points[i], of standard deviation spread[i] (world units; `sides`: a voxel's side along each crop
@@ -456,17 +476,18 @@ def filtered_colors(rgb, rgb_offset, occupied, voxels, points, sides, spread, le
         a0, a1 = _axis_range(px, ci, s0, n0)
         e0, e1 = _axis_range(py, cj, s1, n1)
         c0, c1 = _axis_range(pz, ck, s2, n2)
+        wx, wy, wz = _axis_weights(a0, a1, px, s0), _axis_weights(e0, e1, py, s1), _axis_weights(c0, c1, pz, s2)
         r, g, b, total = 0.0, 0.0, 0.0, 0.0
         for a in range(a0, a1):
-            wa = _gauss(a - px, s0)
+            wa = wx[a - a0]
             x = a + rgb_offset[0]
             for e in range(e0, e1):
-                wae = wa * _gauss(e - py, s1)
+                wae = wa * wy[e - e0]
                 y = e + rgb_offset[1]
                 for c in range(c0, c1):
                     z = c + rgb_offset[2]
                     if occupied[a, e, c] and 0 <= x < m0 and 0 <= y < m1 and 0 <= z < m2:
-                        w = wae * _gauss(c - pz, s2)
+                        w = wae * wz[c - c0]
                         r, g, b, total = r + w * rgb[x, y, z, 0], g + w * rgb[x, y, z, 1], b + w * rgb[x, y, z, 2], total + w
         if total > 0.0:
             out[i, 0], out[i, 1], out[i, 2] = r / total, g / total, b / total
@@ -497,7 +518,10 @@ def build_shadow_maps(occluders, radius, footprint, lights, size, depth, bounds)
     units across too (the block of voxels it stands for: a solid layer of blocks leaves no texel between them
     uncovered, however fine the texels). bounds[k] = a0, b0, texel size.
     1 / (ly - y) is found once per occluder for all the points at the first point's height (a square light's are),
-    not once per map: 15 % of the maps' time on a chair (a texel at a disc's edge may round the other way)."""
+    not once per map: 15 % of the maps' time on a chair (a texel at a disc's edge may round the other way).
+    Each map is drawn in MAP_PARTS parts, each from its share of the occluders into a map of its own, and the parts
+    are merged by their least depth (the same maps: a texel's depth is the least over every occluder): nine maps
+    alone keep one of two threads busy for five maps and the other for four."""
     count = occluders.shape[0]
     height = lights[0, 1]
     inverse = np.empty(count)  # 1 / (height - y), 0 where the occluder is not below the light by more than its radius
@@ -505,7 +529,8 @@ def build_shadow_maps(occluders, radius, footprint, lights, size, depth, bounds)
         h = height - occluders[m, 1]
         inverse[m] = 1.0 / h if h > radius else 0.0
     across = max(radius, footprint)  # an occluder's reach across the map
-    for k in prange(lights.shape[0]):
+    maps = lights.shape[0]
+    for k in prange(maps):
         lx, ly, lz = lights[k, 0], lights[k, 1], lights[k, 2]
         a_min, a_max, b_min, b_max = 1e30, -1e30, 1e30, -1e30
         for m in range(count):
@@ -517,16 +542,23 @@ def build_shadow_maps(occluders, radius, footprint, lights, size, depth, bounds)
             r = across * inv_h
             a_min, a_max = min(a_min, a - r), max(a_max, a + r)
             b_min, b_max = min(b_min, b - r), max(b_max, b + r)
-        out = depth[k]
-        out[:, :] = FAR
         if a_min > a_max:
             bounds[k, 0], bounds[k, 1], bounds[k, 2] = 0.0, 0.0, 0.0
+        else:
+            bounds[k, 0], bounds[k, 1], bounds[k, 2] = a_min, b_min, max(a_max - a_min, b_max - b_min) / (size - 1)
+    parts = np.full((MAP_PARTS - 1, maps, size, size), FAR, dtype=depth.dtype)  # the parts after the first
+    for task in prange(maps * MAP_PARTS):
+        k, part = task // MAP_PARTS, task % MAP_PARTS
+        out = depth[k] if part == 0 else parts[part - 1, k]
+        if part == 0:
+            out[:, :] = FAR
+        texel = bounds[k, 2]
+        if texel == 0.0:
             continue
-        texel = max(a_max - a_min, b_max - b_min) / (size - 1)
-        bounds[k, 0], bounds[k, 1], bounds[k, 2] = a_min, b_min, texel
-        a0, b0 = a_min / texel, b_min / texel
+        lx, ly, lz = lights[k, 0], lights[k, 1], lights[k, 2]
+        a0, b0 = bounds[k, 0] / texel, bounds[k, 1] / texel
         inv_texel = 1.0 / texel
-        for m in range(count):
+        for m in range(part * count // MAP_PARTS, (part + 1) * count // MAP_PARTS):
             inv_h = _inverse_height(inverse, m, ly, height, occluders[m, 1], radius)
             if inv_h == 0.0:
                 continue
@@ -552,6 +584,11 @@ def build_shadow_maps(occluders, radius, footprint, lights, size, depth, bounds)
                     bound = in_box if (v >= v_lo) & (v <= v_hi) else f2
                     current = out[u, v]
                     out[u, v] = min(current, near) if du2 + dv * dv <= bound else current
+    for row in prange(maps * size):
+        k, u = row // size, row % size
+        for part in range(MAP_PARTS - 1):
+            for v in range(size):
+                depth[k, u, v] = min(depth[k, u, v], parts[part, k, u, v])
 
 
 @njit(cache=True, inline="always")
