@@ -41,10 +41,14 @@ from renderer.shading.shader import (
     COARSE_CELLS,
     COLOR_LEAST,
     COLOR_SPREAD,
+    COVERAGE_FULL,
+    COVERAGE_PROBE,
     FLOOR_SHADOW_STEP,
     REFLECTION_BLUR,
     REFLECTION_SCALE,
     REFLECTION_SUBSAMPLING,
+    SURFACE_LEVEL,
+    THIN_LEVEL,
     _any_in_3x3,
     _differs_from_a_neighbour,
     _pixel_window,
@@ -678,6 +682,34 @@ def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, trans
         # at most here; their coverage is near 0): no more.
         assert (face != near).sum() < 0.04 * face.sum() and face.sum() > 0.1 * face.size
         assert np.median(np.abs(t_face - t_near)[face & near]) < 0.05
+
+
+@pytest.mark.parametrize("shape", ["ball", "lattice"])
+def test_a_rays_coverage_is_that_of_its_whole_probe(shape):
+    """trace_surface stops a hit's coverage probe once the ray lies deep enough to cover its pixel fully; the coverage
+    must be the one its nine samples along the ray give (sampled here in Python), for thick parts and thin bars."""
+    spec = ObjectSpec(voxels="v.npz", scale=(0.6, 0.6, 0.45))
+    geometry = geometry_of(ball() if shape == "ball" else lattice(), spec, 30.0)
+    camera = Camera(30.0, width=128, height=128)
+    world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
+    origin = world_to_voxel[:3, :3] @ camera.position + world_to_voxel[:3, 3] - geometry.offset
+    rows, cols = _pixel_window(geometry, camera)
+    t, points, cover = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5,
+                              cover_behind=False)
+    hits = t < kernels.FAR
+    directions = points[hits] - origin
+    directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
+    fields = geometry.distance_and_core
+    expected = []
+    for point, direction in zip(points[hits], directions):
+        samples = [kernels.sample_pair(fields, *(point + COVERAGE_PROBE * k / 8.0 * direction)) for k in range(9)]
+        core = samples[0][1]
+        level = max(SURFACE_LEVEL, core + THIN_LEVEL)
+        least = min(distance for distance, _ in samples)
+        expected.append(np.clip((level - least) / ((level - core) * COVERAGE_FULL), 0.0, 1.0))
+    expected = np.array(expected)
+    assert (expected == 1.0).sum() > 20 and ((expected > 0.0) & (expected < 1.0)).sum() > 20  # both kinds of ray
+    np.testing.assert_allclose(cover[hits], expected, atol=1e-5)
 
 
 @pytest.mark.parametrize("light", [(0.0, 1.0, 2.5), (0.3, 1.0, 2.0), (-0.5, 1.2, 2.2)])
