@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import asdict
 
 import numpy as np
 import pytest
@@ -98,6 +99,33 @@ def test_the_pareto_target_is_judged_on_the_shares_timed_in_turn():
     results["in_turn"]["shares"]["fast"] = [0.2]
     assert _in_turn(results, rival)[0].endswith("missed.")
     assert _in_turn({"renderers": rows, "in_turn": None}, rival) == []
+
+
+def test_a_cpu_without_bfloat16_has_its_own_pareto_front():
+    """A float32 network that only its own bfloat16 run dominates is on the front of the rows a CPU without bfloat16
+    runs (the targets' CPU), and the report says so in a column of its own; with no bfloat16 row there is one front."""
+    from models.bench.benchmark import Row, pareto_labels
+    from models.bench.report import _renderers, _targets
+
+    rows = [Row("path tracing", "1 spp + OIDN", 120.0, 110.0, 130.0, 10.0, 7.0, 0.005, 4.0),
+            Row("NVR+", "net, bf16", 30.0, 28.0, 32.0, 500.0, 8.8, 0.006, 5.7, precision="bf16"),
+            Row("NVR+", "net, fp32", 40.0, 38.0, 42.0, 500.0, 8.9, 0.006, 5.7),
+            Row("splatting", "", 60.0, 55.0, 65.0, 400.0, 2500.0, 0.07, 41.0)]
+    assert pareto_labels(rows) == ["NVR+ net, bf16", "path tracing 1 spp + OIDN"]
+    assert pareto_labels(rows, without_bf16=True) == ["NVR+ net, fp32", "path tracing 1 spp + OIDN"]
+    results = {"renderers": [asdict(r) | {"label": r.label} for r in rows], "pareto_front": pareto_labels(rows),
+               "pareto_front_without_bf16": pareto_labels(rows, without_bf16=True),
+               "edits": {name: {"ms": 20.0} for name in ("light", "object move", "camera")}}
+    table = "\n".join(_renderers(results))
+    assert "| Pareto | Pareto without bf16 |" in table
+    assert "| net, fp32 | 40.0 | 38.0–42.0 | 500 | 8.90 | 0.0060 | 5.700 |  | yes |" in table
+    targets = "\n".join(_targets(results))
+    assert "MSE 8.90; not on the Pareto front (on the front without bf16)." in targets
+    assert "MSE 8.80; on the Pareto front. Against" in targets
+    alone = [r for r in rows if r.precision == "fp32"]
+    results |= {"renderers": [asdict(r) | {"label": r.label} for r in alone], "pareto_front": pareto_labels(alone),
+                "pareto_front_without_bf16": pareto_labels(alone, without_bf16=True)}
+    assert "without bf16" not in "\n".join(_renderers(results) + _targets(results))
 
 
 def test_pareto_front_by_hand():

@@ -105,10 +105,19 @@ class Row:
     mse: float | None = None
     dssim: float | None = None
     perceptual: float | None = None
+    precision: str = "fp32"  # a network's arithmetic ("bf16" or "fp32"); the other renderers run no bfloat16
 
     @property
     def label(self) -> str:
         return f"{self.family} {self.setting}".strip()
+
+
+def pareto_labels(rows: list[Row], without_bf16: bool = False) -> list[str]:
+    """The labels of the rows with an error on the Pareto front of time against MSE; `without_bf16`: of the rows a CPU
+    without bfloat16 runs (float32 networks and the other renderers), the CPU the targets are set for, where no
+    bfloat16 row would stand in front of them."""
+    kept = [r for r in rows if r.mse is not None and not (without_bf16 and r.precision == "bf16")]
+    return [p.label for p in pareto_front([_point(r) for r in kept])]
 
 
 def run_bench(settings: BenchSettings, data: list[str] | None = None, model_paths: list[str] | None = None,
@@ -169,7 +178,6 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
     for net in networks:
         net["frame_fraction_of_peak"] = net["gflop_frame"] / net["frame_ms"] * 1000.0 / peak
         net["light_fraction_of_peak"] = net["gflop_light_edit"] / net["light_edit_ms"] * 1000.0 / peak
-    front = pareto_front([_point(r) for r in rows if r.mse is not None])
     rival = next(r for r in rows if r.family == "path tracing" and r.setting == "1 spp + OIDN")
     return {
         "nvrplus_light_edit_ms": edits["light"]["ms"],
@@ -190,7 +198,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "reference_spp": settings.reference_spp,
         "scenes": [b.name for b in scenes],
         "renderers": [asdict(r) | {"label": r.label} for r in rows],
-        "pareto_front": [p.label for p in front],
+        "pareto_front": pareto_labels(rows),
+        "pareto_front_without_bf16": pareto_labels(rows, without_bf16=True),
         "edits": edits,
         "in_turn": in_turn,
         "networks": networks,
@@ -275,7 +284,7 @@ def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: Benc
     errors = score(images) if score is not None else {}
     return Row(_family(engine), _trained_setting(engine) if score is not None
               else f"{engine.config.name}, {engine.precision} (random weights: timing only)",
-              *_spread(times), memory.peak_mb(), **errors)
+              *_spread(times), memory.peak_mb(), **errors, precision=engine.precision)
 
 
 def _family(engine: RenderEngine) -> str:
