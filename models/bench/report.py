@@ -64,8 +64,8 @@ def _front_without_bf16(r: dict[str, Any]) -> set[str] | None:
 
 
 def _renderers(r: dict[str, Any]) -> list[str]:
-    front, plain = set(r["pareto_front"]), _front_without_bf16(r)
-    extra = ("", "") if plain is None else (" Pareto without bf16 |", ":---:|")
+    front, no_bf16 = set(r["pareto_front"]), _front_without_bf16(r)
+    extra = ("", "") if no_bf16 is None else (" Pareto without bf16 |", ":---:|")
     lines = ["## Renderers", "",
              "| renderer | setting | median ms / frame | IQR (ms) | peak MB | MSE (0-255) | DSSIM | perceptual | Pareto |"
              + extra[0], "|---|---|---:|---|---:|---:|---:|---:|:---:|" + extra[1]]
@@ -74,10 +74,10 @@ def _renderers(r: dict[str, Any]) -> list[str]:
             f"{row['mse']:.2f}", f"{row['dssim']:.4f}", f"{row['perceptual']:.3f}")
         line = (f"| {row['family']} | {row['setting']} | {row['ms']:.1f} | {row['ms_q25']:.1f}–{row['ms_q75']:.1f} "
                 f"| {row['peak_mb']:.0f} | {' | '.join(errors)} | {'yes' if row['label'] in front else ''} |")
-        if plain is not None:
-            line += f" {'yes' if row['label'] in plain else ''} |"
+        if no_bf16 is not None:
+            line += f" {'yes' if row['label'] in no_bf16 else ''} |"
         lines.append(line)
-    if plain is not None:
+    if no_bf16 is not None:
         lines += ["", "Pareto without bf16: the front of the rows a CPU without bfloat16 runs (float32 networks and the "
                   "other renderers), the CPU the targets are set for."]
     return lines + [""]
@@ -100,11 +100,11 @@ def _targets(r: dict[str, Any]) -> list[str]:
                      f"{'met' if frame <= SHADER_FRAME_TARGET_MS else 'missed'}), a light edit {light_edit:.1f} ms (target "
                      f"{SHADER_LIGHT_TARGET_MS:.0f} ms: {'met' if light_edit <= SHADER_LIGHT_TARGET_MS else 'missed'}).")
     trained = [row for row in r["renderers"] if row["family"] == "NVR+" and row["mse"] is not None]
-    plain = _front_without_bf16(r)
+    no_bf16 = _front_without_bf16(r)
     for row in trained:
         on_front = row["label"] in r["pareto_front"]
-        without = ("" if plain is None or row.get("precision") == "bf16" else
-                   f" ({'on' if row['label'] in plain else 'not on'} the front without bf16)")
+        without = ("" if no_bf16 is None or row.get("precision") == "bf16" else
+                   f" ({'on' if row['label'] in no_bf16 else 'not on'} the front without bf16)")
         lines.append(f"- NVR+ {row['setting']}: {row['ms']:.1f} ms per frame, MSE {row['mse']:.2f}; "
                      f"{'on' if on_front else 'not on'} the Pareto front{without}. Against path tracing 1 spp + OIDN "
                      f"({rival['ms']:.1f} ms, MSE {rival['mse']:.2f}): {rival['ms'] / row['ms']:.1f}x faster, "
