@@ -22,7 +22,8 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     report, numbers = tmp_path / "benchmarks.md", tmp_path / "benchmarks.json"
     assert run(["bench", "--quick", "--report", str(tmp_path)]) == 0
     results = json.loads(numbers.read_text())
-    for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms"):
+    for key in ("nvrplus_light_edit_ms", "nvrplus_frame_ms", "pathtrace_1spp_oidn_ms", "shader_frame_ms",
+                "shader_light_edit_ms", "shader_fast_frame_ms", "shader_fast_light_edit_ms"):
         assert math.isfinite(results[key]) and results[key] > 0.0
     # A light edit reruns only the stages after the light enters (timings are the benchmark's business,
     # not a test's): the last one, and the shader's light stages (or the lit floor) and the splat branch for
@@ -45,6 +46,7 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     assert all(n["gflop_frame"] > n["gflop_light_edit"] > 0 for n in results["networks"])
     text = report.read_text()
     assert "| path tracing | 1 spp + OIDN |" in text and "## Latency per edit" in text
+    assert "- Voxel shader (256^3 grid, fast): a frame after an object move" in text
     # The shipped NVR+ in fp32 at both shader qualities, timed in turn with path tracing (one round when quick).
     shares = results["in_turn"]["shares"]
     assert set(shares) == {"full", "fast"} and all(len(v) == 1 and 0.0 < v[0] < 100.0 for v in shares.values())
@@ -99,6 +101,24 @@ def test_the_pareto_target_is_judged_on_the_shares_timed_in_turn():
     results["in_turn"]["shares"]["fast"] = [0.2]
     assert _in_turn(results, rival)[0].endswith("missed.")
     assert _in_turn({"renderers": rows, "in_turn": None}, rival) == []
+
+
+def test_the_shader_budgets_are_judged_at_both_qualities():
+    """The voxel shader's budgets (30 ms a frame after a move, 10 ms a light edit) at its full and its fast quality,
+    each judged on its own numbers; a report from before the fast quality's numbers has the full quality's line only."""
+    from models.bench.report import _targets
+
+    results = {"renderers": [{"label": "path tracing 1 spp + OIDN", "family": "path tracing", "mse": 7.0, "ms": 150.0}],
+               "pareto_front": [], "edits": {name: {"ms": 20.0} for name in ("light", "object move", "camera")},
+               "shader_grid": "256^3 grid", "shader_frame_ms": 36.6, "shader_light_edit_ms": 9.5,
+               "shader_fast_frame_ms": 21.3, "shader_fast_light_edit_ms": 10.5}
+    lines = [line for line in _targets(results) if line.startswith("- Voxel shader")]
+    assert lines == ["- Voxel shader (256^3 grid): a frame after an object move 36.6 ms (target 30 ms: missed), "
+                     "a light edit 9.5 ms (target 10 ms: met).",
+                     "- Voxel shader (256^3 grid, fast): a frame after an object move 21.3 ms (target 30 ms: met), "
+                     "a light edit 10.5 ms (target 10 ms: missed)."]
+    del results["shader_fast_frame_ms"], results["shader_fast_light_edit_ms"]
+    assert [line for line in _targets(results) if line.startswith("- Voxel shader")] == lines[:1]
 
 
 def test_a_cpu_without_bfloat16_has_its_own_pareto_front():

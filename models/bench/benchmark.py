@@ -142,7 +142,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         # The shader of the network's grid (the object voxels merged in pairs): faster, further from the path tracer.
         rows.append(bench_shading(scenes, settings, memory, score, GRID_SIZE)[0])
         # The shader at its fast quality (renderer.shading.FAST_QUALITY): faster, further off.
-        rows.append(bench_shading(scenes, settings, memory, score, quality="fast")[0])
+        fast_shader_row, fast_shader_light_ms = bench_shading(scenes, settings, memory, score, quality="fast")
+        rows.append(fast_shader_row)
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.
         trained += [_load_engine(path, _precisions()[0], shading_grid_factor=1) for path in _weights_files(model_paths)
@@ -186,6 +187,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "shader_frame_ms": shader_row.ms,
         "shader_grid": shader_row.setting,
         "shader_light_edit_ms": statistics.median(shader_light_ms),
+        "shader_fast_frame_ms": fast_shader_row.ms,
+        "shader_fast_light_edit_ms": statistics.median(fast_shader_light_ms),
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "quick": settings == QUICK,
         "seconds": time.perf_counter() - started,
