@@ -121,6 +121,58 @@ def test_the_shader_budgets_are_judged_at_both_qualities():
     assert [line for line in _targets(results) if line.startswith("- Voxel shader")] == lines[:1]
 
 
+def test_rows_are_timed_in_step_scene_by_scene():
+    """Every contender renders a scene (its image, untimed) and is timed on it before any moves on to the next scene,
+    in turn forwards and then backwards; only a contender that asks for it has its light edit timed."""
+    from models.bench.benchmark import FULL, Contender, bench_in_step
+    from models.bench.scenes import BenchScene
+    from renderer.scene import ObjectSpec, Scene
+
+    calls = []
+
+    class Recorder:
+        def __init__(self, name, bench):
+            self.name, self.bench = name, bench
+
+        def render(self, scene):
+            calls.append((self.name, self.bench))
+            return np.zeros((2, 2, 3), dtype=np.float32)
+
+    class Fake(Contender):
+        def __init__(self, name, light_edit):
+            super().__init__()
+            self.name, self.light_edit = name, light_edit
+
+        def renderer_for(self, bench):
+            return Recorder(self.name, bench.name)
+
+        def row(self, score):
+            raise AssertionError("not called")
+
+    class NoMemory:
+        def start(self):
+            pass
+
+        def peak_mb(self):
+            return 1.0
+
+    contenders = [Fake("a", True), Fake("b", False)]
+    scene = Scene(object=ObjectSpec(voxels="box.npz"))
+    scenes = [BenchScene(name, scene, None) for name in ("s0", "s1", "s2")]
+    bench_in_step(contenders, scenes, FULL, NoMemory())
+    timed = 2 + FULL.repeats  # alternating_ms renders the pair once each, then times
+    a, b = timed * 2, timed  # renders per scene: "a" also times its light edit
+    expected = []
+    for index, scene in enumerate(("s0", "s1", "s2")):
+        expected += [("a", scene), ("b", scene)]  # the untimed images
+        runs = [("a", scene)] * a + [("b", scene)] * b
+        expected += runs if index % 2 == 0 else runs[::-1]
+    assert calls == expected
+    assert [len(c.images) for c in contenders] == [3, 3] and contenders[0].peak_mb == 1.0
+    assert len(contenders[0].times) == len(contenders[0].light_times) == 3 * FULL.repeats
+    assert len(contenders[1].times) == 3 * FULL.repeats and contenders[1].light_times == []
+
+
 def test_a_cpu_without_bfloat16_has_its_own_pareto_front():
     """A float32 network that only its own bfloat16 run dominates is on the front of the rows a CPU without bfloat16
     runs (the targets' CPU), and the report says so in a column of its own; with no bfloat16 row there is one front."""

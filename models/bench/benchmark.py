@@ -5,7 +5,8 @@ shader (its stages cached as in the editor); NVR
 and NVR+ through the live engine for every weights file (--model, else assets/models/*.safetensors);
 for timing only, the compact networks when they have no weights yet and the paper configuration,
 with random weights. For each: median time per frame at 256^2 and its interquartile range over
-all scenes and repeats, peak memory (models/bench/system.py), and MSE, DSSIM and the perceptual
+all scenes and repeats (the shader's and the trained networks' rows timed in step, scene by scene:
+bench_in_step), peak memory (models/bench/system.py), and MSE, DSSIM and the perceptual
 distance against a raw path-traced reference of the same scene (1024 spp; --quick: 32).
 Also: the engine's latency per edit type with the object crop and with the full grid, the shipped NVR+'s
 frame timed in turn with path tracing at 1 spp + OIDN (bench_in_turn: the Pareto target's ratio), the FLOPs
@@ -25,6 +26,7 @@ import re
 import statistics
 import tempfile
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -137,13 +139,9 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
 
         rows = bench_pathtracing(tracers, settings, memory, score)
         rows.append(bench_splatting(scenes, settings, memory, score))
-        shader_row, shader_light_ms = bench_shading(scenes, settings, memory, score)
-        rows.append(shader_row)
-        # The shader of the network's grid (the object voxels merged in pairs): faster, further from the path tracer.
-        rows.append(bench_shading(scenes, settings, memory, score, GRID_SIZE)[0])
-        # The shader at its fast quality (renderer.shading.FAST_QUALITY): faster, further off.
-        fast_shader_row, fast_shader_light_ms = bench_shading(scenes, settings, memory, score, quality="fast")
-        rows.append(fast_shader_row)
+        # The voxel shader as in the editor; of the network's grid (the object voxels merged in pairs): faster, further
+        # from the path tracer; at its fast quality (renderer.shading.FAST_QUALITY): faster, further off.
+        shaders = [ShaderContender(SHADER_GRID_SIZE), ShaderContender(GRID_SIZE), ShaderContender(SHADER_GRID_SIZE, "fast")]
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.
         trained += [_load_engine(path, _precisions()[0], shading_grid_factor=1) for path in _weights_files(model_paths)
@@ -151,11 +149,14 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         # And a network that reads the shader, given the shader's fast quality (which it was not trained on).
         trained += [_load_engine(path, precision, shader_quality="fast") for path in _weights_files(model_paths)
                     if _reads_the_shader(path) for precision in _precisions()]
-        for engine in trained:
-            rows.append(bench_network(engine, scenes, settings, memory, score))
+        networks_timed = [NetworkContender(engine) for engine in trained]
+        bench_in_step(shaders + networks_timed, scenes, settings, memory)
+        timed = [c.row(score) for c in shaders + networks_timed]
+        rows += timed
+        shader_row, fast_shader_row = timed[0], timed[2]
         timing_only = _random_engines(settings, trained)
         for engine in timing_only:
-            rows.append(bench_network(engine, scenes, settings, memory, None))
+            rows.append(bench_timing_only(engine, scenes, settings, memory))
         # The edit latencies are the shipped NVR+'s when it is benched (else any compact NVR+), in float32: the
         # targets are for CPUs without bfloat16, and float32 is what they run.
         shipped = f"({SHIPPED_MODELS['nvr+'].name})"
@@ -186,9 +187,9 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "pathtrace_1spp_oidn_ms": rival.ms,
         "shader_frame_ms": shader_row.ms,
         "shader_grid": shader_row.setting,
-        "shader_light_edit_ms": statistics.median(shader_light_ms),
+        "shader_light_edit_ms": statistics.median(shaders[0].light_times),
         "shader_fast_frame_ms": fast_shader_row.ms,
-        "shader_fast_light_edit_ms": statistics.median(fast_shader_light_ms),
+        "shader_fast_light_edit_ms": statistics.median(shaders[2].light_times),
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "quick": settings == QUICK,
         "seconds": time.perf_counter() - started,
@@ -244,23 +245,79 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
     return Row("splatting", "", *_spread(times), memory.peak_mb(), **score(images))
 
 
-def bench_shading(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
-                  score: Callable[[list[np.ndarray]], dict], grid_size: int = SHADER_GRID_SIZE,
-                  quality: str = "full") -> tuple[Row, list[float]]:
+class Contender(ABC):
+    """A renderer timed in step with the others (bench_in_step), and what was measured of it."""
+
+    light_edit = False  # whether a light edit is timed too
+
+    def __init__(self) -> None:
+        self.images: list[np.ndarray] = []  # one per bench scene, untimed
+        self.times: list[float] = []  # ms of frames after an object move
+        self.light_times: list[float] = []  # ms of light edits, if timed
+        self.peak_mb = 0.0  # the most memory one scene's first render took above the level before it
+
+    @abstractmethod
+    def renderer_for(self, bench: BenchScene) -> Any:
+        """What renders `bench`'s scenes (anything with render(scene) -> image)."""
+
+    @abstractmethod
+    def row(self, score: Callable[[list[np.ndarray]], dict]) -> Row:
+        """The table's row of what was measured, its errors from `score` of the images."""
+
+
+class ShaderContender(Contender):
     """The voxel shader of a `grid_size`^3 grid at a `quality` (renderer.shading.QUALITIES) with its stages cached as
-    in the editor: a frame after an object move and, separately, a light edit (the light stage alone); the voxels are
-    painted once per scene."""
-    memory.start()
-    times, light_times, images = [], [], []
-    for bench in scenes:
-        shader = _PaintedShader(bench, grid_size, quality)
-        images.append(shader.render(bench.scene))
-        times += alternating_ms(shader, move_pair(bench.scene), settings.repeats)
-        light = bench.scene.light.position
-        moved = bench.scene.with_changes(light=LightSpec((light[0] + 0.1, light[1], light[2] + 0.05)))
-        light_times += alternating_ms(shader, (bench.scene, moved), settings.repeats)
-    setting = f"{grid_size}^3 grid" + ("" if quality == "full" else f", {quality}")
-    return Row("voxel shader", setting, *_spread(times), memory.peak_mb(), **score(images)), light_times
+    in the editor, the voxels painted once per scene; its light edit (the light stage alone) is timed too."""
+
+    light_edit = True
+
+    def __init__(self, grid_size: int, quality: str = "full") -> None:
+        super().__init__()
+        self.grid_size, self.quality = grid_size, quality
+
+    def renderer_for(self, bench: BenchScene) -> _PaintedShader:
+        return _PaintedShader(bench, self.grid_size, self.quality)
+
+    def row(self, score: Callable[[list[np.ndarray]], dict]) -> Row:
+        setting = f"{self.grid_size}^3 grid" + ("" if self.quality == "full" else f", {self.quality}")
+        return Row("voxel shader", setting, *_spread(self.times), self.peak_mb, **score(self.images))
+
+
+class NetworkContender(Contender):
+    """A trained network through the live engine (resampling, voxel branch on the object's crop, splat, shading)."""
+
+    def __init__(self, engine: RenderEngine) -> None:
+        super().__init__()
+        self.engine = engine
+
+    def renderer_for(self, bench: BenchScene) -> RenderEngine:
+        return self.engine
+
+    def row(self, score: Callable[[list[np.ndarray]], dict]) -> Row:
+        return Row(_family(self.engine), _trained_setting(self.engine), *_spread(self.times), self.peak_mb,
+                   **score(self.images), precision=self.engine.precision)
+
+
+def bench_in_step(contenders: list[Contender], scenes: list[BenchScene], settings: BenchSettings,
+                  memory: PeakMemory) -> None:
+    """Time every contender's frame after an object move (and its light edit, where it asks) scene by scene: all of
+    them on one scene before the next, in turn forwards and then backwards, so that rows the Pareto front compares are
+    timed in the same minutes of a machine whose speed swings from minute to minute (timed one row after another, the
+    distilled NVR+'s fp32 frame once came out slower than its teacher's, which runs a block more). First each one's
+    image of the scene, untimed: its errors, and its peak memory."""
+    for index, bench in enumerate(scenes):
+        renderers = []
+        for contender in contenders:
+            memory.start()
+            renderer = contender.renderer_for(bench)
+            contender.images.append(renderer.render(bench.scene))
+            contender.peak_mb = max(contender.peak_mb, memory.peak_mb())
+            renderers.append(renderer)
+        in_turn = list(zip(contenders, renderers))
+        for contender, renderer in in_turn if index % 2 == 0 else in_turn[::-1]:
+            contender.times += alternating_ms(renderer, move_pair(bench.scene), settings.repeats)
+            if contender.light_edit:
+                contender.light_times += alternating_ms(renderer, light_pair(bench.scene), settings.repeats)
 
 
 class _PaintedShader:
@@ -275,19 +332,17 @@ class _PaintedShader:
         return self._shader.render(scene, self._key, self._rgba, self._floor, SIZE).image
 
 
-def bench_network(engine: RenderEngine, scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
-                  score: Callable[[list[np.ndarray]], dict] | None) -> Row:
-    """Frame time = re-render after an object move; errors of each scene's render if `score` is given."""
+def bench_timing_only(engine: RenderEngine, scenes: list[BenchScene], settings: BenchSettings,
+                      memory: PeakMemory) -> Row:
+    """A network with random weights, for its time alone: a re-render after an object move."""
     memory.start()
-    times, images = [], []
+    times = []
     repeats = settings.repeats if engine.config.name != "paper" else 2  # the paper's widths take seconds a frame
     for bench in scenes:
-        images.append(engine.render(bench.scene))
+        engine.render(bench.scene)
         times += alternating_ms(engine, move_pair(bench.scene), repeats)
-    errors = score(images) if score is not None else {}
-    return Row(_family(engine), _trained_setting(engine) if score is not None
-              else f"{engine.config.name}, {engine.precision} (random weights: timing only)",
-              *_spread(times), memory.peak_mb(), **errors, precision=engine.precision)
+    return Row(_family(engine), f"{engine.config.name}, {engine.precision} (random weights: timing only)",
+               *_spread(times), memory.peak_mb(), precision=engine.precision)
 
 
 def _family(engine: RenderEngine) -> str:
@@ -343,6 +398,12 @@ def move_pair(scene: Scene) -> tuple[Scene, Scene]:
     """The scene and the scene with its object moved along the floor by (0.15, -0.1): a drag in the editor."""
     o = scene.object
     return scene, scene.with_changes(object=replace(o, translation=(o.translation[0] + 0.15, o.translation[1] - 0.1)))
+
+
+def light_pair(scene: Scene) -> tuple[Scene, Scene]:
+    """The scene and the scene with its light moved by (0.1, 0, 0.05): a step of a light drag."""
+    x, y, z = scene.light.position
+    return scene, scene.with_changes(light=LightSpec((x + 0.1, y, z + 0.05)))
 
 
 def turn_pair(scene: Scene) -> tuple[Scene, Scene]:

@@ -185,8 +185,11 @@ def _method(r: dict[str, Any]) -> list[str]:
         "(its light edit: the light stage alone). NVR / NVR+: a re-render after an object move along the floor "
         "through the live engine (resampling, voxel branch on the object's crop, splat, shading); the mesh is "
         "voxelised once per scene. Networks run in the precision named in their row: bf16 (bfloat16, the "
-        "engine's default where the CPU computes it natively) or fp32.",
-        f"- Peak memory: resident memory above the level before each renderer ({r['memory_method']}).",
+        "engine's default where the CPU computes it natively) or fp32. The voxel shader's rows and the trained "
+        "networks' are timed in step, scene by scene (all of them on one scene, then the next, in turn forwards and "
+        "backwards), so that the rows they compare are timed in the same minutes; the other rows one after another.",
+        f"- Peak memory: resident memory above the level before each renderer ({r['memory_method']}); for the rows "
+        "timed in step, the most that one scene's first render took.",
         "- Errors: mean over scenes of MSE (0-255), DSSIM and the perceptual distance of models/evaluation/metrics.py against "
         f"the {r['reference_spp']}-spp reference, whose own noise is included. Networks with random weights are timed only.",
         "- Pareto front: no other renderer is both at least as fast and at least as accurate (MSE).",
