@@ -122,9 +122,10 @@ def test_the_shader_budgets_are_judged_at_both_qualities():
 
 
 def test_rows_are_timed_in_step_scene_by_scene():
-    """Every contender renders a scene (its image, untimed) and is timed on it before any moves on to the next scene,
-    in turn forwards and then backwards; only a contender that asks for it has its light edit timed."""
-    from models.bench.benchmark import FULL, Contender, bench_in_step
+    """Every contender renders a scene (its image, untimed, in the first round only) and is timed on it before any
+    moves on to the next scene, in turn forwards and backwards, the scenes over again each round; only a contender
+    that asks for it has its light edit timed."""
+    from models.bench.benchmark import BenchSettings, Contender, bench_in_step
     from models.bench.scenes import BenchScene
     from renderer.scene import ObjectSpec, Scene
 
@@ -159,18 +160,21 @@ def test_rows_are_timed_in_step_scene_by_scene():
     contenders = [Fake("a", True), Fake("b", False)]
     scene = Scene(object=ObjectSpec(voxels="box.npz"))
     scenes = [BenchScene(name, scene, None) for name in ("s0", "s1", "s2")]
-    bench_in_step(contenders, scenes, FULL, NoMemory())
-    timed = 2 + FULL.repeats  # alternating_ms renders the pair once each, then times
+    settings = BenchSettings(repeats=2, in_step_rounds=2)
+    bench_in_step(contenders, scenes, settings, NoMemory())
+    timed = 2 + settings.repeats  # alternating_ms renders the pair once each, then times
     a, b = timed * 2, timed  # renders per scene: "a" also times its light edit
     expected = []
-    for index, scene in enumerate(("s0", "s1", "s2")):
-        expected += [("a", scene), ("b", scene)]  # the untimed images
-        runs = [("a", scene)] * a + [("b", scene)] * b
-        expected += runs if index % 2 == 0 else runs[::-1]
+    for round_ in range(2):
+        for index, name in enumerate(("s0", "s1", "s2")):
+            if round_ == 0:
+                expected += [("a", name), ("b", name)]  # the untimed images
+            runs = [("a", name)] * a + [("b", name)] * b
+            expected += runs if (3 * round_ + index) % 2 == 0 else runs[::-1]
     assert calls == expected
     assert [len(c.images) for c in contenders] == [3, 3] and contenders[0].peak_mb == 1.0
-    assert len(contenders[0].times) == len(contenders[0].light_times) == 3 * FULL.repeats
-    assert len(contenders[1].times) == 3 * FULL.repeats and contenders[1].light_times == []
+    assert len(contenders[0].times) == len(contenders[0].light_times) == 2 * 3 * settings.repeats
+    assert len(contenders[1].times) == 2 * 3 * settings.repeats and contenders[1].light_times == []
 
 
 def test_a_cpu_without_bfloat16_has_its_own_pareto_front():

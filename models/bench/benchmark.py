@@ -84,6 +84,7 @@ class BenchSettings:
     full_grid_edits: bool = True  # also time every edit without the object crop
     matmul_size: int = 2048
     in_turn_rounds: int = 6  # rounds of the shipped NVR+ timed in turn with path tracing (bench_in_turn)
+    in_step_rounds: int = 4  # rounds over the scenes of the shader's and the networks' rows (bench_in_step)
 
     def repeats_for(self, spp: int) -> int:
         return self.repeats if spp <= 16 else max(1, self.repeats // (2 if spp <= 64 else 5))
@@ -91,7 +92,7 @@ class BenchSettings:
 
 FULL = BenchSettings()
 QUICK = BenchSettings(spps=(1, 4), reference_spp=32, repeats=3, edit_repeats=3, scenes=1, paper=False, full_grid_edits=False,
-                      matmul_size=1024, in_turn_rounds=1)
+                      matmul_size=1024, in_turn_rounds=1, in_step_rounds=1)
 
 
 @dataclass
@@ -200,6 +201,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "memory_method": memory.method,
         "size": SIZE,
         "reference_spp": settings.reference_spp,
+        "in_step_rounds": settings.in_step_rounds,
         "scenes": [b.name for b in scenes],
         "renderers": [asdict(r) | {"label": r.label} for r in rows],
         "pareto_front": pareto_labels(rows),
@@ -300,24 +302,30 @@ class NetworkContender(Contender):
 
 def bench_in_step(contenders: list[Contender], scenes: list[BenchScene], settings: BenchSettings,
                   memory: PeakMemory) -> None:
-    """Time every contender's frame after an object move (and its light edit, where it asks) scene by scene: all of
-    them on one scene before the next, in turn forwards and then backwards, so that rows the Pareto front compares are
-    timed in the same minutes of a machine whose speed swings from minute to minute (timed one row after another, the
-    distilled NVR+'s fp32 frame once came out slower than its teacher's, which runs a block more). First each one's
-    image of the scene, untimed: its errors, and its peak memory."""
-    for index, bench in enumerate(scenes):
-        renderers = []
-        for contender in contenders:
-            memory.start()
-            renderer = contender.renderer_for(bench)
-            contender.images.append(renderer.render(bench.scene))
-            contender.peak_mb = max(contender.peak_mb, memory.peak_mb())
-            renderers.append(renderer)
-        in_turn = list(zip(contenders, renderers))
-        for contender, renderer in in_turn if index % 2 == 0 else in_turn[::-1]:
-            contender.times += alternating_ms(renderer, move_pair(bench.scene), settings.repeats)
-            if contender.light_edit:
-                contender.light_times += alternating_ms(renderer, light_pair(bench.scene), settings.repeats)
+    """Time every contender's frame after an object move (and its light edit, where it asks) in step: scene by scene,
+    all of them on one scene before the next, in turn forwards and backwards, and the scenes over again in each of
+    `settings.in_step_rounds` rounds. On a machine whose speed swings from minute to minute (and a network's time
+    from one second to the next), rows the Pareto front compares are timed in the same minutes, and each row's median
+    spans them all: timed one row after another, the distilled NVR+'s fp32 frame once came out slower than its
+    teacher's, which runs a block more, and timed in step over the scenes once, its frame at the shader's full quality
+    faster than at the fast one. The first round first renders each one's image of each scene, untimed: its errors,
+    and its peak memory."""
+    for round_ in range(settings.in_step_rounds):
+        for index, bench in enumerate(scenes):
+            renderers = []
+            for contender in contenders:
+                if round_ == 0:
+                    memory.start()
+                renderer = contender.renderer_for(bench)
+                if round_ == 0:
+                    contender.images.append(renderer.render(bench.scene))
+                    contender.peak_mb = max(contender.peak_mb, memory.peak_mb())
+                renderers.append(renderer)
+            in_turn = list(zip(contenders, renderers))
+            for contender, renderer in in_turn[::-1] if (round_ * len(scenes) + index) % 2 else in_turn:
+                contender.times += alternating_ms(renderer, move_pair(bench.scene), settings.repeats)
+                if contender.light_edit:
+                    contender.light_times += alternating_ms(renderer, light_pair(bench.scene), settings.repeats)
 
 
 class _PaintedShader:

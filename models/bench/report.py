@@ -187,7 +187,8 @@ def _method(r: dict[str, Any]) -> list[str]:
         "voxelised once per scene. Networks run in the precision named in their row: bf16 (bfloat16, the "
         "engine's default where the CPU computes it natively) or fp32. The voxel shader's rows and the trained "
         "networks' are timed in step, scene by scene (all of them on one scene, then the next, in turn forwards and "
-        "backwards), so that the rows they compare are timed in the same minutes; the other rows one after another.",
+        f"backwards; {r.get('in_step_rounds', 1)} round(s) over the scenes), so that the rows they compare are timed in "
+        "the same minutes; the other rows one after another.",
         f"- Peak memory: resident memory above the level before each renderer ({r['memory_method']}); for the rows "
         "timed in step, the most that one scene's first render took.",
         "- Errors: mean over scenes of MSE (0-255), DSSIM and the perceptual distance of models/evaluation/metrics.py against "
