@@ -167,7 +167,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
             (e for e in candidates if e.kind == "nvr+" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         # The Pareto target's ratio, timed in turn with path tracing: the shipped NVR+ in float32 at both shader
-        # qualities (the rows above are timed apart, and this machine's speed may differ between them).
+        # qualities (the rows above are timed apart from path tracing, and this machine's speed may differ between them).
         fast = next((e for e in trained if e.precision == "fp32" and e.shader_quality == "fast"
                      and e.model_name.endswith(shipped) and "shading the" not in e.model_name), None)
         in_turn = None

@@ -140,7 +140,7 @@ def _in_turn(r: dict[str, Any], rival: dict[str, Any]) -> list[str]:
     rounds = len(next(iter(in_turn["shares"].values())))
     verdict = f"met at the {' and '.join(met)} quality" if met else "missed"
     return [f"- The shipped NVR+ in fp32 against path tracing at 1 spp + OIDN (MSE {rival['mse']:.2f}), timed in turn "
-            f"({rounds} round{'s' * (rounds != 1)}; the rows above are timed apart): {'; '.join(parts)}. Target within "
+            f"({rounds} round{'s' * (rounds != 1)}; the rows above are timed apart from path tracing): {'; '.join(parts)}. Target within "
             f"{PARETO_MSE_FACTOR:.0f} times its MSE in a third of its time or less: {verdict}."]
 
 
