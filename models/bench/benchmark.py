@@ -269,7 +269,8 @@ class Contender(ABC):
 
 class ShaderContender(Contender):
     """The voxel shader of a `grid_size`^3 grid at a `quality` (renderer.shading.QUALITIES) with its stages cached as
-    in the editor, the voxels painted once per scene; its light edit (the light stage alone) is timed too."""
+    in the editor, the voxels painted (untimed) for each scene it is given; its light edit (the light stage alone) is
+    timed too."""
 
     light_edit = True
 
