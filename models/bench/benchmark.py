@@ -142,7 +142,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         rows.append(bench_splatting(scenes, settings, memory, score))
         # The voxel shader as in the editor; of the network's grid (the object voxels merged in pairs): faster, further
         # from the path tracer; at its fast quality (renderer.shading.FAST_QUALITY): faster, further off.
-        shaders = [ShaderContender(SHADER_GRID_SIZE), ShaderContender(GRID_SIZE), ShaderContender(SHADER_GRID_SIZE, "fast")]
+        shader, fast_shader = ShaderContender(SHADER_GRID_SIZE), ShaderContender(SHADER_GRID_SIZE, "fast")
+        shaders = [shader, ShaderContender(GRID_SIZE), fast_shader]
         trained = [_load_engine(path, precision) for path in _weights_files(model_paths) for precision in _precisions()]
         # A shader refiner that reads a finer grid's shading, also on its own grid's: faster, less accurate.
         trained += [_load_engine(path, _precisions()[0], shading_grid_factor=1) for path in _weights_files(model_paths)
@@ -150,11 +151,10 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         # And a network that reads the shader, given the shader's fast quality (which it was not trained on).
         trained += [_load_engine(path, precision, shader_quality="fast") for path in _weights_files(model_paths)
                     if _reads_the_shader(path) for precision in _precisions()]
-        networks_timed = [NetworkContender(engine) for engine in trained]
-        bench_in_step(shaders + networks_timed, scenes, settings, memory)
-        timed = [c.row(score) for c in shaders + networks_timed]
-        rows += timed
-        shader_row, fast_shader_row = timed[0], timed[2]
+        contenders = shaders + [NetworkContender(engine) for engine in trained]
+        bench_in_step(contenders, scenes, settings, memory)
+        timed = {contender: contender.row(score) for contender in contenders}
+        rows += timed.values()
         timing_only = _random_engines(settings, trained)
         for engine in timing_only:
             rows.append(bench_timing_only(engine, scenes, settings, memory))
@@ -186,11 +186,11 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "nvrplus_light_edit_ms": edits["light"]["ms"],
         "nvrplus_frame_ms": edits["object move"]["ms"],
         "pathtrace_1spp_oidn_ms": rival.ms,
-        "shader_frame_ms": shader_row.ms,
-        "shader_grid": shader_row.setting,
-        "shader_light_edit_ms": statistics.median(shaders[0].light_times),
-        "shader_fast_frame_ms": fast_shader_row.ms,
-        "shader_fast_light_edit_ms": statistics.median(shaders[2].light_times),
+        "shader_frame_ms": timed[shader].ms,
+        "shader_grid": timed[shader].setting,
+        "shader_light_edit_ms": statistics.median(shader.light_times),
+        "shader_fast_frame_ms": timed[fast_shader].ms,
+        "shader_fast_light_edit_ms": statistics.median(fast_shader.light_times),
         "date": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
         "quick": settings == QUICK,
         "seconds": time.perf_counter() - started,
