@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+from models.renderers import EVALUATED, RENDERERS
 from renderer.errors import InputError
 from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 
@@ -46,6 +47,7 @@ def _material_warnings(mesh_path) -> list[str]:
 
 
 def cmd_render(args: argparse.Namespace) -> None:
+    from models.renderers import RendererOptions, fixed_size, make_renderer
     from renderer.io import save_png
     from renderer.scene import load_scene, range_warnings
 
@@ -56,67 +58,25 @@ def cmd_render(args: argparse.Namespace) -> None:
     _warn(range_warnings(scene) + _material_warnings(scene.mesh_path()))
     size = args.size or scene.image_size
     start = time.perf_counter()
+    renderer = make_renderer(args.renderer, RendererOptions(
+        model=args.model, precision=args.precision, device=args.device, quality=args.quality, spp=args.spp,
+        seed=args.seed, denoise=args.denoise))
+    own = fixed_size(renderer)
+    if own is not None and size != own:
+        asked = f"--size {size}" if args.size is not None else f"the scene's image_size {size}"
+        raise InputError(f"the model renders {own}x{own}; {asked} is not supported (pass --size {own})",
+                         "--size" if args.size is not None else args.scene)
     try:
-        if args.renderer == "splat":
-            image, detail = _render_splat(scene, size)
-        elif args.renderer == "shaded":
-            image, detail = _render_shaded(scene, size, args.quality)
-        elif args.renderer == "pathtrace":
-            image, detail = _render_pathtrace(scene, size, args)
-        else:
-            image, detail = _render_network(scene, size, args)
+        image = renderer.render_sized(scene, size)
     except InputError as exc:  # a problem in what the scene asks for (a paint seed on no voxel): name the scene
         if exc.path is not None:
             raise
         raise InputError(exc.problem, args.scene) from None
     elapsed = time.perf_counter() - start
     save_png(out, image)
-    print(f"wrote {out} ({size}x{size}, {args.renderer}{detail}, {elapsed:.2f} s)")
-
-
-def _render_splat(scene, size: int):
-    from renderer.pipeline import object_voxels, painted_voxels
-    from renderer.splat import splat_scene
-
-    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    return splat_scene(scene, rgba, floor_color, size=size), ""
-
-
-def _render_shaded(scene, size: int, quality: str):
-    from renderer.pipeline import object_voxels, painted_voxels
-    from renderer.shading import quality_named, shade_scene
-
-    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    return shade_scene(scene, rgba, floor_color, size=size, quality=quality_named(quality)).image, _quality_detail(quality)
-
-
-def _quality_detail(quality: str) -> str:
-    return "" if quality == "full" else f", {quality} shading"
-
-
-def _render_pathtrace(scene, size: int, args: argparse.Namespace):
-    from renderer.pathtrace.path_tracer import render_pathtraced
-    from renderer.reference_object import reference_scene
-
-    scene, mesh = reference_scene(scene)  # painted and captured colors included
-    result = render_pathtraced(scene, mesh, size=size, spp=args.spp, seed=args.seed, denoise=args.denoise)
-    denoised = ", OIDN" if args.denoise else ""
-    return result.image, f", mitsuba {result.variant}, {args.spp} spp{denoised}"
-
-
-def _render_network(scene, size: int, args: argparse.Namespace):
-    from models.engine.render_engine import RenderEngine
-
-    engine = RenderEngine.load(args.model, kind=args.renderer, precision=args.precision, device=args.device,
-                               shader_quality=args.quality)
-    if size != engine.output_size and not engine.renders_any_size:
-        asked = f"--size {size}" if args.size is not None else f"the scene's image_size {size}"
-        raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; {asked} is not supported "
-                         f"(pass --size {engine.output_size})", "--size" if args.size is not None else args.scene)
-    image = engine.render_sized(scene, size)
-    corrected = "" if size == engine.output_size else f", corrected at {engine.output_size} px"
-    return image, (f", model {engine.model_name}, {engine.precision} on {engine.device.type}{corrected}"
-                   f"{_quality_detail(args.quality)}")
+    corrected = "" if own is not None or getattr(renderer, "output_size", size) == size else \
+        f", corrected at {renderer.output_size} px"
+    print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{corrected}, {elapsed:.2f} s)")
 
 
 # --- nvr voxelize / info ------------------------------------------------------------------
@@ -333,7 +293,7 @@ def cmd_train(args: argparse.Namespace) -> None:
 
     precision = resolve_precision(args.precision, torch.device("cuda" if args.device.startswith("cuda") else "cpu"))
     config = TrainConfig(
-        data=tuple(args.data), architecture="nvr_plus" if args.model == "nvr+" else "nvr", config=args.config,
+        data=tuple(args.data), architecture=RENDERERS[args.model].architecture, config=args.config,
         steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
         lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, precision=precision,
         threads=args.threads, loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes,
@@ -446,7 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a scene file to a PNG")
     p.add_argument("scene", help="scene file (JSON, version 1)")
     p.add_argument("-o", "--output", required=True, help="PNG to write")
-    p.add_argument("--renderer", choices=["nvr+", "shaded", "splat", "pathtrace", "nvr"], default="nvr+",
+    p.add_argument("--renderer", choices=list(RENDERERS), default="nvr+",
                    help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (any size: the "
                         "correction computed at 256 px); "
                         "shaded: the voxels lit physically (soft shadows, lit floor; any size); splat: voxel colors; "
@@ -508,7 +468,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=36, help="frames in one full turn (default 36)")
     p.add_argument("--sweep", choices=["rotation", "light"], default="rotation",
                    help="rotation: the object turns; light: the light circles at its height")
-    p.add_argument("--renderer", choices=["shaded", "nvr+", "nvr", "splat", "pathtrace"], default="shaded")
+    p.add_argument("--renderer", choices=list(RENDERERS), default="shaded")
     p.add_argument("--size", type=int, default=None,
                    help="image side in pixels (default: the scene's; nvr, which draws the image itself: 256)")
     p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel (denoised)")
@@ -566,7 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")
     p.add_argument("--data", required=True, nargs="+", help="data folders made by `nvr data generate`")
     p.add_argument("--out", required=True, help="run folder")
-    p.add_argument("--model", choices=["nvr+", "nvr"], default="nvr+")
+    p.add_argument("--model", choices=[n for n, e in RENDERERS.items() if e.architecture], default="nvr+")
     p.add_argument("--config", choices=["compact", "paper", "shader_refiner", "half_res_refiner"], default="compact",
                    help="network widths and inputs: compact (live on a CPU), paper (the published widths), "
                         "shader_refiner (compact, correcting the voxel shader's image), half_res_refiner (the same, "
@@ -623,7 +583,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("eval", help="table 1 metrics of a model (or the splat baseline) on a test split")
     p.add_argument("--data", required=True, nargs="+", help="test data folders")
     p.add_argument("--model", default=None, help="weights (.safetensors); default: the shipped model")
-    p.add_argument("--renderer", choices=["nvr+", "nvr", "shaded", "splat"], default="nvr+")
+    p.add_argument("--renderer", choices=list(EVALUATED), default="nvr+")
     p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
     p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
     p.add_argument("--shading-grid", type=int, default=256, metavar="N",

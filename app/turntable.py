@@ -16,15 +16,14 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer, render_at
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
-from renderer.pipeline import object_voxels, painted_voxels
 from renderer.scene import LightSpec, Scene
 
 SWEEPS = ("rotation", "light")
-RENDERERS = ("splat", "shaded", "nvr", "nvr+", "pathtrace")
 MAX_FRAMES = 3600
 GIF_SECONDS = 4.0  # one turn lasts this long in the GIF, whatever the frame count
 MIN_LIGHT_RADIUS = 1.0  # a light straight above the object circles at this distance instead
@@ -66,37 +65,13 @@ def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
 
 def frame_renderer(scene: Scene, config: TurntableConfig) -> tuple[Callable[[Scene], np.ndarray], str]:
     """A function rendering a frame's scene with the chosen renderer (caches kept between calls), and its name."""
-    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    size = config.size or scene.image_size
-    if config.renderer == "splat":
-        from renderer.splat import splat_scene
-
-        return lambda s: splat_scene(s, rgba, floor_color, size=size), "splat"
-    if config.renderer == "shaded":
-        from renderer.shading.staged import StagedShader
-
-        shader = StagedShader()
-        return lambda s: shader.render(s, "object", rgba, floor_color, size).image, "voxel shader"
-    if config.renderer == "pathtrace":
-        from renderer.pathtrace.path_tracer import render_pathtraced
-        from renderer.reference_object import reference_scene
-
-        reference, mesh = reference_scene(scene)
-
-        def traced(s: Scene) -> np.ndarray:
-            placed = replace(reference, object=replace(reference.object, rotation_deg=s.object.rotation_deg), light=s.light)
-            return render_pathtraced(placed, mesh, size=size, spp=config.spp, denoise=True).image
-
-        return traced, f"path tracer, {config.spp} spp + OIDN"
-    from models.engine.render_engine import RenderEngine
-
-    engine = RenderEngine.load(config.model, kind=config.renderer)
-    if not engine.renders_any_size:
-        if config.size is not None and config.size != engine.output_size:
-            raise InputError(f"the model renders {engine.output_size}x{engine.output_size}; --size {config.size} is not "
-                             "supported")
-        return engine.render, f"{config.renderer} {engine.model_name}"
-    return lambda s: engine.render_sized(s, size), f"{config.renderer} {engine.model_name}"
+    renderer = make_renderer(config.renderer, RendererOptions(model=config.model, spp=config.spp, denoise=True))
+    own = fixed_size(renderer)
+    if own is not None and config.size is not None and config.size != own:
+        raise InputError(f"the model renders {own}x{own}; --size {config.size} is not supported")
+    size = own or config.size or scene.image_size
+    # Every frame at the scene's image size, so the renderers keep their size-dependent stages between frames.
+    return (lambda s: render_at(renderer, replace(s, image_size=size), size)), f"{config.renderer}, {renderer.description}"
 
 
 def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = True,

@@ -22,7 +22,7 @@ from models.bench.benchmark import edit_pairs
 from models.bench.scenes import data_scenes
 from models.engine.onednn import onednn_isa_cap
 from models.engine.render_engine import RenderEngine
-from models.evaluation.evaluate import shipped_model
+from models.networks.shipped import shipped_weights
 
 
 def main() -> None:
@@ -38,7 +38,7 @@ def main() -> None:
 
     import torch
 
-    engine = RenderEngine.load(args.model or shipped_model("nvr+"), precision=args.precision, shader_quality=args.quality)
+    engine = RenderEngine.load(args.model or shipped_weights("nvr_plus"), precision=args.precision, shader_quality=args.quality)
     scenes = data_scenes(args.data, args.scenes)
     results = {}
     pairs = [edit_pairs(bench.scene) for bench in scenes]  # each voxelises its object once

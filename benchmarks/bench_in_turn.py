@@ -18,7 +18,7 @@ import statistics
 from models.bench.benchmark import SIZE, bench_in_turn, move_pair
 from models.bench.scenes import data_scenes
 from models.engine.render_engine import RenderEngine
-from models.evaluation.evaluate import shipped_model
+from models.networks.shipped import shipped_weights
 from renderer.pathtrace.path_tracer import PathTracer
 
 
@@ -34,7 +34,7 @@ def main() -> None:
 
     scenes = data_scenes(args.data, args.scenes)
     tracers = [PathTracer(bench.scene, bench.mesh, size=SIZE) for bench in scenes]
-    engines = {quality: RenderEngine.load(args.model or shipped_model("nvr+"), precision=args.precision,
+    engines = {quality: RenderEngine.load(args.model or shipped_weights("nvr_plus"), precision=args.precision,
                                           shader_quality=quality) for quality in args.qualities.split(",")}
     shares = bench_in_turn(engines, tracers, [move_pair(bench.scene) for bench in scenes], args.rounds,
                            progress=lambda line: print(line, flush=True))

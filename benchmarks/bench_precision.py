@@ -22,7 +22,7 @@ import numpy as np  # noqa: E402
 from models.bench.benchmark import alternating_ms, move_pair  # noqa: E402 - models.bench.benchmark imports models.engine.render_engine before torch
 from models.bench.scenes import data_scenes  # noqa: E402
 from models.engine.render_engine import BF16_BOUND, RenderEngine, cpu_can_run_bfloat16  # noqa: E402
-from models.evaluation.evaluate import shipped_model  # noqa: E402
+from models.networks.shipped import shipped_weights  # noqa: E402
 
 
 def main() -> None:
@@ -35,8 +35,8 @@ def main() -> None:
         sys.exit("bench_precision: this CPU cannot run bf16 convolutions")
     scenes = data_scenes(args.data, args.scenes)
     print(f"{len(scenes)} scenes; bound: max {BF16_BOUND['max_abs']}, MSE {BF16_BOUND['mse']} (0-255)")
-    for kind in ("nvr+", "nvr"):
-        engines = {p: RenderEngine.load(shipped_model(kind), kind=kind, precision=p) for p in ("fp32", "bf16")}
+    for architecture in ("nvr_plus", "nvr"):
+        engines = {p: RenderEngine.load(shipped_weights(architecture), architecture, precision=p) for p in ("fp32", "bf16")}
         largest, mses = 0.0, []
         times: dict[str, dict[str, list[float]]] = {p: {"frame": [], "light": []} for p in engines}
         for bench in scenes:
@@ -50,7 +50,7 @@ def main() -> None:
                 times[p]["light"] += alternating_ms(engine, (bench.scene, moved_light), args.repeats)
         timing = ", ".join(f"{p}: frame {statistics.median(t['frame']):.1f} ms, light edit {statistics.median(t['light']):.1f} ms"
                            for p, t in times.items())
-        print(f"{kind}: bf16 - fp32 largest difference {largest:.2f}, MSE mean {np.mean(mses):.3f} "
+        print(f"{architecture}: bf16 - fp32 largest difference {largest:.2f}, MSE mean {np.mean(mses):.3f} "
               f"max {max(mses):.3f}; {timing}")
 
 

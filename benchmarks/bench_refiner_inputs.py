@@ -24,10 +24,10 @@ import models.engine  # noqa: F401 - sets OpenMP's waiting before torch loads Op
 import numpy as np
 import torch
 
-from models.evaluation.evaluate import SHIPPED_MODELS
 from models.evaluation.metrics import dssim, mse_255
 from models.networks.checkpoint import load_model
 from models.networks.nvr import reads_shading
+from models.networks.shipped import SHIPPED_WEIGHTS
 from models.training.data import VoxelRenderSet
 from renderer.shading import BUFFER_CHANNELS
 
@@ -55,7 +55,7 @@ def _average(samples: list[dict[str, torch.Tensor]], key: str) -> torch.Tensor:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--model", default=str(SHIPPED_MODELS["nvr+"]))
+    parser.add_argument("--model", default=str(SHIPPED_WEIGHTS["nvr_plus"]))
     parser.add_argument("--data", nargs="+", default=["data/test_single", "data/test_default", "data/test_textured"])
     parser.add_argument("--every", type=int, default=2, help="use every N-th sample")
     args = parser.parse_args()

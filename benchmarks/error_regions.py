@@ -89,7 +89,7 @@ def main() -> None:
     parser.add_argument("--mesh-coverage", action="store_true", help="compare the shader's coverage with the mesh's")
     args = parser.parse_args()
     limit_blas_threads()
-    engine = RenderEngine.load(args.model, "nvr+")
+    engine = RenderEngine.load(args.model)
     errors: dict[tuple[str, str], list[dict[str, float]]] = defaultdict(list)
     coverage_rows: dict[str, list[tuple[float, float]]] = defaultdict(list)
     for folder in map(Path, args.data):

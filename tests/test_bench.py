@@ -13,8 +13,8 @@ from PIL import Image
 from app.cli import run
 from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.system import PeakMemory
-from models.evaluation.evaluate import shipped_model
 from models.networks.checkpoint import load_model
+from models.networks.shipped import shipped_weights
 
 
 def test_quick_bench_writes_json_report_and_figure(tmp_path):
@@ -28,7 +28,7 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     # A light edit reruns only the stages after the light enters (timings are the benchmark's business,
     # not a test's): the last one, and the shader's light stages (or the lit floor) and the splat branch for
     # a model that reads them.
-    shipped = load_model(shipped_model("nvr+"))[1]
+    shipped = load_model(shipped_weights("nvr_plus"))[1]
     first = ["shade_floor", "shade"] if shipped.shading_input else ["floor_light"] if shipped.floor_light_input else []
     expected = [*first, "splat_branch", "light"] if first else ["light"]
     assert results["edits"]["light"]["stages"] == expected

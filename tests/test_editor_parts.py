@@ -17,14 +17,14 @@ from app.editor.history import History
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
 from app.editor.photo_capture import PhotoAlignment, object_shape, shape_key
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
-from app.editor.render_panel import ShadedEngine
 from app.editor.side_by_side import compose, scale_for
-from app.editor.voxel_cache import VoxelCache
+from models.renderers import RendererOptions, ShaderRenderer
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.paint import apply_paint
 from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene
 from renderer.shading import shade_scene
+from renderer.voxel_cache import VoxelCache
 from renderer.voxel_faces import exposed_faces, voxel_surface_mesh
 from renderer.voxels import save_voxels
 
@@ -217,7 +217,7 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
 def test_the_voxel_shader_panel_keeps_the_shape_through_paint_and_draws_the_new_colors(box_scene):
     # A stroke changes colors, never occupancy: the shaded renderer reruns only the colors and what they light, and its
     # image is the one the shader draws from scratch.
-    engine = ShadedEngine(VoxelCache())
+    engine = ShaderRenderer(RendererOptions(voxels=VoxelCache()))
     box_scene = replace(box_scene, image_size=48)
     engine.render(box_scene)
     stroke = edits.paint(box_scene, PaintOp("region", (0.1, 0.9, 0.1), seed=(3, 3, 3), tolerance=0.05))
@@ -234,7 +234,7 @@ def test_the_cache_keeps_painted_states_within_its_budget_and_paints_into_spares
     """Past PAINTED_BYTES_KEPT the oldest states go; a stroke paints into a spare array: a forgotten one only if nothing
     else holds it (an array a caller still reads never changes), or one prepared after the object loaded and after
     each stroke (here at once, in the editor on another thread); every state equals a replay from scratch."""
-    import app.editor.voxel_cache as voxel_cache
+    import renderer.voxel_cache as voxel_cache
 
     state_bytes = 8**3 * 4 * 4
     monkeypatch.setattr(voxel_cache, "PAINTED_BYTES_KEPT", 2 * state_bytes)  # two states of the 8^3 box

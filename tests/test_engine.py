@@ -336,13 +336,13 @@ def test_no_narrow_ground_when_it_would_not_be_narrower():
 def test_load_checks_the_architecture(tmp_path, model, scene):
     path = tmp_path / "w.safetensors"
     save_model(path, model, TINY_COMPACT)
-    live = RenderEngine.load(path, kind="nvr+", threads=1, precision="fp32", device="cpu")
+    live = RenderEngine.load(path, "nvr_plus", threads=1, precision="fp32", device="cpu")
     assert live.output_size == 64 and "w.safetensors" in live.model_name
     np.testing.assert_allclose(live.render(scene), engine(model).render(scene), atol=1e-6)
     with pytest.raises(InputError, match="not nvr"):
-        RenderEngine.load(path, kind="nvr")
-    with pytest.raises(InputError, match="unknown network renderer"):
-        RenderEngine.load(path, kind="splat")
+        RenderEngine.load(path, "nvr")
+    with pytest.raises(InputError, match="unknown network architecture"):
+        RenderEngine.load(path, "splat")
 
 
 def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():

@@ -24,7 +24,6 @@ from app.editor.orbit_view import HOME, viewport_camera
 from app.editor.photo_tool import PhotoTool
 from app.editor.render_panel import DETAIL_DELAY_S, LiveRender, RenderedFrame, export_render, final_render
 from app.editor.viewport import ViewportRenderer
-from app.editor.voxel_cache import VoxelCache, source_key
 from app.editor.window import Window, upload_image
 from renderer.camera import Camera
 from renderer.color import to_uint8
@@ -32,6 +31,7 @@ from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import ObjectSpec, PaintOp, Scene, save_scene
 from renderer.surface import occupancy
+from renderer.voxel_cache import VoxelCache, source_key
 
 AUTOSAVE_SECONDS = 5.0
 FRAME_SECONDS = 1.0 / 60.0  # the loop sleeps to this pace so the render thread gets the CPU it needs

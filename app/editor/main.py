@@ -30,10 +30,11 @@ EXIT_USER_ERROR = 2
 
 def build_parser() -> argparse.ArgumentParser:
     from app.cli import OneLineParser
+    from models.renderers import INTERACTIVE
 
     p = OneLineParser(prog="nvr-editor", description="NVR Studio editor: voxel viewport and live neural render.")
     p.add_argument("scene", nargs="?", default=str(DEFAULT_SCENE), help="scene file (default: the demo scene)")
-    p.add_argument("--renderer", choices=["shaded", "nvr+"], default=None,
+    p.add_argument("--renderer", choices=list(INTERACTIVE), default=None,
                    help="the render panel's renderer (default: nvr+, which shows the shaded image while a drag "
                         "lasts); switch in the panel")
     p.add_argument("--model", default=None, help="NVR+ weights (.safetensors); default: the shipped model")

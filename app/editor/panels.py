@@ -20,8 +20,8 @@ from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import PhotoPanel
-from app.editor.render_panel import RENDERERS
 from app.editor.viewport_input import ViewportInput
+from models.renderers import INTERACTIVE, RENDERERS
 from renderer.errors import InputError
 from renderer.paint import fill_region_voxels
 from renderer.scene import range_warnings
@@ -284,9 +284,9 @@ class Interface:
     def _renderer_choice(self) -> None:
         """The renderer of the panel (and of exports): the voxel shader or NVR+."""
         live = self.app.live
-        names = list(RENDERERS)
+        names = list(INTERACTIVE)
         imgui.set_next_item_width(150)
-        changed, index = imgui.combo("##renderer", names.index(live.renderer), [RENDERERS[n] for n in names])
+        changed, index = imgui.combo("##renderer", names.index(live.renderer), [RENDERERS[n].label for n in names])
         if changed and names[index] != live.renderer:
             self.app.choose_renderer(names[index])
 

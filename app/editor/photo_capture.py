@@ -28,7 +28,7 @@ from renderer.scene import Scene
 from renderer.voxel_faces import voxel_surface_mesh
 
 if TYPE_CHECKING:
-    from app.editor.voxel_cache import VoxelCache
+    from renderer.voxel_cache import VoxelCache
 
 OVERLAY_SIDE = 320  # default long side of the overlay (the Photo tab asks for the size it shows)
 OUTLINE_COLOR = np.array([1.0, 0.2, 0.6])

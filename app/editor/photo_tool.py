@@ -19,11 +19,11 @@ from app.editor import edits, state
 from app.editor.document import Document
 from app.editor.jobs import BackgroundJob, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
-from app.editor.voxel_cache import VoxelCache
 from renderer.capture.align import Alignment
 from renderer.capture.capture import find_pose, fit_advice, segment_photo
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.scene import Scene
+from renderer.voxel_cache import VoxelCache
 
 Shape = tuple[trimesh.Trimesh, tuple, SilhouetteRenderer]  # the object's shape, its shape_key, its silhouettes
 

@@ -1,10 +1,8 @@
 """The live render beside the viewport, off the UI thread: the voxel shader or the NVR+ network.
 
-All coupling to models/engine/render_engine.py and models/engine/async_render.py lives here. The
-user picks the renderer (RENDERERS); the voxel shader (renderer/shading/) keeps its stages like the
-network's engine does. Without a trained model (RenderEngine.load raises InputError) NVR+ falls back
-to the splatted image S, and the panel says so. The AsyncRenderer renders only the newest scene
-submitted, so a drag never queues up stale frames.
+The user picks one of the interactive renderers of models/renderers.py. Without a trained model NVR+ falls back to
+the splatted image S, and the panel says so. The AsyncRenderer renders only the newest scene submitted, so a drag
+never queues up stale frames.
 """
 
 from __future__ import annotations
@@ -19,20 +17,24 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from app.editor.voxel_cache import VoxelCache, source_key
 from models.engine.async_render import AsyncRenderer
-from models.engine.render_engine import RenderEngine, RenderReport, default_threads
+from models.engine.render_engine import default_threads
+from models.renderers import (
+    INTERACTIVE,
+    Renderer,
+    RendererOptions,
+    SplatRenderer,
+    fixed_size,
+    make_renderer,
+    renderer_entry,
+)
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import Scene
-from renderer.shading import quality_named
-from renderer.shading.staged import StagedShader
-from renderer.splat import splat_scene
+from renderer.voxel_cache import VoxelCache
 
 NO_MODEL_LABEL = "no trained model: showing splat"
-# The renderers the panel offers, by the name `nvr render --renderer` uses, with what the panel shows.
-RENDERERS = {"shaded": "voxel shader", "nvr+": "NVR+ network"}
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 # A settled image is drawn again at the panel's size once the scene has stood this long (seconds), so that the next
 # edit, if it comes at once, does not wait behind it (the NVR+: 63-109 ms at 422 px on the bench scenes, 2 cores).
@@ -46,60 +48,6 @@ class RenderedFrame:
     preview: bool  # a quick render while an edit is in progress
     seconds: float  # how long it took
     detail: bool = False  # the settled image drawn again at the panel's size (LiveRender.refine)
-
-
-class SplatEngine:
-    """The engine's interface over the splatted image, for when no trained model is available."""
-
-    renders_any_size = True
-
-    def __init__(self, voxels: VoxelCache):
-        self._voxels = voxels
-        self.last_report: RenderReport | None = None
-
-    def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
-        start = time.perf_counter()
-        image = splat_scene(scene, *self._voxels.painted(scene))
-        ms = (time.perf_counter() - start) * 1000.0
-        self.last_report = RenderReport(("splat",), {"splat": ms}, ms, preview)
-        return image
-
-    def preview(self, scene: Scene) -> np.ndarray:
-        return self.render(scene, preview=True)
-
-    def render_sized(self, scene: Scene, size: int) -> np.ndarray:
-        return self.render(replace(scene, image_size=size))
-
-
-class ShadedEngine:
-    """The engine's interface over the voxel shader, its stages cached (a light move reruns only the light's)."""
-
-    renders_any_size = True
-
-    def __init__(self, voxels: VoxelCache, quality: str = "full"):
-        self._voxels = voxels
-        self._shader = StagedShader(quality=quality_named(quality))
-        self._lock = threading.Lock()  # exports on the UI thread and the render thread share the stages
-        self.last_report: RenderReport | None = None
-
-    def render(self, scene: Scene, preview: bool = False, size: int | None = None) -> np.ndarray:
-        """The scene at its image size, or at `size` without keeping the stages that depend on it."""
-        start = time.perf_counter()
-        rgba, floor_color = self._voxels.painted(scene)
-        shape = source_key(scene)  # paint keeps the occupancy: the shader keeps what the camera sees
-        key = (shape, tuple(op for op in scene.paint if op.target != "floor"))
-        with self._lock:
-            image = self._shader.render(scene, key, rgba, floor_color, size or scene.image_size, shape_key=shape,
-                                        keep=size is None).image
-            stages = dict(self._shader.stage_ms)
-        self.last_report = RenderReport(tuple(stages), stages, (time.perf_counter() - start) * 1000.0, preview)
-        return image
-
-    def preview(self, scene: Scene) -> np.ndarray:
-        return self.render(scene, preview=True)
-
-    def render_sized(self, scene: Scene, size: int) -> np.ndarray:
-        return self.render(scene, size=size)
 
 
 class LowPriority:
@@ -160,9 +108,9 @@ class LiveRender:
         self._settled: tuple[Scene, float] | None = None  # the last final image to draw at the panel's size, and when
 
     def select(self, renderer: str) -> None:
-        """Render with `renderer` (a key of RENDERERS) from the next submitted scene on."""
-        if renderer not in RENDERERS:
-            raise InputError(f"unknown renderer {renderer!r} (choose from {', '.join(RENDERERS)})")
+        """Render with `renderer` (one of models.renderers.INTERACTIVE) from the next submitted scene on."""
+        if renderer not in INTERACTIVE:
+            raise InputError(f"unknown renderer {renderer!r} (choose from {', '.join(INTERACTIVE)})")
         if renderer not in self._engines:
             self._engines[renderer], self._labels[renderer] = self._make_engine(renderer)
         self.renderer = renderer
@@ -172,19 +120,20 @@ class LiveRender:
     def engine(self):
         return self._engines[self.renderer]
 
-    def _make_engine(self, renderer: str) -> tuple[object, tuple[str, str, bool]]:
+    def _make_engine(self, renderer: str) -> tuple[Renderer, tuple[str, str, bool]]:
         """The engine for `renderer` and its labels: what renders, on what device, and whether it is what was chosen."""
-        if renderer == "shaded":
-            return ShadedEngine(self._voxels, self.quality), (RENDERERS["shaded"], f"cpu{self._quality_note}", True)
+        options = RendererOptions(model=self.model_path, quality=self.quality, voxels=self._voxels)
+        entry = renderer_entry(renderer)
         try:
-            engine = RenderEngine.load(self.model_path, kind="nvr+", object_source=self._voxels.object_rgba,
-                                       shader_quality=self.quality)
-        except InputError as exc:
+            engine = entry.make(options)
+        except InputError as exc:  # no trained model: the splat stands in
             print(f"nvr-editor: {NO_MODEL_LABEL}: {exc}", file=sys.stderr)
-            return SplatEngine(self._voxels), (NO_MODEL_LABEL, "cpu (splatting)", False)
+            return SplatRenderer(options), (NO_MODEL_LABEL, "cpu (splatting)", False)
+        if entry.architecture is None:
+            return engine, (entry.label, f"cpu{self._quality_note}", True)
         threads = f", {default_threads()} threads" if engine.device.type == "cpu" else ""
-        return engine, (f"NVR+ {engine.model_name}", f"{engine.device.type}, {engine.precision}{threads}{self._quality_note}",
-                        True)
+        return engine, (f"{entry.label} {engine.model_name}",
+                        f"{engine.device.type}, {engine.precision}{threads}{self._quality_note}", True)
 
     @property
     def _quality_note(self) -> str:
@@ -285,20 +234,21 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
     """The panel renderer's image of `scene` at the scene's size and what made it: the voxel shader's; the NVR+'s (a
     network that corrects the shader's image renders any size, one that draws it itself its own 256 px); or the splat
     when no model loads."""
-    voxels = voxels or VoxelCache()  # the editor's: the object is not voxelised again
-    if renderer == "shaded":
-        return ShadedEngine(voxels).render(scene), RENDERERS["shaded"]
+    options = RendererOptions(model=model_path, voxels=voxels or VoxelCache())  # the editor's: not voxelised again
     try:
-        engine = RenderEngine.load(model_path, kind="nvr+", object_source=voxels.object_rgba)
+        engine = make_renderer(renderer, options)
     except InputError:
         if model_path is not None:
             raise
-        return splat_scene(scene, *voxels.painted(scene)), "splat, no trained model"
-    if not engine.renders_any_size:
-        return engine.render(scene), f"nvr+ {engine.model_name}"
+        return SplatRenderer(options).render(scene), "splat, no trained model"
+    entry = renderer_entry(renderer)
+    if entry.architecture is None:
+        return engine.render_sized(scene, scene.image_size), entry.label
+    if fixed_size(engine) is not None:
+        return engine.render(scene), f"{renderer} {engine.model_name}"
     size = scene.image_size
     corrected = "" if size == engine.output_size else f", corrected at {engine.output_size} px"
-    return engine.render_sized(scene, size), f"nvr+ {engine.model_name}{corrected}"
+    return engine.render_sized(scene, size), f"{renderer} {engine.model_name}{corrected}"
 
 
 def export_render(scene: Scene, path: str | Path, model_path: str | None = None, renderer: str = "nvr+",

@@ -44,7 +44,6 @@ from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.scenes import BenchScene, data_scenes, procedural_scenes
 from models.bench.system import PeakMemory, cpu_snapshot, machine_description, other_load
 from models.engine.render_engine import RenderEngine, resolve_precision
-from models.evaluation.evaluate import ASSET_MODELS, SHIPPED_MODELS
 from models.evaluation.metrics import ImageMetrics
 from models.networks.checkpoint import check_weights_file, load_model
 from models.networks.config import (
@@ -57,6 +56,8 @@ from models.networks.config import (
 )
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import SHADING_CHANNELS, build_model, reads_floor_light, reads_shading
+from models.networks.shipped import ASSET_MODELS, SHIPPED_WEIGHTS
+from models.renderers import RENDERERS, network_entry
 from renderer.errors import InputError
 from renderer.io import save_json
 from renderer.pathtrace.mitsuba_variant import LIBLLVM_ENV, LLVM_VARIANT, active_variant
@@ -70,7 +71,6 @@ from renderer.splat import splat_scene
 SIZE = 256
 REFERENCE_SEED = 1_000_003
 DOCS = Path(__file__).resolve().parents[2] / "docs"
-FAMILY = {"nvr_plus": "NVR+", "nvr": "NVR"}
 
 
 @dataclass(frozen=True)
@@ -160,18 +160,17 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
             rows.append(bench_timing_only(engine, scenes, settings, memory))
         # The edit latencies are the shipped NVR+'s when it is benched (else any compact NVR+), in float32: the
         # targets are for CPUs without bfloat16, and float32 is what they run.
-        shipped = f"({SHIPPED_MODELS['nvr+'].name})"
+        shipped = SHIPPED_WEIGHTS["nvr_plus"]
         candidates = sorted(trained + timing_only, key=lambda e: e.precision != "fp32")
-        live = next((e for e in candidates if e.kind == "nvr+" and e.model_name.endswith(shipped)
-                     and "shading the" not in e.model_name and e.shader_quality == "full"), None) or next(
-            (e for e in candidates if e.kind == "nvr+" and e.config.name == "compact"), None)
+        live = next((e for e in candidates if e.weights == shipped and e.own_shading_grid and e.shader_quality == "full"),
+                    None) or next((e for e in candidates if e.architecture == "nvr_plus" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         # The Pareto target's ratio, timed in turn with path tracing: the shipped NVR+ in float32 at both shader
         # qualities (the rows above are timed apart from path tracing, and this machine's speed may differ between them).
         fast = next((e for e in trained if e.precision == "fp32" and e.shader_quality == "fast"
-                     and e.model_name.endswith(shipped) and "shading the" not in e.model_name), None)
+                     and e.weights == shipped and e.own_shading_grid), None)
         in_turn = None
-        if live.precision == "fp32" and live.model_name.endswith(shipped) and fast is not None:
+        if live.precision == "fp32" and live.weights == shipped and fast is not None:
             engines = {"full": live, "fast": fast}
             in_turn = {"rows": {name: f"{_family(e)} {_trained_setting(e)}" for name, e in engines.items()},
                        "shares": bench_in_turn(engines, tracers, [move_pair(b.scene) for b in scenes],
@@ -181,7 +180,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
     for net in networks:
         net["frame_fraction_of_peak"] = net["gflop_frame"] / net["frame_ms"] * 1000.0 / peak
         net["light_fraction_of_peak"] = net["gflop_light_edit"] / net["light_edit_ms"] * 1000.0 / peak
-    rival = next(r for r in rows if r.family == "path tracing" and r.setting == "1 spp + OIDN")
+    rival = next(r for r in rows if r.family == RENDERERS["pathtrace"].label and r.setting == "1 spp + OIDN")
     return {
         "nvrplus_light_edit_ms": edits["light"]["ms"],
         "nvrplus_frame_ms": edits["object move"]["ms"],
@@ -232,7 +231,7 @@ def bench_pathtracing(tracers: list[PathTracer], settings: BenchSettings, memory
                     times.append(_ms_since(start))
                 images.append(result.image)
             setting = f"{spp} spp" + (" + OIDN" if denoise else "")
-            rows.append(Row("path tracing", setting, *_spread(times), memory.peak_mb(), **score(images)))
+            rows.append(Row(RENDERERS["pathtrace"].label, setting, *_spread(times), memory.peak_mb(), **score(images)))
     return rows
 
 
@@ -244,7 +243,7 @@ def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: P
         rgba, floor = painted_voxels(bench.scene, object_voxels(bench.scene))
         images.append(splat_scene(bench.scene, rgba, floor, size=SIZE))
         times += _time_ms(lambda: splat_scene(bench.scene, rgba, floor, size=SIZE), settings.repeats)  # noqa: B023
-    return Row("splatting", "", *_spread(times), memory.peak_mb(), **score(images))
+    return Row(RENDERERS["splat"].label, "", *_spread(times), memory.peak_mb(), **score(images))
 
 
 class Contender(ABC):
@@ -283,7 +282,7 @@ class ShaderContender(Contender):
 
     def row(self, score: Callable[[list[np.ndarray]], dict]) -> Row:
         setting = f"{self.grid_size}^3 grid" + ("" if self.quality == "full" else f", {self.quality}")
-        return Row("voxel shader", setting, *_spread(self.times), self.peak_mb, **score(self.images))
+        return Row(RENDERERS["shaded"].label, setting, *_spread(self.times), self.peak_mb, **score(self.images))
 
 
 class NetworkContender(Contender):
@@ -355,7 +354,7 @@ def bench_timing_only(engine: RenderEngine, scenes: list[BenchScene], settings: 
 
 
 def _family(engine: RenderEngine) -> str:
-    return FAMILY["nvr_plus" if engine.kind == "nvr+" else "nvr"]
+    return network_entry(engine.architecture).label
 
 
 def _trained_setting(engine: RenderEngine) -> str:
@@ -488,7 +487,7 @@ def bench_networks(settings: BenchSettings) -> list[dict[str, Any]]:
             repeats = settings.repeats if config.name != "paper" else 2
             with torch.inference_mode():
                 out.append({
-                    "config": config.name, "architecture": FAMILY[architecture],
+                    "config": config.name, "architecture": network_entry(architecture).label,
                     "gflop_frame": _gflop(counted[0]), "gflop_light_edit": _gflop(counted[1]),
                     "frame_ms": statistics.median(_time_ms(timed[0], repeats)),
                     "light_edit_ms": statistics.median(_time_ms(timed[1], repeats)),
@@ -583,17 +582,17 @@ def _load_engine(path: Path, precision: str, shading_grid_factor: int | None = N
     blocks = config.post_light_blocks  # a distilled network (nvr distill) has fewer than its configuration's
     lean = "" if blocks == type(config).post_light_blocks else f", {blocks} block{'s' * (blocks != 1)} after the light"
     return RenderEngine(model, model_name=f"{config.name}{lean}{grid}{quality} ({path.name})", precision=precision,
-                        shading_grid_factor=shading_grid_factor, shader_quality=shader_quality)
+                        shading_grid_factor=shading_grid_factor, shader_quality=shader_quality, weights=path)
 
 
 def _random_engines(settings: BenchSettings, trained: list[RenderEngine]) -> list[RenderEngine]:
     """Random-weight engines for timing: compact ones without trained weights, and the paper's."""
-    have = {(e.kind, e.config.name) for e in trained}
+    have = {(e.architecture, e.config.name) for e in trained}
     configs = [CompactConfig()] + ([PaperConfig()] if settings.paper else [])
     engines = []
     for config in configs:
-        for architecture, kind in (("nvr_plus", "nvr+"), ("nvr", "nvr")):
-            if (kind, config.name) not in have:
+        for architecture in (e.architecture for e in RENDERERS.values() if e.architecture):
+            if (architecture, config.name) not in have:
                 torch.manual_seed(0)
                 engines.append(RenderEngine(build_model(architecture, config).eval()))
     return engines

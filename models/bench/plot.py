@@ -12,6 +12,7 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw, ImageFont
 
+from models.renderers import RENDERERS
 from renderer.io import atomic_path
 
 WIDTH, HEIGHT = 1100, 760
@@ -20,7 +21,10 @@ KEY_ROW = 18  # pixels per row of the key below the plot (labels that found no p
 LABEL_HEIGHT = 16  # pixels of a label's line
 POINT_RADIUS = 6  # pixels
 LEADER_FROM = 12  # pixels between a point and its label's box beyond which a line joins them
-FAMILY_COLORS = {"path tracing": (200, 80, 40), "splatting": (60, 140, 60), "voxel shader": (200, 150, 0), "NVR": (70, 110, 200), "NVR+": (130, 60, 170)}
+# Each renderer's color in the plots, by its label in models/renderers.py.
+FAMILY_COLORS = {RENDERERS[name].label: color for name, color in (
+    ("pathtrace", (200, 80, 40)), ("splat", (60, 140, 60)), ("shaded", (200, 150, 0)), ("nvr", (70, 110, 200)),
+    ("nvr+", (130, 60, 170)))}
 
 
 @dataclass(frozen=True)

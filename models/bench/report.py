@@ -6,6 +6,7 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from models.renderers import RENDERERS
 from renderer.io import atomic_path
 
 LIGHT_TARGET_MS = 33.0  # 30 frames a second
@@ -106,7 +107,7 @@ def _targets(r: dict[str, Any]) -> list[str]:
         lines.append(_shader_budget(grid, r["shader_frame_ms"], r["shader_light_edit_ms"]))
         if "shader_fast_frame_ms" in r:  # the quality the editor can shade with (`--quality fast`)
             lines.append(_shader_budget(f"{grid}, fast", r["shader_fast_frame_ms"], r["shader_fast_light_edit_ms"]))
-    trained = [row for row in r["renderers"] if row["family"] == "NVR+" and row["mse"] is not None]
+    trained = [row for row in r["renderers"] if row["family"] == RENDERERS["nvr+"].label and row["mse"] is not None]
     no_bf16 = _front_without_bf16(r)
     for row in trained:
         on_front = row["label"] in r["pareto_front"]

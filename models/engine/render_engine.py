@@ -87,6 +87,7 @@ from models.engine.paint_replay import PaintReplay
 from models.networks.config import IMAGE_CHANNELS
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
+from models.renderers import RenderReport
 from models.threads import set_threads
 from renderer.camera import Camera
 from renderer.errors import InputError
@@ -122,22 +123,10 @@ from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
-KINDS = {"nvr+": "nvr_plus", "nvr": "nvr"}  # renderer name -> network architecture
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
 # bfloat16 against float32 on the same scene, 0-255 scale: largest pixel difference and MSE (measured by
 # benchmarks/bench_precision.py).
 BF16_BOUND = {"max_abs": 4.0, "mse": 0.5}
-
-
-@dataclass(frozen=True)
-class RenderReport:
-    """What one render did: the stages that ran (in order) and their times, for status bars and tests."""
-
-    stages_run: tuple[str, ...]
-    stage_ms: dict[str, float]
-    total_ms: float
-    preview: bool
-    grid_fraction: float | None = None  # share of the grid the voxel branch read, if it ran
 
 
 class _Placement(NamedTuple):
@@ -194,19 +183,23 @@ class RenderEngine:
 
     def __init__(self, model: NVR | NVRPlus, model_name: str = "", crop: bool = True, threads: int | None = None,
                  precision: str = "auto", device: str = "auto", shading_grid_factor: int | None = None,
-                 object_source: Callable[[Scene], np.ndarray] = object_voxels, shader_quality: str = "full"):
+                 object_source: Callable[[Scene], np.ndarray] = object_voxels, shader_quality: str = "full",
+                 weights: Path | None = None):
         """`shading_grid_factor`: shade the object voxels merged as for a grid this many times finer than the network's
         instead of the one the model's configuration names (1: as for the network's own grid, in pairs at scale 1:
         fewer voxels to trace, less accurate; nvr bench times both). `object_source`: a scene's unpainted object voxels
         (read, never changed), e.g. from a cache the caller shares, so a mesh is not voxelised twice. `shader_quality`:
         'full' (what the networks were trained on) or 'fast' (fewer silhouette rays and light points: faster, less
-        accurate; renderer.shading.QUALITIES)."""
+        accurate; renderer.shading.QUALITIES). `weights`: the file the model came from, if any."""
         set_threads(threads or default_threads())
         self.device = resolve_device(device)
         self.config = model.config
         if shading_grid_factor is not None:
             self.config = replace(self.config, shading_grid_factor=shading_grid_factor)
-        self.kind = "nvr+" if isinstance(model, NVRPlus) else "nvr"
+        self.architecture = model.architecture
+        self.weights = weights
+        self.own_shading_grid = shading_grid_factor is None  # the shader's grid the weights were trained with
+        self._reads_splat = isinstance(model, NVRPlus)
         self.model_name = model_name or f"random {self.config.name}"
         self.crop = crop
         self._quality = quality_named(shader_quality)
@@ -228,18 +221,24 @@ class RenderEngine:
         self._recording = _Recording()
 
     @classmethod
-    def load(cls, path: str | Path | None, kind: str = "nvr+", **options: Any) -> RenderEngine:
-        """The engine for a weights file (None: the shipped model of `kind`, 'nvr+' or 'nvr')."""
-        from models.evaluation.evaluate import shipped_model
+    def load(cls, path: str | Path | None, architecture: str = "nvr_plus", **options: Any) -> RenderEngine:
+        """The engine for a weights file (None: the shipped model of `architecture`, 'nvr_plus' or 'nvr')."""
         from models.networks.checkpoint import load_model
+        from models.networks.shipped import SHIPPED_WEIGHTS, shipped_weights
 
-        if kind not in KINDS:
-            raise InputError(f"unknown network renderer {kind!r} (choose from {', '.join(KINDS)})")
-        path = Path(path) if path else shipped_model(kind)
+        if architecture not in SHIPPED_WEIGHTS:
+            raise InputError(f"unknown network architecture {architecture!r} (choose from {', '.join(SHIPPED_WEIGHTS)})")
+        path = Path(path) if path else shipped_weights(architecture)
         model, config, _ = load_model(path)
-        if model.architecture != KINDS[kind]:
-            raise InputError(f"holds a {model.architecture} network, not {KINDS[kind]}", path)
-        return cls(model, model_name=f"{path.name} ({config.name})", **options)
+        if model.architecture != architecture:
+            raise InputError(f"holds a {model.architecture} network, not {architecture}", path)
+        return cls(model, model_name=f"{path.name} ({config.name})", weights=path, **options)
+
+    @property
+    def description(self) -> str:
+        """What renders, for status lines and reports."""
+        quality = "" if self.shader_quality == "full" else f", {self.shader_quality} shading"
+        return f"model {self.model_name}, {self.precision} on {self.device.type}{quality}"
 
     @property
     def output_size(self) -> int:
@@ -268,7 +267,7 @@ class RenderEngine:
             painted, floor, paint_key = self._painted(scene)
             keys = self._keys(scene, painted, floor, paint_key)
             # Only the light changed: the voxel branch and the splat are kept, the rest is a light edit.
-            if self._cached("voxel_branch", (keys.grid, self.crop)) and (self.kind == "nvr" or self._cached("splat", keys.splat)):
+            if self._cached("voxel_branch", (keys.grid, self.crop)) and (not self._reads_splat or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             elif self._reads_shading:  # the shaded image, which the full render then corrects
                 image = np.clip(self._shaded(scene, painted, floor, keys).image, 0.0, 1.0)
@@ -335,7 +334,7 @@ class RenderEngine:
         buffers = functools.cache(lambda: self._shading(scene, painted, floor, keys) if self._reads_shading else None)
         buffers_tensor = functools.cache(lambda: None if buffers() is None else self._image_tensor(buffers()))
         features = None
-        if self.kind == "nvr+":
+        if self._reads_splat:
             splat = self._splat(scene, painted, floor, keys)
             floor_light = self._floor_light(scene, floor, keys) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,

@@ -18,39 +18,29 @@ import numpy as np
 import torch
 
 from models.evaluation.metrics import ImageMetrics
-from models.networks.nvr import reads_floor_light, reads_shading
+from models.networks.nvr import NVRPlus, reads_floor_light, reads_shading
+from models.networks.shipped import shipped_weights
+from models.renderers import renderer_entry
 from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
 from renderer.shading import quality_named
 
-ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
-# NVR+ is the network that refines the voxel shader at half the image's side; nvrplus_shader_refiner.safetensors (the
-# same at full resolution) and nvrplus_compact.safetensors (the NVR+ before the shader) stay for comparison.
-SHIPPED_MODELS = {"nvr+": ASSET_MODELS / "nvrplus_half_res_refiner_distilled.safetensors", "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
 METRICS = ("mse", "dssim", "perceptual")
-
-
-def shipped_model(renderer: str) -> Path:
-    """The weights file shipped in assets/models for 'nvr+' or 'nvr'."""
-    path = SHIPPED_MODELS[renderer]
-    if not path.is_file():
-        raise InputError(f"no shipped {renderer} model yet; train one with `nvr train` and pass --model", path)
-    return path
 
 
 def _load_renderer(model_path: str | None, renderer: str):
     """(model, config, extra) of a network renderer, or Nones for the splat and the shader."""
     from models.networks.checkpoint import load_model
 
-    if renderer in ("splat", "shaded"):
+    architecture = renderer_entry(renderer).architecture
+    if architecture is None:
         return None, None, {}
-    path = Path(model_path) if model_path else shipped_model(renderer)
+    path = Path(model_path) if model_path else shipped_weights(architecture)
     model, config, extra = load_model(path)
-    wanted = "nvr_plus" if renderer == "nvr+" else "nvr"
-    if model.architecture != wanted:
-        raise InputError(f"holds a {model.architecture} network, not {wanted}", path)
+    if model.architecture != architecture:
+        raise InputError(f"holds a {model.architecture} network, not {architecture}", path)
     return model, config, extra
 
 
@@ -64,7 +54,7 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
         raise InputError(f"--shading-grid must be a multiple of {GRID_SIZE}, got {shading_grid}")
     quality_named(shader_quality)  # a clear message for an unknown name before any work
     model, config, extra = _load_renderer(model_path, renderer)
-    if renderer == "shaded":
+    if renderer_entry(renderer).kind == "shader":
         extra = {"shading_grid": f"{shading_grid}^3"}
     elif model is not None and reads_shading(model.architecture, config):
         extra = {**extra, "shading_grid": f"{config.shading_grid_size}^3"}
@@ -118,7 +108,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     """Per-setting metric lists, the figure's rows with their captions (none without `figure`), and the sample count.
     `shading_grid_factor`: how much finer than the network's grid the 'shaded' renderer's grid is."""
     # The splat baseline reads no voxels; the shader reads the scene grid.
-    grid_size = GRID_SIZE if renderer == "shaded" else 8 if config is None else config.grid_size
+    shader = renderer_entry(renderer).kind == "shader"
+    grid_size = GRID_SIZE if shader else 8 if config is None else config.grid_size
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
     with_shading = model is not None and reads_shading(model.architecture, config)
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light,
@@ -129,7 +120,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
     def predict(sample: dict, index: int) -> torch.Tensor:
-        if renderer == "shaded":
+        if shader:
             image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1],
                                    reflection=True).image
             return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
@@ -139,7 +130,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
             raise InputError(f"test images are {sample['target'].shape[-1]}^2 but the model renders {config.output_size}^2")
         # Only the inputs this network reads: NVR takes neither a splat nor the shader's buffers.
         inputs = {name: sample[name][None] for name, wanted in
-                  (("splat", renderer == "nvr+"), ("floor_light", with_floor_light), ("shading", with_shading)) if wanted}
+                  (("splat", isinstance(model, NVRPlus)), ("floor_light", with_floor_light), ("shading", with_shading)) if wanted}
         return model(sample["voxels"][None], sample["light"][None], **inputs).clamp(0.0, 1.0)
 
     with torch.no_grad():
@@ -190,7 +181,7 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
     lines = [
         f"# Evaluation: {renderer}",
         "",
-        f"- model: {model_path or ('shipped' if renderer not in ('splat', 'shaded') else 'none (' + renderer + ')')}"
+        f"- model: {model_path or ('shipped' if renderer_entry(renderer).architecture else f'none ({renderer})')}"
         + (f", trained {extra.get('steps', '?')} steps" if extra.get("steps") else "")
         + (f", shading the {extra['shading_grid']} grid" if extra.get("shading_grid") else "")
         + (f" at the shader's {extra['shader_quality']} quality" if extra.get("shader_quality") else "")
