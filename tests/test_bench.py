@@ -29,7 +29,7 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     # not a test's): the last one, and the shader's light stages (or the lit floor) and the splat branch for
     # a model that reads them.
     shipped = load_model(shipped_weights("nvr_plus"))[1]
-    first = ["shade_floor", "shade"] if shipped.shading_input else ["floor_light"] if shipped.floor_light_input else []
+    first = ["shade_floor", "shade_lighting"] if shipped.shading_input else ["floor_light"] if shipped.floor_light_input else []
     expected = [*first, "splat_branch", "light"] if first else ["light"]
     assert results["edits"]["light"]["stages"] == expected
     # A move, a turn and a camera tilt keep the shader's voxel work (its geometry is the object's own voxels, placed).

@@ -222,7 +222,7 @@ def test_the_voxel_shader_panel_keeps_the_shape_through_paint_and_draws_the_new_
     engine.render(box_scene)
     stroke = edits.paint(box_scene, PaintOp("region", (0.1, 0.9, 0.1), seed=(3, 3, 3), tolerance=0.05))
     image = engine.render(stroke)
-    assert set(engine.last_report.stage_ms) == {"pool", "colors", "reflection", "shade"}
+    assert set(engine.last_report.stage_ms) == {"pool", "colors", "reflection", "lighting"}
     rgba, floor = apply_paint(VoxelCache().object_rgba(stroke), stroke.floor.color, stroke.paint)
     np.testing.assert_array_equal(image, shade_scene(stroke, rgba, floor).image)
     before = shade_scene(box_scene, *apply_paint(VoxelCache().object_rgba(box_scene), box_scene.floor.color, ())).image

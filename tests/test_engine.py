@@ -535,10 +535,10 @@ def test_refiner_drag_preview_is_the_shaded_image(scene):
     slid = replace(turned, object=replace(turned.object, translation=(0.1, -0.05)))
     for edited in (turned, slid):
         np.testing.assert_allclose(live.preview(edited), _shaded_image(edited, 128), rtol=0, atol=1e-6)
-        assert {"shade_surface", "shade"} <= set(live.last_report.stages_run)
+        assert {"shade_surface", "shade_lighting"} <= set(live.last_report.stages_run)
         assert "shade_geometry" not in live.last_report.stages_run
         np.testing.assert_allclose(live.render(edited), _shaded_image(edited, 128), rtol=0, atol=1e-6)
-        assert not {"shade_surface", "shade"} & set(live.last_report.stages_run)
+        assert not {"shade_surface", "shade_lighting"} & set(live.last_report.stages_run)
         live.preview(edited)
         assert live.last_report.stages_run == ()
 
@@ -552,13 +552,13 @@ def test_refiner_cached_render_equals_uncached(scene, edit, resolution):
     live.render(scene)
     image = live.render(edited)
     if edit == "light":  # the object's geometry and what the camera sees of it are kept
-        assert list(live.last_report.stages_run) == ["shade_floor", "shade", "splat_branch", "light"]
+        assert list(live.last_report.stages_run) == ["shade_floor", "shade_lighting", "splat_branch", "light"]
     if edit in ("paint stroke", "object color"):  # paint keeps occupancy: the surface stays, its colors are redone
         assert not {"shade_geometry", "shade_surface"} & set(live.last_report.stages_run)
-        assert {"shade_colors", "shade"} <= set(live.last_report.stages_run)
+        assert {"shade_colors", "shade_lighting"} <= set(live.last_report.stages_run)
     if edit in ("floor color", "floor paint"):  # the shader's object stages do not read the floor
         assert not {"shade_geometry", "shade_surface", "shade_colors"} & set(live.last_report.stages_run)
-        assert {"shade_floor", "shade"} <= set(live.last_report.stages_run)
+        assert {"shade_floor", "shade_lighting"} <= set(live.last_report.stages_run)
     np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
     assert np.abs(image - live.render(scene)).max() > 1e-4
 

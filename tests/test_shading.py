@@ -553,18 +553,18 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
         fresh = shade_scene(edited, voxels, floor, SIZE, grid_size, quality=quality)
         for part in ("image", "coverage", "albedo", "normal", "depth", "visibility", "occlusion"):
             np.testing.assert_array_equal(getattr(cached, part), getattr(fresh, part), err_msg=f"{name}: {part}")
-    assert reran["light"] == {"floor", "shade"}  # the light-dependent stages alone
-    assert reran["floor"] == {"floor", "shade"}  # the object's stages do not read the floor color
+    assert reran["light"] == {"floor", "lighting"}  # the light-dependent stages alone
+    assert reran["floor"] == {"floor", "lighting"}  # the object's stages do not read the floor color
     # The geometry is placed: turns keep it.
-    assert reran["move"] == reran["slide"] == {"placed", "surface", "colors", "reflection", "shade"}
-    assert reran["camera"] == {"placed", "surface", "colors", "reflection", "floor", "shade"}
+    assert reran["move"] == reran["slide"] == {"placement", "surface", "colors", "reflection", "lighting"}
+    assert reran["camera"] == {"placement", "surface", "colors", "reflection", "floor", "lighting"}
     # Paint keeps the shape: what the camera sees stays, its colors and what they light change.
-    assert reran["paint"] == {"pool", "colors", "reflection", "shade"}
+    assert reran["paint"] == {"pool", "colors", "reflection", "lighting"}
     # Without a shape key the voxels' key names the shape too: other voxels are another object.
     other = StagedShader(grid_size, quality)
     other.render(tilted, "before", rgba, green, SIZE)
     other.render(tilted, "after", painted, green, SIZE)
-    assert set(other.stage_ms) == {"pool", "geometry", "placed", "surface", "colors", "reflection", "shade"}
+    assert set(other.stage_ms) == {"pool", "geometry", "placement", "surface", "colors", "reflection", "lighting"}
 
 
 def test_an_image_of_another_size_not_kept_leaves_the_live_stages():

@@ -2,8 +2,8 @@
 
 The model is loaded once and turned into an inference copy (BatchNorm folded, channels-last,
 convolutions on oneDNN with their activations fused, the light merge split: models/engine/light_merge.py).
-Every stage keeps its last result with the exact scene parts it was computed from, and reruns only
-when those change:
+Every stage keeps its last result in one StageCache (renderer/stage_cache.py) with the exact scene parts it was
+computed from, and reruns only when those change. This table is the one list of the network's stages:
 
     stage         depends on                                              result
     voxels        mesh file (+ resolution, up) or voxel file              object voxels N^3 (models/engine/paint_replay.py)
@@ -19,26 +19,15 @@ when those change:
     shell         voxels                                                  the voxels with an exposed face
     splat_layout  shell, translation, rotation, scale, camera elevation   the voxel each pixel shows, the floor
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
-    floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read
-                                                                          it, and previews)
-    shade_pool      paint, merge factors of the finer grid                the voxel shader (networks that read it:
-    shade_geometry  voxels, the shader's merge factors (paint keeps       renderer/shading/): the object voxels merged
-                    occupancy)                                            for the finer grid (config.shading_grid_factor
-    shade_placement shade_geometry, placement                             > 1), their geometry in the object's own frame,
-    shade_surface   placement                                             placed where the object stands, the surface
-    shade_colors    paint, placement                                      the camera sees, its colors, the empty floor's
-    shade_floor     as floor_light                                        lighting, the shaded image and buffers
-    shade           paint, placement, floor color, light position
+    floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read it)
+    shade_*       the voxel shader's stages (renderer/shading/staged.py)  its image and buffers (networks that read
+                  prefixed with shade_; shade_pool for a finer grid       the shader), without the floor's reflection
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
                   reads them)
     light         all of the above and the light position                 image (render_from_latent)
 
-Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (floor_light
-runs only for networks that read the lit floor, like the compact NVR+, and the shade stages only for
-networks that read the shader, like the shipped NVR+: shade_geometry only for another object or a scale across a
-merge threshold, shade_placement and shade_surface after any placement or camera edit, shade_colors after paint,
-placement or camera, shade_floor after an edit that reruns floor_light, and shade after all of these; for the others a
-light move reruns the light stage alone):
+Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (plus the shader's own stages
+for a network that reads it, and floor_light only for one that reads the lit floor):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -53,17 +42,16 @@ light move reruns the light stage alone):
                                   splat, splat_branch, light
     nothing                       none (the last image again)
 
-The voxel branch runs only around the object (models/engine/cropped_encoder.py): the ground's
-features come from the background stage (computed on a ground grid a few columns wide, since
-the ground is the same in every column), the object's from a crop of the grid around the voxels
-that differ from the ground, and the result equals the full-grid encode_voxels (`crop=False`). The engine is not thread-safe: one caller at
-a time (models/engine/async_render.py runs it on a worker thread).
+The voxel branch runs only around the object (models/engine/cropped_encoder.py): the ground's features come from the
+background stage (a ground grid a few columns wide, since the ground is the same in every column), the object's from
+a crop of the grid around the voxels that differ from the ground; the result equals the full-grid encode_voxels
+(`crop=False`). The engine is not thread-safe: one caller at a time (models/engine/async_render.py runs it on a
+worker thread).
 
-Precision: on a CPU with native bfloat16 (AVX512-BF16) the network runs in bfloat16 by default
-(`precision="auto"`): an object-transform frame took 29.6 ms instead of 39.1 (nvr bench, session 5); images
-agree with float32 within BF16_BOUND (tests/test_engine.py). Everything outside the network stays float32.
-Device: a CUDA GPU if there is one (`device="auto"`), in float32 and without the oneDNN convolutions,
-which are CPU kernels; the stages and their caching are the same.
+Precision: on a CPU with native bfloat16 (AVX512-BF16) the network runs in bfloat16 by default (`precision="auto"`),
+which is faster there (docs/results.md, "Speed"); images agree with float32 within BF16_BOUND (tests/test_engine.py).
+Everything outside the network stays float32. Device: a CUDA GPU if there is one (`device="auto"`), in float32 and
+without the oneDNN convolutions, which are CPU kernels; the stages and their caching are the same.
 """
 
 from __future__ import annotations
@@ -72,7 +60,7 @@ import functools
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -91,7 +79,7 @@ from models.renderers import RenderReport
 from models.threads import set_threads
 from renderer.camera import Camera
 from renderer.errors import InputError
-from renderer.floor_light import lit_floor_image, lit_floor_terms
+from renderer.floor_light import lit_floor_image
 from renderer.grid import (
     colors_and_changes,
     gather,
@@ -104,7 +92,6 @@ from renderer.grid import (
     pool_voxels,
     repool_voxels,
     sample_indices,
-    shader_pool_factors,
 )
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
@@ -112,14 +99,11 @@ from renderer.scene import Scene
 from renderer.shading import (
     ShadedImage,
     network_buffers,
-    object_geometry,
-    placed,
     quality_named,
-    repaint_surface,
-    shade,
-    visible_surface,
 )
+from renderer.shading.staged import StagedShader
 from renderer.splat import SplatLayout, color_splat, splat_layout
+from renderer.stage_cache import StageCache
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
@@ -172,12 +156,6 @@ class _NetworkInputs(NamedTuple):
     floor: tuple
 
 
-@dataclass
-class _Recording:
-    stage_ms: dict[str, float] = field(default_factory=dict)
-    grid_fraction: float | None = None
-
-
 class RenderEngine:
     """NVR or NVR+ rendering scenes, caching every stage on exactly the scene parts it depends on."""
 
@@ -217,8 +195,12 @@ class RenderEngine:
         self.encoder = CroppedVoxelEncoder(self.model.voxel_encoder, self.config.grid_size)
         self.last_report: RenderReport | None = None
         self._object_source = object_source
-        self._memo: dict[str, tuple[Any, Any]] = {}
-        self._recording = _Recording()
+        self._cache = StageCache(settle=(lambda: torch.cuda.synchronize(self.device)) if self.device.type == "cuda"
+                                 else None)  # GPU work is asynchronous: time it, not its launch
+        self._grid_fraction: float | None = None  # share of the grid the voxel branch read in this render, if it ran
+        # The voxel shader's stages, in this cache: without the floor's reflection, which the network does not read.
+        self._shader = StagedShader(self.config.shading_grid_size, self._quality, cache=self._cache, prefix="shade_",
+                                    reflection=False)
 
     @classmethod
     def load(cls, path: str | Path | None, architecture: str = "nvr_plus", **options: Any) -> RenderEngine:
@@ -246,7 +228,7 @@ class RenderEngine:
 
     def clear(self) -> None:
         """Forget every cached stage (the next render computes all of them)."""
-        self._memo.clear()
+        self._cache.clear()
 
     # --- rendering ------------------------------------------------------------------------
 
@@ -399,16 +381,16 @@ class RenderEngine:
         grid_key = (keys.grid, self.crop)
         if not self.crop:
             grid = self._stage("gather", grid_key, lambda: gather(pooled, floor, placement.indices))
-            self._recording.grid_fraction = 1.0
+            self._grid_fraction = 1.0
             return self._stage("voxel_branch", grid_key, lambda: self.model.encode_voxels(self._grid_tensor(grid)))
         elevation = scene.camera.elevation_deg
         background = self._stage("background", (elevation, floor), lambda: self._background(floor, elevation))
         plan = placement.plan
         if plan is None:  # the object lies outside the grid
-            self._recording.grid_fraction = 0.0
+            self._grid_fraction = 0.0
             return background.latent
         crop = self._stage("gather", grid_key, lambda: gather(pooled, floor, placement.indices))
-        self._recording.grid_fraction = plan.grid_fraction(self.config.grid_size)
+        self._grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", grid_key, lambda: self.encoder.encode(background, plan, self._grid_tensor(crop)))
 
     def _pool(self, stage: str, painted: np.ndarray, source: tuple, factors: tuple[int, int, int]) -> _Pooled:
@@ -416,16 +398,16 @@ class RenderEngine:
         merge factors) only the blocks it touched are merged again, in the last merge's array (the stage keeps one
         result and nothing else reads it), and their box stays. Paint changes the colors of occupied voxels alone,
         so only they are compared: work in proportion to the surface, not the grid."""
-        replay = self._memo["voxels"][1]  # this object's (the voxels stage ran for `source` first)
+        replay = self._cache.last("voxels")  # this object's (the voxels stage ran for `source` first)
         occupied = replay.occupied
-        last = self._memo[stage][1] if stage in self._memo else None
+        last = self._cache.last(stage)
         if last is None or (last.source, last.factors) != (source, factors):
             pooled = pool_voxels(painted, factors, replay.box)  # only the blocks the object reaches
             non_empty = non_empty_voxels(pooled)  # for the box to sample and the rows the placement reads
             object_rows = np.append(non_empty.reshape(-1), [False, False])  # the empty and floor rows: no object
             return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, occupied_spans(non_empty),
                            object_rows)
-        del self._memo[stage]  # updated in place below: never a stale entry under the old key
+        self._cache.forget(stage)  # updated in place below: never a stale entry under the old key
         colors, changed = colors_and_changes(painted, occupied, last.colors)
         return _Pooled(repool_voxels(last.voxels, painted, factors, changed, in_place=True), colors, source, factors,
                        last.within, last.object_rows)
@@ -472,37 +454,21 @@ class RenderEngine:
 
     def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys,
                 size: int | None = None) -> ShadedImage:
-        """The voxel shader's image of the scene, from its cached stages (renderer/shading/), drawing the object voxels
-        merged as for the grid the network's shader input stands for (config.shading_grid_size). `size`: another size
-        than the network's (render_sized), whose stages from the surface on are computed, not cached.
+        """The voxel shader's image of the scene (renderer/shading/staged.py, its stages in this engine's cache),
+        drawing the object voxels merged as for the grid the network's shader input stands for
+        (config.shading_grid_size). `size`: another size than the network's (render_sized), whose stages from the
+        surface on are computed, not kept."""
+        source = keys.pool[0][0]
 
-        The object's geometry is kept on its occupancy and merge factors alone (a paint stroke keeps every voxel's
-        occupancy; `placed` puts the geometry where the scene has the object and sets the camera), the surface the
-        camera sees on the placement; after a paint edit only the merged voxels and the surface's colors are redone."""
-        n = painted.shape[0]
-        factors = shader_pool_factors(n, scene.object.scale, self.config.shading_grid_size)
-        if self.config.shading_grid_factor > 1:  # the finer grid's own merged voxels
-            pooled = self._stage("shade_pool", (keys.pool[0], factors),
-                                 lambda: self._pool("shade_pool", painted, keys.pool[0][0], factors))
-        else:  # the network's (shader_pool_factors are its merge factors on its own grid)
-            pooled = self._network_pool(painted, keys)
-        shape_key = (keys.pool[0][0], n, factors)
-        shape = self._stage("shade_geometry", shape_key, lambda: object_geometry(pooled.voxels, n, factors,
-                                                                                      self._quality.ambient_occlusion))
-        # Where the scene has the object (its occluders moved: 1.6-2 ms on the demo chair, which a light edit need not
-        # pay), in this paint's colors (kept geometry may hold an earlier paint's).
-        where = self._stage("shade_placement", (shape_key, keys.placement),
-                            lambda: placed(shape, scene.object, scene.camera.elevation_deg))
-        geometry = replace(where, rgb=pooled.voxels[..., :3])
+        def pool(factors: tuple[int, int, int]) -> np.ndarray:
+            if self.config.shading_grid_factor > 1:  # the finer grid's own merged voxels
+                return self._stage("shade_pool", (keys.pool[0], factors),
+                                   lambda: self._pool("shade_pool", painted, source, factors)).voxels
+            return self._network_pool(painted, keys).voxels  # shader_pool_factors are the network's on its own grid
+
         size = size or self.output_size
-        stage = self._stage if size == self.output_size else lambda name, key, compute: compute()
-        traced = stage("shade_surface", keys.placement,  # its colors come next, from the painted voxels
-                       lambda: visible_surface(geometry, size, colors=False, quality=self._quality))
-        surface = stage("shade_colors", keys.painted, lambda: repaint_surface(traced, geometry))
-        floor_terms = stage("shade_floor", keys.floor_light, lambda: lit_floor_terms(
-            Camera.from_scene(scene, size), scene.light.position, floor))
-        return stage("shade", keys.shade, lambda: shade(geometry, surface, scene.light.position, floor, floor_terms,
-                                                        quality=self._quality))
+        return self._shader.run(scene, keys.pool[0], painted, floor, size, shape_key=source,
+                                keep=size == self.output_size, pool=pool)
 
     def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
@@ -523,27 +489,20 @@ class RenderEngine:
 
     def _stage(self, name: str, key: Any, compute: Callable[[], Any]) -> Any:
         """The stage's cached result if it was computed for `key`, else compute, time and keep it."""
-        if self._cached(name, key):
-            return self._memo[name][1]
-        start = time.perf_counter()
-        value = compute()
-        if self.device.type == "cuda":
-            torch.cuda.synchronize(self.device)  # GPU work is asynchronous: time it, not its launch
-        self._recording.stage_ms[name] = (time.perf_counter() - start) * 1000.0
-        self._memo[name] = (key, value)
-        return value
+        return self._cache(name, key, compute)
 
     def _cached(self, name: str, key: Any) -> bool:
-        return name in self._memo and self._memo[name][0] == key
+        return self._cache.cached(name, key)
 
     def _begin(self) -> float:
-        self._recording = _Recording()
+        self._cache.begin()
+        self._grid_fraction = None
         return time.perf_counter()
 
     def _finish(self, start: float, preview: bool) -> None:
-        r = self._recording
-        self.last_report = RenderReport(tuple(r.stage_ms), dict(r.stage_ms), (time.perf_counter() - start) * 1000.0,
-                                        preview, r.grid_fraction)
+        stages = self._cache.stage_ms
+        self.last_report = RenderReport(tuple(stages), dict(stages), (time.perf_counter() - start) * 1000.0, preview,
+                                        self._grid_fraction)
 
 
 # --- helpers ------------------------------------------------------------------------------------
