@@ -243,7 +243,7 @@ def cmd_turntable(args: argparse.Namespace) -> None:
 # --- nvr data ----------------------------------------------------------------------------
 
 
-# renderer.photo.HIDDEN_RULES, written out: importing renderer.photo here would add 0.2-0.3 s to every command;
+# renderer.photo.HIDDEN_RULES, written out: importing renderer.photo here would slow every command;
 # DataConfig.check refuses a rule it does not know, so the two cannot drift silently.
 HIDDEN_VOXEL_RULES = ("blend", "ray")
 DELIGHT_SHADERS = ("path traced", "object voxels")  # renderer.dataset.MADE_DELIGHT_SHADERS, written out as above

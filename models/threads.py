@@ -8,8 +8,7 @@ Setting both to the same count keeps it.
 numpy's OpenBLAS keeps worker threads that, after each matrix product, poll for the next one instead of
 sleeping; the renderer's products are small ((N, 3) points by a 3 x 3 matrix, dozens a frame), so on
 two cores a polling thread took a whole core from the shader's and the network's threads. With BLAS on
-one thread an NVR+ light edit on the demo chair took 39 ms instead of 65 (a CPU with AVX512-BF16, fp32,
-2026-11-29, a short script over the engine).
+one thread an NVR+ light edit is much faster (docs/results.md, "Measurements behind the code").
 """
 
 from __future__ import annotations

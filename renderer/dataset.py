@@ -114,7 +114,7 @@ class DataConfig:
                              f"{MAX_IMAGE_SIZE}, got {self.photo_size!r}")
         if not self.categories:
             raise InputError("at least one object category is needed")
-        from renderer.photo import check_hidden_rule  # not at the top: it adds 0.2-0.3 s to importing this module
+        from renderer.photo import check_hidden_rule  # not at the top: it slows importing this module
 
         check_hidden_rule(self.hidden_rule)
         if self.delight_shader not in MADE_DELIGHT_SHADERS:

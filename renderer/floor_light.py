@@ -13,9 +13,8 @@ learn everything the object does: its shading, its shadow, its reflection.
 Cost: the shading varies slowly over the floor, so it is evaluated on a coarse grid of pixel
 centres (COARSE_STEP pixels apart) with LIGHT_SAMPLES^2 points on the light, interpolated
 bilinearly to full size, and cut at the horizon with the exact floor mask. The voxel shader's terms
-(FloorTerms) stay on the coarse grid and are interpolated where it composites its image: at 256^2 they
-took 0.9-1.3 ms a light edit against 1.7-2.8 with both terms drawn at full size first, the composite,
-which interpolates them, 0.1-0.3 ms more (Intel Xeon with AVX512-BF16, 2026-12-01).
+(FloorTerms) stay on the coarse grid and are interpolated where it composites its image, which saves full-size
+copies on every light edit (docs/results.md, "Measurements behind the code").
 """
 
 from __future__ import annotations
@@ -65,7 +64,7 @@ class FloorTerms:
     gives (diffuse and glossy) and what the ambient light gives, on the coarse grid of pixel centres the shading is
     evaluated on, with the floor mask and the weights that interpolate them to every pixel
     (renderer.resample.bilinear_at). A shader interpolates them where it composites, without full-size copies (two
-    256^2 images made for each light edit, 0.35-0.7 ms each)."""
+    256^2 images for each light edit)."""
 
     from_light: np.ndarray  # (h, w, 3) float32
     from_ambient: np.ndarray  # (h, w, 3) float32
@@ -150,7 +149,7 @@ def _light_terms(geometry: _Geometry, light: np.ndarray) -> tuple[np.ndarray, np
 @njit(cache=True, parallel=True)
 def _light_sums(points, view, cos_view, view_masking, samples_x, samples_z, height, area, diffuse, glossy):
     """_light_terms' sums over the light's samples x samples_z (at `height`, facing down), per coarse floor point:
-    compiled, one pass (numpy's passes over (h, w, samples) arrays took 2.5 ms at 256^2, this 0.75)."""
+    compiled, one pass instead of numpy's passes over (h, w, samples) arrays."""
     for r in prange(points.shape[0]):
         for c in range(points.shape[1]):
             vx, vy, vz = view[r, c, 0], view[r, c, 1], view[r, c, 2]
@@ -212,7 +211,7 @@ def _upsample(coarse: np.ndarray, row_weights: tuple, col_weights: tuple) -> np.
 @njit(cache=True, parallel=True)
 def _bilinear(coarse, top, bottom, down, left, right, across, out):
     """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c]: compiled, one
-    pass over the image (numpy's gathers took 1 ms a light edit; its BLAS fought the network's threads)."""
+    pass over the image (numpy's gathers were slower, and its BLAS fought the network's threads)."""
     for r in prange(out.shape[0]):
         t, b, wd = top[r], bottom[r], down[r]
         for c in range(out.shape[1]):

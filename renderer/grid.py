@@ -63,7 +63,7 @@ def pool_voxels(rgba: np.ndarray, factors: tuple[int, int, int],
     A block is occupied if any member is; its color is the mean of its occupied members, summed in float32 along
     axis 0, then 1, then 2. With nothing to merge the voxels are returned as they are (voxelize, load_voxels and the
     paint tools keep empty voxels black). A compiled loop over the blocks on every core: numpy's per-plane block
-    sums took 0.4 s at 200^3, a third of preparing a training sample. `box`: the (start, stop) span per axis that
+    sums were a third of preparing a training sample. `box`: the (start, stop) span per axis that
     holds every occupied voxel (occupied_spans), if the caller keeps it: only the blocks it reaches are merged, the
     others are empty (a chair's box is a fifth to three quarters of its 200^3 voxels).
     """
@@ -122,7 +122,7 @@ def _touched_blocks(changed, shape, factors, seen):
 @njit(cache=True)
 def _merge_blocks(rgba, blocks, factors, out):
     """out[block] = the block's merge for each block index in `blocks` (K, 3), as pool_voxels merges it. A loop over
-    the blocks' members: numpy's gather of them took 13-22 ms for a stroke of 19,000 voxels at 200^3."""
+    the blocks' members, since numpy's gather of them is slow for large strokes."""
     for b in range(blocks.shape[0]):
         _merge_block(rgba, blocks[b, 0], blocks[b, 1], blocks[b, 2], factors, out)
 
@@ -198,7 +198,7 @@ def _gather_changes(table, voxels, before, rows, changed):
 def gather(pooled: np.ndarray, floor_color: tuple[float, float, float], indices: np.ndarray) -> np.ndarray:
     """The grid (D, H, W, 4) float32: for each grid voxel, row indices[d, r, c] of the P merged voxels `pooled`, or
     for row P the empty voxel, for row P + 1 the floor voxel (floor color, occupied). The merged voxels are read where
-    they are: a table of them with the two rows appended was a copy of them all (16 MB, 1.1 ms at 100^3) per move."""
+    they are: a table of them with the two rows appended was a copy of them all per move."""
     rows = np.ascontiguousarray(pooled, dtype=np.float32).reshape(-1, 4)
     floor = np.array([*floor_color, 1.0], dtype=np.float32)
     out = np.empty((*np.shape(indices), 4), dtype=np.float32)
@@ -248,9 +248,8 @@ def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: 
     of merged voxels, (start, stop) per axis, outside which every merged voxel is empty (all zero), if
     the caller knows one; grid voxels there take the empty row P instead, the same values, and only the
     box is sampled. (The ground lies below every object box, so no ground voxel is affected.) `box`: only the
-    grid voxels in these ranges, (start, stop) per axis (default: the whole grid; a pass over all of it takes
-    a live engine over a millisecond, a crop around the object a fraction of that). `window`: object_window's
-    ranges for these arguments, if the caller has them (0.5-1 ms to find).
+    grid voxels in these ranges, (start, stop) per axis (default: the whole grid; a crop around the object
+    costs a fraction of it). `window`: object_window's ranges for these arguments, if the caller has them.
     """
     n_rows = int(np.prod([-(-resolution // f) for f in factors]))
     box = [(0, grid_size)] * 3 if box is None else box

@@ -55,7 +55,7 @@ def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.nd
 def _flood(mask, seed_flat, most):
     """Flat indices of the 6-connected voxels of `mask` reached from `seed_flat` (at most `most` of them), in the
     order found. A breadth-first search visits the region alone: labelling every component of the grid
-    (scipy.ndimage.label) took 77 ms at 200^3 on this project's 2-core machine, whatever the region's size."""
+    (scipy.ndimage.label) costs the whole grid, whatever the region's size."""
     n0, n1, n2 = mask.shape
     flat = mask.reshape(-1)
     found = np.empty(most, dtype=np.int64)
@@ -126,8 +126,8 @@ def _color_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -> np.
 
 def paint_voxels(rgba: np.ndarray, voxels: np.ndarray, color: Color, out: np.ndarray | None = None) -> np.ndarray:
     """A copy of `rgba` with the voxels at flat indices `voxels` set to `color`: a new array, or `out` (float32, the
-    shape of `rgba`; `rgba` itself is allowed). At 200^3 a new array took twice as long as a copy into a used one
-    (54 against 25 ms on this project's 2-core machine: fresh memory is mapped page by page)."""
+    shape of `rgba`; `rgba` itself is allowed). A new array takes twice as long as a copy into a used one:
+    fresh memory is mapped page by page."""
     if out is None:
         out = np.array(rgba, dtype=np.float32, copy=True)
     elif out is not rgba:

@@ -5,8 +5,8 @@ color); painted voxels on that and the paint strokes. A stroke list that extends
 is painted from the cached result, so one more bucket fill costs one fill, not a replay.
 Painted states are kept up to a memory budget (a 200^3 object's voxels take 128 MB). A stroke paints into a
 spare array whose pages are already mapped: the array of a forgotten state that nothing else holds any more, or
-one prepared on another thread after the object loads and after each stroke (a fill into fresh memory took 323-392
-ms on the demo chair at 200^3, most of it the kernel mapping the pages, and 44-72 ms into mapped memory).
+one prepared on another thread after the object loads and after each stroke (a fill into fresh memory is several times slower,
+most of it the kernel mapping the pages: docs/results.md, "Measurements behind the code").
 Safe to use from the UI thread and a background job at once.
 """
 

@@ -160,7 +160,7 @@ class EditorApp:
         self._synced = -1  # document revision the viewport and render were last updated for
         self.shown_rgba = None  # the painted voxels the viewport shows (for picking)
         self.shown_source = None  # their object's source_key: paint on it keeps the viewport's faces
-        self.shown_occupancy = None  # their occupancy (for picking; paint keeps it: 14-29 ms to find at 200^3)
+        self.shown_occupancy = None  # their occupancy (for picking; paint keeps it, and it is slow to find)
         self._autosaved = document.revision
         self._autosave_time = time.monotonic()
         self._screenshots: list[Path] = []
@@ -625,7 +625,7 @@ class EditorApp:
         self._screenshots.clear()
 
     def close(self) -> None:
-        """End the session: keep an autosave of unsaved changes unless the user chose to discard them."""
+        """On quitting: keep an autosave of unsaved changes unless the user chose to discard them."""
         if self.keep_recovery:
             self.autosave_now()
         else:

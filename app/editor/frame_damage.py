@@ -1,6 +1,6 @@
 """Which parts of the window a new frame changes, so that only they are drawn again and shown.
 
-With software OpenGL, drawing the whole interface costs 10-25 ms a frame. A frame is summed
+With software OpenGL, drawing the whole interface is a large share of a frame (docs/results.md, "Measurements behind the code"). A frame is summed
 up by a digest and the bounding box of the vertices of each ImGui draw list, plus the versions of the images
 the interface shows (the viewport under it, the render in it). Comparing that summary with
 the one of the frame on screen gives the boxes to draw again: none (the frame looks the

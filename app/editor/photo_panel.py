@@ -5,7 +5,7 @@ texture uploaded again only when the pose or the shape changed. On the image, le
 the object (up and down raises and lowers the camera), Shift+left-drag moves it on the floor and
 the wheel scales it; the numeric fields below set the same pose exactly. While a drag is under
 way the overlay is drawn at a smaller size, so every frame of the drag stays cheap (ray casting
-the silhouette costs 10-70 ms at 320 pixels on a loaded 2-core machine, a few at 160); it is
+the silhouette costs about four times as much at twice the side); it is
 drawn at full size again when the mouse is released.
 """
 

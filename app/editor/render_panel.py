@@ -37,7 +37,7 @@ from renderer.voxel_cache import VoxelCache
 NO_MODEL_LABEL = "no trained model: showing splat"
 RENDER_NICENESS = 5  # render threads get about a third of the CPU share of the UI thread when both want it
 # A settled image is drawn again at the panel's size once the scene has stood this long (seconds), so that the next
-# edit, if it comes at once, does not wait behind it (the NVR+: 63-109 ms at 422 px on the bench scenes, 2 cores).
+# edit, if it comes at once, does not wait behind it (a redraw at the panel's size takes a frame's time: docs/results.md, "Measurements behind the code").
 DETAIL_DELAY_S = 0.3
 
 

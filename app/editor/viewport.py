@@ -4,11 +4,10 @@ Voxels are quads (renderer/voxel_faces.py) placed by the object's placement matr
 shaded by the direction to the light plus ambient. Each quad's four corners are stored as
 vertices of their own rather than drawn as instances: Mesa's software OpenGL shades long
 vertex arrays in wide batches but instances of four vertices one by one (the demo chair's
-viewport takes about 30% less time). Faces turned away from the viewer
+viewport is quicker). Faces turned away from the viewer
 are dropped in the vertex shader. While the user drags, an object finer than MOTION_RESOLUTION voxels a side is
 drawn from its voxels merged in blocks (a block is occupied if any of its voxels is): the product's 200^3 voxels have
-four times the faces of 100^3, and software OpenGL drew a light drag's frames at 27-36 fps instead of 40-55
-(docs/editor.md). At rest every voxel is drawn. A paint stroke or the bucket's preview rewrites only the faces'
+four times the faces of 100^3, which slows a drag's frames in software OpenGL (docs/editor.md). At rest every voxel is drawn. A paint stroke or the bucket's preview rewrites only the faces'
 colors (`recolor`). The ground is the floor square with a faint grid, the light is its square seen as a glowing
 rectangle with a line down to the floor, and the render camera is drawn as its viewing frustum.
 """
@@ -159,8 +158,8 @@ class ViewportRenderer:
     def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None = None) -> None:
         """Show new colors on the faces set_voxels made: `rgba` must have the same occupancy (paint never changes
         it). `overrides`: (sorted flat voxel indices, their colors (K, 3)) shown instead of rgba's (the bucket's
-        preview tint). Only the faces' colors are written: finding the faces took 127 ms on the demo chair's 200^3
-        voxels, and the bucket's previews and strokes would pay it at each voxel the bucket rests on."""
+        preview tint). Only the faces' colors are written: finding the faces is slow at 200^3, and the bucket's previews and
+        strokes would pay it at each voxel the bucket rests on."""
         if not self._levels or rgba.shape[0] != self._resolution:
             raise ValueError("recolor needs the voxels set_voxels was given, with other colors")
         self._voxels_version += 1

@@ -12,7 +12,7 @@ import warnings
 # OpenMP reads these when torch loads it. Idle worker threads must not spin for long: spinning made
 # 2-thread rendering 10x slower when other processes shared the cores. Yet a short spin (GNU OpenMP's
 # GOMP_SPINCOUNT, which overrides the passive policy) bridges the microseconds between a network's
-# layers: a light edit 33 -> 29 ms on the idle 2-core machine, 45 -> 48 ms with training beside it.
+# layers: faster on an idle machine, a little slower with another job beside it (docs/results.md, "Measurements behind the code").
 OPENMP_WAITING = {"OMP_WAIT_POLICY": "PASSIVE", "GOMP_SPINCOUNT": "3000"}
 if "torch" in sys.modules and not OPENMP_WAITING.keys() & os.environ.keys():
     warnings.warn("models.engine was imported after torch, so OpenMP's waiting (OMP_WAIT_POLICY, GOMP_SPINCOUNT) "

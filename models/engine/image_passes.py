@@ -2,9 +2,8 @@
 
 NVR+ joins its splat branch's inputs along the channels and area-averages them, and at the end upsamples its
 correction and applies it to the shaded image. In torch that is a concatenation, a pool, an upsampling, an exp, a
-multiply-add, a clamp and a copy into the image layout, each a pass over 256^2 images: 2.5 ms of a light edit
-(torch's profiler, 2-core Intel Xeon with AVX512-BF16, fp32), against 0.95 ms for these passes. Same arithmetic, in
-float32 (numpy's exp for the gain).
+multiply-add, a clamp and a copy into the image layout, each a pass over 256^2 images; these passes do
+the same in a fraction of the time (docs/results.md, "Measurements behind the code"). Same arithmetic, in float32 (numpy's exp for the gain).
 """
 
 from __future__ import annotations

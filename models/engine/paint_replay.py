@@ -5,8 +5,7 @@ more with every stroke the user adds. The replay keeps one painted array and, fo
 painted into it, the voxels the stroke changed and their colors before: a new stroke paints
 its region, recoloring or undoing the last stroke puts back what it overwrote first. Each step
 costs the stroke's region and the search for it, not the grid: copying a 200^3 object's voxels
-(128 MB) for each stroke took 24 of a paint edit's 62 ms (docs/engine.md), and one array is kept
-instead of three.
+(128 MB) for each stroke was a third of a paint edit, and one array is kept instead of three.
 Paint never changes occupancy, so the object's occupied voxels are found once.
 
 The array returned is painted again by the next call: a caller reads it before asking for other strokes (the

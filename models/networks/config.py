@@ -207,8 +207,8 @@ class PaperConfig(NVRConfig):
 class CompactConfig(NVRConfig):
     """Sized for live editing on a 2-core CPU at 256^2 (widths chosen by measured forward time).
 
-    NVR+ at batch 1 (benchmarks/bench_networks.py, inference copy): a full frame is 4.4 GFLOP,
-    about 50 ms on 2 threads; a light edit (render_from_latent) is 2.2 GFLOP, about 20 ms.
+    NVR+ at batch 1: a full frame is 4.4 GFLOP and a light edit (render_from_latent) 2.2 GFLOP
+    (benchmarks/bench_networks.py; their times in docs/benchmarks.md).
     - The two strided 3D stages are non-overlapping 2x2x2 patches: a 4^3 kernel at 128^3 costs
       8x more (1 GFLOP for only 8 channels). One 3x3x3 convolution then works at 32^3.
     - 24 channels at 32^3, because at batch 1 torch runs 3D convolutions with kernels <= 3 on a
@@ -252,8 +252,8 @@ class ShaderRefinerConfig(CompactConfig):
     and buffers (renderer/shading/: soft shadows, the lit floor, normals, albedo), and it outputs a
     per-pixel correction of the shaded image, so an untrained network renders the shaded image and
     training spends the network on what the shader misses. The shaded image holds the lit floor, so the
-    separate lit-floor input is off. The shader draws from a 256^3 grid (docs/results.md: on novel single-colored
-    shapes the step-9,250 weights had MSE 139 with the 128^3 grid's shading, 98 with the 256^3 grid's)."""
+    separate lit-floor input is off. The shader draws from a 256^3 grid, which errs less than the network's 128^3
+    (docs/results.md, "Design choices, measured")."""
 
     name: ClassVar[str] = "shader_refiner"
 
@@ -267,9 +267,7 @@ class HalfResolutionRefinerConfig(ShaderRefinerConfig):
     """The shader refiner at half the image's side: its splat branch and U-Net work at 128^2 on the area-averaged
     256^2 inputs, its decoder stops at 128^2, and its correction is upsampled bilinearly onto the full-resolution
     shaded image. The full-resolution layers of the shader refiner are thin (8 channels) and run far below the
-    CPU's peak: on the AVX2 CPU a light edit of this network took 36 ms of one thread's time against 65 for the
-    full-resolution one (1.36 against 2.42 GFLOP; benchmarks/bench_networks.py, random weights, CPU time measured
-    while data generation shared the cores)."""
+    CPU's peak, so halving the side nearly halves a light edit (docs/results.md, "Measurements behind the code")."""
 
     name: ClassVar[str] = "half_res_refiner"
 

@@ -45,8 +45,8 @@ def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size
     from renderer.grid import scene_grid
 
     grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size=grid_size)
-    # A channels-first view of the channels-last grid, not a copy: stacking a batch copies it anyway, 7x faster
-    # than numpy's transposing copy per sample (0.1 s against 0.7 s for 10 grids, a fifth of a training step).
+    # A channels-first view of the channels-last grid, not a copy: stacking a batch copies it anyway, several
+    # times quicker than numpy's transposing copy per sample.
     voxels = torch.from_numpy(np.asarray(grid, dtype=np.float32)).permute(3, 0, 1, 2)
     light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg).astype(np.float32))
     return voxels, light
@@ -54,7 +54,7 @@ def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size
 
 # Object voxels a data set keeps in memory per process, as their non-empty voxels (the latest object always): at
 # 200^3 an object is 128 MB dense but 4-10 MB stored so, and the 126 objects of three 42-object sets fit; kept dense,
-# only 16 did, and a training sample waited 1.3 s for its object's file most of the time.
+# only 16 did, and a training sample mostly waited for its object's file.
 VOXEL_CACHE_BYTES = 2 * 2**30
 
 

@@ -120,8 +120,7 @@ def refine_placement(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pos
     """`pose`'s elevation, position and scale (and lens, with `free_focal`) refined, its rotation kept, on the colors its
     silhouette separates within `region` plus PLACEMENT_MASK_WEIGHT times its IoU with `photo_mask`; a short search
     from `pose`. The colors settle the rotation where a mask cut from clutter is wrong, but leave elevation and size
-    loose, which a mask pins; letting the mask move the rotation too pulled it towards the mask's errors (the capture
-    bench's 60 boxed photographs: median rotation error 1.7 -> 2.2 degrees)."""
+    loose, which a mask pins; letting the mask move the rotation too pulled it towards the mask's errors (docs/results.md, "Measurements behind the code")."""
     return _refine(silhouettes, photo_rgb, pose, photo_mask, region, free_focal, mask_weight=PLACEMENT_MASK_WEIGHT,
                    first_steps=0.25, rotation=False)
 

@@ -74,17 +74,13 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     Without an alpha channel, segmentation and pose search alternate: the first pose's silhouette starts
     the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times. With a
     box, each search is followed by a refinement on the colors the silhouette separates around the box (a mask
-    cut from clutter is wrong where object and background share colors; the mesh's shape is not): on the capture
-    bench's 60 boxed photographs the median rotation error fell from 6.3 to 2.8 degrees. Then a search on those
+    cut from clutter is wrong where object and background share colors; the mesh's shape is not). Then a search on those
     colors alone, placed by the box (align.search_in_box), replaces the pose where it scores higher: it finds
-    objects whose mask GrabCut got wrong in shape (the bench's 60 boxed photographs: median rotation error 2.8 ->
-    1.7 degrees, elevation 3.7 -> 2.1, within 10 degrees 57 -> 69 %; those taken with a 60 mm lens 21 -> 1.8); from
+    objects whose mask GrabCut got wrong in shape; from
     an `initial` pose it searches only the window around it, on align_pose's 5-degree grid (searching every
-    rotation, it had turned 10 of the bench's 60 boxed photographs started within 30 degrees of the truth to more
-    than 50 degrees off; the window on a 10-degree grid left their median rotation error at 1.15 degrees, 5 gives 0.97).
+    rotation had turned some photos started near the truth far off: docs/results.md, "Measurements behind the code").
     Last, elevation, position and scale are refined on the colors and the last mask together, the rotation kept.
-    Without a box the mask alone decides: on 30 floor photos the colors changed little (median 0.86 -> 0.62 degrees,
-    one more photo off by over 10), and a photo's floor and sky are what GrabCut separates well; a cluttered photo
+    Without a box the mask alone decides: on floor photos the colors changed little, and a photo's floor and sky are what GrabCut separates well; a cluttered photo
     without a box or strokes is refused before the search (segment.object_mask: GrabCut from the frame's middle cuts
     out whatever stands there). The result's mask is the last segmentation, at the photo's size.
     """

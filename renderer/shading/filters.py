@@ -1,9 +1,8 @@
 """Compiled 3-D filters for the shader's geometry stage, giving what scipy.ndimage gives (tested against it), and
 numpy's argwhere of a volume.
 
-Written here because scipy's filters run on one thread and copy every line into a buffer: on a 256^3 grid's
-crop of a chair (96 x 117 x 95 voxels) its gaussian blur took 9.6 ms and its 5^3 minimum filter 8.8 ms, where
-these passes run over both cores with the innermost loop along contiguous memory. Each blur pass rounds to
+Written here because scipy's filters run on one thread and copy every line into a buffer, where
+these passes run over both cores with the innermost loop along contiguous memory (docs/results.md, "Measurements behind the code"). Each blur pass rounds to
 float32 and adds in scipy's order, so the results are scipy's to the last bit.
 """
 

@@ -62,15 +62,15 @@ from renderer.shading import filters, kernels
 from renderer.splat import cached_floor_mask
 from renderer.transform import merged_voxel_to_object, object_to_world
 
+# Each value below was chosen by measuring the shader and the shipped NVR+ against the path tracer on the test sets;
+# the figures are in docs/results.md, "Design choices, measured" (DC below) and "Measurements behind the code" (MC).
 THIN_LEVEL = 0.35  # voxels above a thin part's core where its surface is drawn (if more than SURFACE_LEVEL)
 SURFACE_LEVEL = 0.8  # voxels from the nearest occupied voxel centre to the drawn surface (the hull is fatter than the mesh)
 DISTANCE_SIGMA = 1.0  # voxels: blur of the distance field the surface is drawn from (smooth, not beaded)
-NORMAL_SIGMA = 1.5  # voxels: blur of the distance field the normals come from (no staircases)
+NORMAL_SIGMA = 1.5  # voxels: blur of the distance field the normals come from (no staircases; wider blurs err more: DC)
 # Normals are averaged over a disc of the surface's tangent plane: a face a few degrees off a voxel axis is a staircase
 # of long treads that the blur above cannot flatten (bands of light across a leaning chair back). Samples whose
-# normal is more than about 45 degrees from the point's own are left out, so edges between faces stay sharp. On
-# every third test image the shader's MSE fell from 28.3 / 20.3 / 40.1 to 27.0 / 20.0 / 39.4 (single / default /
-# textured; radius 12 or 16, 2 or 3 rings and a cut-off of 45-60 degrees did alike; docs/results.md, "Design choices").
+# normal is more than about 45 degrees from the point's own are left out, so edges between faces stay sharp (DC).
 NORMAL_DISC = 16.0  # voxels: the disc's radius
 NORMAL_RINGS = 2  # rings of 8 samples on it
 NORMAL_AGREE = 0.7  # a sample counts by how far the cosine to the point's normal exceeds this
@@ -78,28 +78,21 @@ BROAD_SIGMA = 2.5  # voxels: occupancy blur for ambient occlusion
 BROAD_SCALE = 0.5  # the broad occupancy is stored at half resolution
 BLUR_TRUNCATE = 2.5  # gaussian kernels reach this many sigmas
 CROP_MARGIN = 6  # voxels around the object's box (blur and occlusion reach)
-# Per side of the light square: shadow maps and the direct-light sum. 3 x 3 instead of 4 x 4 took a quarter off the
-# light stage (the maps are most of it) and moved the shipped NVR+'s MSE by 0.01-0.25 on the test sets and the novel
-# shapes (docs/results.md, "Design choices").
+# Per side of the light square: shadow maps and the direct-light sum. 3 x 3 instead of 4 x 4 takes a quarter off the
+# light stage at a negligible cost in error (DC).
 LIGHT_POINTS = 3
 SHADOW_MAP_SIZE = 96  # texels per side
 # Radius of the sphere around each occluder that the shadow maps draw, in sides of the block it stands for. The hull
-# is fatter than the mesh, and a thin part's band of voxels most of all: 0.75 (the drawn surface's distance) cast
-# lattices' floor shadows twice too dark; 0.2 gave a lower shader MSE than 0.75 or 0.4 on every test setting and the
-# novel set (0 lower still on the novel set, but one test object's MSE rose from 15 to 18).
+# is fatter than the mesh, and a thin part's band of voxels most of all: the drawn surface's distance cast lattices'
+# floor shadows too dark; 0.2 erred least of the radii tried (MC).
 OCCLUDER_RADIUS = 0.2
 # Each occluder stands for the occupied voxels of a block, at their mean centre, the blocks about 1 / OCCLUDER_CELLS of
 # the object box on a side (2^3 of the product's 200^3 voxels; an object voxelised at 100^3 or merged in pairs casts
-# from its own voxels), and covers its block's square in the maps. The 200^3 voxels themselves, four times the
-# occluders, cast no better shadows for the NVR+, whose data's shadows 100^3 voxels cast: on every third image it
-# erred 12.07 / 8.44 / 21.12 -> 12.01 / 8.46 / 21.09 on the single / default / textured test sets and 24.04 / 24.90 ->
-# 23.31 / 24.42 on the novel shapes with these blocks; the shade stage took 7.1 ms instead of 9.2 (docs/results.md).
+# from its own voxels), and covers its block's square in the maps. A quarter of the occluders casts shadows as good
+# for the NVR+, whose data's shadows 100^3 voxels cast, and the light stage is quicker (DC).
 OCCLUDER_CELLS = 100
 # The shadow maps' offsets and biases below are in sides of an occluder's block (OCCLUDER_CELLS), to which the maps
-# know an occluder's place. In sides of the 200^3 voxels, half as far, the NVR+ erred 1-4 % more on every third image
-# (single / default / textured test chairs 12.01 / 8.46 / 21.09 against 11.57 / 8.39 / 20.67, novel single-colored
-# shapes 23.31 against 22.57), and the voxel shader up to 2 % more; 1.5 times as far as here, within 0.06 of here on
-# the test chairs.
+# know an occluder's place; half as far erred more, further changed nothing (DC).
 SHADOW_NORMAL_OFFSET = 1.0  # how far along the normal an object point is moved before the shadow maps are read
 SHADOW_GRAZING_OFFSET = 1.5  # how much further, times the sine of the angle between the normal and the light
 SHADOW_BIAS = 0.5  # how much nearer the light an occluder must be than the moved point to shadow it
@@ -113,14 +106,13 @@ BLOCKED_SKY_LIGHT = 0.35  # share of the ambient light a blocked sky direction s
 FLOOR_BOUNCE = 1.0  # weight of the light the floor sends back up onto the object (0: none)
 FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object point gets (its shadow falls there)
 # A pixel shows the texture averaged over its footprint: a point takes the colors of the voxels around it, weighted
-# by a Gaussian centred on the point of COLOR_SPREAD pixel sides at its depth, not its voxel's color alone. On every
-# third textured test image the NVR+ scored MSE 23.8 instead of 25.1 (0.3: 24.7, 0.5: 23.9, 0.75: 23.9, 0.9: 24.1).
-# At least COLOR_LEAST voxel sides, so that a close-up's colors blend between voxels instead of showing them as blocks
-# (centred on the nearest voxel instead, the textured test chairs 20.25 instead of 19.73: docs/results.md).
+# by a Gaussian centred on the point of COLOR_SPREAD pixel sides at its depth, not its voxel's color alone (the spread
+# that erred least, DC). At least COLOR_LEAST voxel sides, so that a close-up's colors blend between voxels instead of
+# showing them as blocks.
 COLOR_SPREAD = 0.6
 COLOR_LEAST = 0.5
-# Rays per side at silhouette pixels: 3 gave the same error on the test split (MSE within 0.2) with the surface stage
-# taking 1.3x as long; 1 made the NVR+ err 1.6 more on single-colored chairs (docs/results.md).
+# Rays per side at silhouette pixels: 3 errs as 2 and traces longer; 1 makes the NVR+ err more on single-colored
+# chairs (MC).
 SUBPIXELS = 2
 # A ray covers its pixel by how deep it goes into the part it meets: not at all when it only touches
 # SURFACE_LEVEL, fully when within COVERAGE_PROBE voxels past the surface it gets COVERAGE_FULL of the
@@ -137,13 +129,8 @@ SPECK_PIXELS = 40
 # The floor's glossy coat mirrors the object, in the shader's own image: the object mirrored in the floor is traced
 # where the floor shows, at 1/REFLECTION_SUBSAMPLING of the image's side, lit like the object, blurred by REFLECTION_BLUR
 # of its pixels (the coat's roughness), and replaces the sky the coat mirrored there by the coat's Fresnel reflectance
-# times REFLECTION_SCALE. On every third test image the shader's MSE / DSSIM went from 18.77 / 0.00835, 25.53 / 0.00898
-# and 36.51 / 0.01433 (default / single / textured) to 17.44 / 0.00786, 25.23 / 0.00879 and 35.63 / 0.01367; unblurred
-# at a scale of 0.69 (floor_light's share of the sky the coat reflects) the DSSIM rose on the single-colored and
-# textured chairs (0.00929, 0.01457); scale 0.4 (blur 1), 0.6 (blur 1.5) and blurs of 1.5 or 2 (scale 0.5) did alike
-# or worse. Unblurred, the reflection traced at half the image's side, or with the object's own subpixels, normals'
-# disc and colors, came within 0.1 in MSE of the quarter side. A network's input leaves it out: given it, the shipped
-# NVR+, which learned a reflection from its data, erred 0.0-1.0 more.
+# times REFLECTION_SCALE. These values erred least of those tried; a finer trace did no better. A network's input
+# leaves it out: the shipped NVR+ learned a reflection from its data and errs more when given it (DC).
 REFLECTION_SUBSAMPLING = 4
 REFLECTION_BLUR = 1.0
 REFLECTION_SCALE = 0.5
@@ -362,7 +349,7 @@ def _block_centroids(found: np.ndarray, blocks: np.ndarray) -> np.ndarray:
 
 def _box(points: np.ndarray) -> np.ndarray:
     """(2, 3): the least and greatest coordinates of `points` (zeros if there are none); column by column, which
-    for a chair's 71,000 points took 0.4 ms against 2.8 reducing the (N, 3) array along its first axis."""
+    is several times quicker than reducing the (N, 3) array along its first axis."""
     if not len(points):
         return np.zeros((2, 3))
     columns = [points[:, axis] for axis in range(3)]
@@ -604,7 +591,7 @@ def _close_specks(cover: np.ndarray, size: int) -> np.ndarray:
 
 def _differs_from_a_neighbour(mask: np.ndarray) -> np.ndarray:
     """Where `mask` (2D bool) differs from one of its 4 neighbours, outside the array counting as False: the pixels
-    on either side of its edge (scipy's erosion and dilation took 0.49 ms on a 160 x 120 window, the slices 0.03)."""
+    on either side of its edge (slices, far quicker than scipy's erosion and dilation)."""
     padded = np.pad(mask, 1)
     return ((mask != padded[:-2, 1:-1]) | (mask != padded[2:, 1:-1]) | (mask != padded[1:-1, :-2])
             | (mask != padded[1:-1, 2:]))
