@@ -296,10 +296,10 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         f"`python -m benchmarks.bench_capture --photos {args.photos} --size {args.size} --spp {args.spp}` "
         f"on {datetime.date.today()}, {machine_description()['cpu']}; {note}.",
         "",
-        f"Photos, path traced at {args.size}^2 with {args.spp} spp + OIDN from random views (rotation in "
-        "[-180, 180), elevation, floor position and scale over the training ranges, a random light): test-split "
-        "chairs and sofas (default and textured appearance) and, every third photo, a shape unlike the furniture "
-        "(a cup with a handle, a four-legged animal).",
+        f"Photos are path traced at {args.size}^2 with {args.spp} spp + OIDN from random views and a random light. "
+        "Rotation spans [-180, 180); elevation, floor position and scale span the training ranges. "
+        "They show test-split chairs and sofas (default and textured appearance) and, every third photo, a shape "
+        "unlike the furniture (a cup with a handle, a four-legged animal).",
         "",
         "- `floor`: the project's scene, the object on a floor under the grey sky, no alpha: GrabCut separates it "
         "from floor, sky, the light's spot and the shadow, then again from the found pose's silhouette.",
@@ -309,10 +309,11 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         "free. Without a box the capture refuses a photo whose border is cluttered and asks for a box (edges on "
         f"more than {100 * MAX_BUSY_SHARE:.0f} % of a band along the border; a floor under a sky has few). "
         "`real + box`: the same photos with a box as a user drags it in the Photo tab or gives with "
-        "`nvr capture --box` (the object's bounds grown by 2-8 % of the side on each edge); with a box each "
-        "search on the mask is followed by a refinement on the colors the silhouette separates around the box, and a "
-        "search on those colors alone, placed by the box, replaces the pose where it separates them better; last, elevation, "
-        "position and scale are refined on the colors and the overlap with the last mask together, the rotation kept.",
+        "`nvr capture --box` (the object's bounds grown by 2-8 % of the side on each edge). "
+        "With a box, each search on the mask is followed by a refinement on the colors the silhouette separates "
+        "around the box. A search on those colors alone, placed by the box, replaces the pose where it separates them "
+        "better. Last, elevation, position and scale are refined on the colors and the last mask together, the "
+        "rotation kept.",
         "- `studio` (no floor, plain backdrop, no alpha) and `cutout` (the floor scene with an alpha channel): a "
         "quarter as many, to check that plain photos keep their accuracy.",
         "",

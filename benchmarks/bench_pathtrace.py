@@ -188,7 +188,7 @@ def write_doc(path: Path, rows: list[Row], setup_lines: list[str], ref_noise: di
     budget_dssim = NOISE_BUDGET * PAPER_BEST["dssim"]
     within = chosen.mse <= budget_mse and chosen.dssim <= budget_dssim
     verdict = ("the cheapest setting within that budget is chosen" if within else
-               "no setting meets that budget, so the most accurate one is chosen")
+               "the most accurate setting is chosen, since none meets that budget")
     text = f"""# Path-traced training targets: samples per pixel and denoising
 
 Written by `benchmarks/bench_pathtrace.py` on {datetime.date.today().isoformat()} (run time {minutes:.1f} min).
@@ -203,9 +203,9 @@ Why: target noise is an error floor no network can beat. A network that rendered
 converged image perfectly would still score the targets' own error, and noisy targets make
 the training loss noisier. The best model of the paper (NVR+, table 1) scores MSE
 {PAPER_BEST["mse"]} and DSSIM {PAPER_BEST["dssim"]}; the targets may carry at most {NOISE_BUDGET:.0%} of
-that (MSE <= {budget_mse:.2f} and DSSIM <= {budget_dssim:.5f}, measured against the reference,
-whose own noise counts against the budget too), and {verdict}: the data set needs tens of
-thousands of images (40 000 at {chosen.seconds:.2f} s are {40000 * chosen.seconds / 3600:.0f} hours on this machine).
+that: MSE <= {budget_mse:.2f} and DSSIM <= {budget_dssim:.5f}, measured against the reference, whose own noise
+counts against the budget too. Then {verdict}: the data set needs tens of thousands of images (40 000 at
+{chosen.seconds:.2f} s are {40000 * chosen.seconds / 3600:.0f} hours on this machine).
 
 At {TRAINING_SIZE}^2, for comparison: raw 64 spp MSE {raw[64].mse:.2f} / DSSIM {raw[64].dssim:.5f} in
 {raw[64].seconds:.2f} s; raw 256 spp MSE {raw[256].mse:.2f} / DSSIM {raw[256].dssim:.5f} in {raw[256].seconds:.2f} s;
