@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+from app.options import add_options, config_from
 from models.renderers import EVALUATED, RENDERERS
 from renderer.errors import InputError
 from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
@@ -79,6 +80,29 @@ def cmd_render(args: argparse.Namespace) -> None:
     print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{corrected}, {elapsed:.2f} s)")
 
 
+def add_render_parser(sub: argparse._SubParsersAction) -> None:
+
+    p = sub.add_parser("render", help="render a scene file to a PNG")
+    p.add_argument("scene", help="scene file (JSON, version 1)")
+    p.add_argument("-o", "--output", required=True, help="PNG to write")
+    p.add_argument("--renderer", choices=list(RENDERERS), default="nvr+",
+                   help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (any size: the "
+                        "correction computed at 256 px); "
+                        "shaded: the voxels lit physically (soft shadows, lit floor; any size); splat: voxel colors; "
+                        "pathtrace: the mesh in Mitsuba 3; nvr: the paper's network without the splat (256 px)")
+    p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
+    p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
+    p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")
+    p.add_argument("--denoise", action="store_true", help="path tracing: Intel Open Image Denoise")
+    p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
+    p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
+                   help="network arithmetic (auto: bf16 on CPUs with native bfloat16, else fp32)")
+    p.add_argument("--device", default="auto", help="network device: auto (a CUDA GPU if there is one), cpu or cuda")
+    _add_quality_argument(p)
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.set_defaults(func=cmd_render)
+
+
 # --- nvr voxelize / info ------------------------------------------------------------------
 
 
@@ -93,6 +117,16 @@ def cmd_voxelize(args: argparse.Namespace) -> None:
     save_voxels(out, rgba)
     occupied = int((rgba[..., 3] > 0.5).sum())
     print(f"wrote {out} ({args.res}^3 voxels, {occupied} occupied, from {len(mesh.faces)} faces)")
+
+
+def add_voxelize_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("voxelize", help="voxelise a mesh into an RGBA grid (.npz)")
+    p.add_argument("mesh", help="OBJ, PLY, STL, OFF, GLB or GLTF file")
+    p.add_argument("-o", "--output", required=True, help=".npz to write (key 'rgba', N^3 x 4)")
+    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"voxels per side (default {DEFAULT_RESOLUTION})")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.set_defaults(func=cmd_voxelize)
 
 
 def cmd_capture(args: argparse.Namespace) -> None:
@@ -134,6 +168,26 @@ def cmd_capture(args: argparse.Namespace) -> None:
     print(f"colors: {seen} of {occupied} voxels seen in the photo; mirror copy {mirror} "
           f"(symmetry IoU {captured.mirror_score:.2f}); {captured.light_note}")
     print(f"wrote {scene_out}, {voxels_out}, {camera_out}")
+
+
+def add_capture_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("capture", help="capture an object's appearance from a photo into a scene")
+    p.add_argument("mesh", help="the object's mesh (OBJ, PLY, STL, OFF, GLB or GLTF)")
+    p.add_argument("photo", help="a photo of the object (PNG or JPEG; alpha marks the object if present)")
+    p.add_argument("--camera", default=None, help="the photo's camera file (JSON); without --auto it is used as is")
+    p.add_argument("--auto", action="store_true",
+                   help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
+    p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
+    p.add_argument("--light", default=None, metavar="X,Y,Z",
+                   help="the light's centre when the photo was taken (world units; default: the camera file's "
+                        "light, if any): its light is then divided out of the colors")
+    p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
+                   help="the object's box in photo pixels: outside it is background (needed on cluttered photos)")
+    p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
+    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"object voxels per side (default {DEFAULT_RESOLUTION})")
+    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")
+    p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
+    p.set_defaults(func=cmd_capture)
 
 
 def _parse_numbers(text: str, count: int, option: str, form: str) -> tuple[float, ...]:
@@ -185,6 +239,13 @@ def cmd_info(args: argparse.Namespace) -> None:
         print(f"  - {message}")
 
 
+def add_info_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("info", help="what a scene holds, its voxel counts, values outside the training range")
+    p.add_argument("scene")
+    p.set_defaults(func=cmd_info)
+
+
+
 # --- nvr import-vox / export-vox ---------------------------------------------------------
 
 
@@ -203,6 +264,15 @@ def cmd_import_vox(args: argparse.Namespace) -> None:
     print(f"wrote {scene_out} and {voxels_out} ({n}^3 voxels, {int((rgba[..., 3] > 0.5).sum())} occupied)")
 
 
+def add_import_vox_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("import-vox", help="a MagicaVoxel .vox model as a scene (its colored voxels are the object)")
+    p.add_argument("model_file", metavar="MODEL.vox")
+    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_voxels.npz goes beside it")
+    p.add_argument("--model", type=int, default=None, help="which model of a multi-model file, from 0 (default: the largest)")
+    p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
+    p.set_defaults(func=cmd_import_vox)
+
+
 def cmd_export_vox(args: argparse.Namespace) -> None:
     from renderer.pipeline import object_voxels, painted_voxels
     from renderer.scene import load_scene
@@ -215,6 +285,14 @@ def cmd_export_vox(args: argparse.Namespace) -> None:
     print(f"wrote {out} ({rgba.shape[0]}^3 voxels, {int((rgba[..., 3] > 0.5).sum())} occupied, {colors} palette colors)")
 
 
+def add_export_vox_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("export-vox", help="a scene's painted object voxels as a MagicaVoxel .vox model")
+    p.add_argument("scene")
+    p.add_argument("-o", "--output", required=True, help=".vox file to write (at most 255 colors)")
+    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
+    p.set_defaults(func=cmd_export_vox)
+
+
 # --- nvr turntable -----------------------------------------------------------------------
 
 
@@ -222,8 +300,7 @@ def cmd_turntable(args: argparse.Namespace) -> None:
     from app.turntable import TurntableConfig, render_turntable, write_frames
     from renderer.scene import load_scene
 
-    config = TurntableConfig(frames=args.frames, sweep=args.sweep, renderer=args.renderer, size=args.size,
-                             spp=args.spp, model=args.model)
+    config = config_from(TurntableConfig, args)
     config.check()
     out = Path(args.output)
     if out.suffix.lower() == ".gif":
@@ -240,28 +317,25 @@ def cmd_turntable(args: argparse.Namespace) -> None:
           f"{config.sweep} sweep, {name}; {timing})")
 
 
+def add_turntable_parser(sub: argparse._SubParsersAction) -> None:
+    from app.turntable import TurntableConfig
+
+    p = sub.add_parser("turntable", help="the object turning (or the light circling) as an animated GIF or PNG frames")
+    p.add_argument("scene")
+    p.add_argument("-o", "--output", required=True, help="OUT.gif, or a folder for frame_0000.png ...")
+    add_options(p, TurntableConfig)
+    p.add_argument("--force", action="store_true", help="replace an existing GIF or frames")
+    p.set_defaults(func=cmd_turntable)
+
+
 # --- nvr data ----------------------------------------------------------------------------
-
-
-# renderer.photo.HIDDEN_RULES, written out: importing renderer.photo here would slow every command;
-# DataConfig.check refuses a rule it does not know, so the two cannot drift silently.
-HIDDEN_VOXEL_RULES = ("blend", "ray")
-DELIGHT_SHADERS = ("path traced", "object voxels")  # renderer.dataset.MADE_DELIGHT_SHADERS, written out as above
-DELIGHT_HELP = ("how the source photo's light is divided out: two path-traced renders of the mesh (default), or the "
-                "voxel shader's light (the shipped models' training sets)")
 
 
 def cmd_data_generate(args: argparse.Namespace) -> None:
     from renderer.dataset import DataConfig, generate_dataset, parse_shard
 
-    config = DataConfig(
-        setting=args.setting, split=args.split, objects=args.objects, views=args.views, size=args.size,
-        spp=args.spp, denoise=not args.no_denoise, seed=args.seed,
-        categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()), resolution=args.res,
-        delight=not args.no_delight, hidden_rule=args.hidden_voxels, delight_shader=args.delight_shader,
-        photo_size=args.photo_size,
-    )
-    manifest = generate_dataset(args.out, config, shard=parse_shard(args.shard), workers=args.workers)
+    manifest = generate_dataset(args.out, config_from(DataConfig, args), shard=parse_shard(args.shard),
+                                workers=args.workers)
     print(f"wrote {manifest}")
 
 
@@ -280,6 +354,39 @@ def cmd_data_merge(args: argparse.Namespace) -> None:
     print(f"wrote {merge_datasets(args.out, args.parts)}")
 
 
+def add_data_parser(sub: argparse._SubParsersAction) -> None:
+    from renderer.dataset_config import HIDDEN_RULES, MADE_DELIGHT_SHADERS, DataConfig
+
+    data = sub.add_parser("data", help="make training and test sets").add_subparsers(dest="data_command", required=True)
+    p = data.add_parser("generate", help="render objects and views after the paper's protocol")
+    p.add_argument("--out", required=True, help="data folder (created; rerun to resume)")
+    add_options(p, DataConfig)
+    p.add_argument("--shard", default=None, help="I/N: make only part I of N (merge the parts afterwards)")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.set_defaults(func=cmd_data_generate)
+    p = data.add_parser("merge", help="merge shard folders into one data set")
+    p.add_argument("--out", required=True)
+    p.add_argument("parts", nargs="+", help="shard folders")
+    p.set_defaults(func=cmd_data_merge)
+    p = data.add_parser("recolor", help="copy a data set whose photo colors other rules made (light kept, or the "
+                                        "other rule for hidden voxels), recoloring its voxels with the light divided "
+                                        "out and the --hidden-voxels rule; --res: at another voxel resolution")
+    p.add_argument("data", help="the data folder to copy (left unchanged)")
+    p.add_argument("--out", required=True, help="new data folder (rerun to resume); targets are hard links")
+    p.add_argument("--workers", type=int, default=1, help="parallel processes")
+    p.add_argument("--hidden-voxels", choices=HIDDEN_RULES, default=HIDDEN_RULES[0],
+                   help="the rule for voxels the source photo does not show (as for generate)")
+    p.add_argument("--delight-shader", choices=MADE_DELIGHT_SHADERS, default=MADE_DELIGHT_SHADERS[0],
+                   help="how the source photo's light is divided out (as for generate)")
+    p.add_argument("--res", type=int, default=None,
+                   help="voxelise every object anew at this many voxels per side (its mesh remade from its record; "
+                        "its targets kept); default: keep the set's voxels")
+    p.add_argument("--photo-size", type=int, default=None,
+                   help="path trace every source photo again at this side in pixels (0: the images' size); "
+                        "default: keep the set's photos")
+    p.set_defaults(func=cmd_data_recolor)
+
+
 # --- nvr train / eval ----------------------------------------------------------------------
 
 
@@ -292,16 +399,25 @@ def cmd_train(args: argparse.Namespace) -> None:
     from models.training.train import TrainConfig, train
 
     precision = resolve_precision(args.precision, torch.device("cuda" if args.device.startswith("cuda") else "cpu"))
-    config = TrainConfig(
-        data=tuple(args.data), architecture=RENDERERS[args.model].architecture, config=args.config,
-        steps=args.steps, batch=args.batch, lr=args.lr, lr_decay_steps=args.lr_decay_steps,
-        lr_final_fraction=args.lr_final_fraction, seed=args.seed, device=args.device, precision=precision,
-        threads=args.threads, loader_workers=args.loader_workers, checkpoint_minutes=args.checkpoint_minutes,
-        perceptual_weights=args.vgg_weights, perceptual_crop=args.perceptual_crop, mse_weight=args.mse_weight,
-        color_permutation=args.color_permutation, freeze_voxel_branch=args.freeze_voxel_branch,
-        config_overrides=tuple(_parse_overrides(args.set)), init=args.init,
-    )
+    config = config_from(TrainConfig, args, architecture=RENDERERS[args.model].architecture, precision=precision,
+                         config_overrides=tuple(_parse_overrides(args.set)))
     print(f"wrote {train(args.out, config, resume=args.resume)}")
+
+
+def add_train_parser(sub: argparse._SubParsersAction) -> None:
+    from models.training.config import TrainConfig
+
+    p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")
+    p.add_argument("--out", required=True, help="run folder")
+    p.add_argument("--model", choices=[n for n, e in RENDERERS.items() if e.architecture], default="nvr+")
+    add_options(p, TrainConfig)
+    p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
+                   help="the forward pass in bf16 autocast, weights and Adam in fp32 (auto: bf16 on CPUs with native "
+                        "bfloat16, else fp32)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a network config field, e.g. --set grid_size=64 (repeatable)")
+    p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
+    p.set_defaults(func=cmd_train)
 
 
 def cmd_distill(args: argparse.Namespace) -> None:
@@ -309,14 +425,20 @@ def cmd_distill(args: argparse.Namespace) -> None:
     from models.training.distill import DistillConfig, distill
 
     out = _output_path(args.out, args.force)
-    config = DistillConfig(
-        teacher=args.model, post_light_blocks=args.post_light_blocks,
-        objects=args.objects, views=args.views, steps=args.steps, batch=args.batch, lr=args.lr, seed=args.seed,
-        resolution=args.res, categories=tuple(c.strip() for c in args.categories.split(",") if c.strip()),
-        train_merge=args.train_merge)
-    measured = distill(out, config)
+    measured = distill(out, config_from(DistillConfig, args))
     print(f"wrote {out}: the teacher's decoder features on {measured['held_out_latents']} held-out latents with "
           f"relative error {measured['relative_error']:.4f} (cut, before training: {measured['relative_error_start']:.4f})")
+
+
+def add_distill_parser(sub: argparse._SubParsersAction) -> None:
+    from models.training.config import DistillConfig
+
+    p = sub.add_parser("distill", help="an NVR+ with fewer residual blocks after the light merge (a faster light "
+                                       "edit), trained to give a trained one's features; no rendered data needed")
+    add_options(p, DistillConfig)
+    p.add_argument("--out", required=True, help="weights file to write")
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    p.set_defaults(func=cmd_distill)
 
 
 def _parse_overrides(items: list[str]) -> list[tuple[str, object]]:
@@ -351,6 +473,23 @@ def cmd_eval(args: argparse.Namespace) -> None:
     written = evaluate(args.data, args.model, args.renderer, out, limit=args.limit, shading_grid=args.shading_grid,
                        shader_quality=args.quality)
     print(f"wrote {written}")
+
+
+def add_eval_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("eval", help="table 1 metrics of a model (or the splat baseline) on a test split")
+    p.add_argument("--data", required=True, nargs="+", help="test data folders")
+    p.add_argument("--model", default=None, help="weights (.safetensors); default: the shipped model")
+    p.add_argument("--renderer", choices=list(EVALUATED), default="nvr+")
+    p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
+    p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
+    p.add_argument("--shading-grid", type=int, default=256, metavar="N",
+                   help="the grid the shaded renderer stands in for: 256 (the object's voxels unmerged, the editor's) "
+                        "or 128 (the network's: merged in pairs, faster)")
+    _add_quality_argument(p)
+    p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
+                   help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
+    p.add_argument("--force", action="store_true", help="overwrite the report if it exists")
+    p.set_defaults(func=cmd_eval)
 
 
 def _add_quality_argument(p: argparse.ArgumentParser) -> None:
@@ -396,205 +535,7 @@ def cmd_bench(args: argparse.Namespace) -> None:
           f"path tracing 1 spp + OIDN {results['pathtrace_1spp_oidn_ms']:.1f} ms")
 
 
-# --- parser ---------------------------------------------------------------------------------
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = OneLineParser(prog="nvr", description="NVR Studio: neural voxel rendering tools.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    p = sub.add_parser("render", help="render a scene file to a PNG")
-    p.add_argument("scene", help="scene file (JSON, version 1)")
-    p.add_argument("-o", "--output", required=True, help="PNG to write")
-    p.add_argument("--renderer", choices=list(RENDERERS), default="nvr+",
-                   help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (any size: the "
-                        "correction computed at 256 px); "
-                        "shaded: the voxels lit physically (soft shadows, lit floor; any size); splat: voxel colors; "
-                        "pathtrace: the mesh in Mitsuba 3; nvr: the paper's network without the splat (256 px)")
-    p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
-    p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
-    p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")
-    p.add_argument("--denoise", action="store_true", help="path tracing: Intel Open Image Denoise")
-    p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
-    p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
-                   help="network arithmetic (auto: bf16 on CPUs with native bfloat16, else fp32)")
-    p.add_argument("--device", default="auto", help="network device: auto (a CUDA GPU if there is one), cpu or cuda")
-    _add_quality_argument(p)
-    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
-    p.set_defaults(func=cmd_render)
-
-    p = sub.add_parser("voxelize", help="voxelise a mesh into an RGBA grid (.npz)")
-    p.add_argument("mesh", help="OBJ, PLY, STL, OFF, GLB or GLTF file")
-    p.add_argument("-o", "--output", required=True, help=".npz to write (key 'rgba', N^3 x 4)")
-    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"voxels per side (default {DEFAULT_RESOLUTION})")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
-    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
-    p.set_defaults(func=cmd_voxelize)
-
-    p = sub.add_parser("capture", help="capture an object's appearance from a photo into a scene")
-    p.add_argument("mesh", help="the object's mesh (OBJ, PLY, STL, OFF, GLB or GLTF)")
-    p.add_argument("photo", help="a photo of the object (PNG or JPEG; alpha marks the object if present)")
-    p.add_argument("--camera", default=None, help="the photo's camera file (JSON); without --auto it is used as is")
-    p.add_argument("--auto", action="store_true",
-                   help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
-    p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
-    p.add_argument("--light", default=None, metavar="X,Y,Z",
-                   help="the light's centre when the photo was taken (world units; default: the camera file's "
-                        "light, if any): its light is then divided out of the colors")
-    p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
-                   help="the object's box in photo pixels: outside it is background (needed on cluttered photos)")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")
-    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"object voxels per side (default {DEFAULT_RESOLUTION})")
-    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_colors.npz and NAME_camera.json go beside it")
-    p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
-    p.set_defaults(func=cmd_capture)
-
-    p = sub.add_parser("import-vox", help="a MagicaVoxel .vox model as a scene (its colored voxels are the object)")
-    p.add_argument("model_file", metavar="MODEL.vox")
-    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_voxels.npz goes beside it")
-    p.add_argument("--model", type=int, default=None, help="which model of a multi-model file, from 0 (default: the largest)")
-    p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
-    p.set_defaults(func=cmd_import_vox)
-
-    p = sub.add_parser("export-vox", help="a scene's painted object voxels as a MagicaVoxel .vox model")
-    p.add_argument("scene")
-    p.add_argument("-o", "--output", required=True, help=".vox file to write (at most 255 colors)")
-    p.add_argument("--force", action="store_true", help="overwrite the output file if it exists")
-    p.set_defaults(func=cmd_export_vox)
-
-    p = sub.add_parser("turntable", help="the object turning (or the light circling) as an animated GIF or PNG frames")
-    p.add_argument("scene")
-    p.add_argument("-o", "--output", required=True, help="OUT.gif, or a folder for frame_0000.png ...")
-    p.add_argument("--frames", type=int, default=36, help="frames in one full turn (default 36)")
-    p.add_argument("--sweep", choices=["rotation", "light"], default="rotation",
-                   help="rotation: the object turns; light: the light circles at its height")
-    p.add_argument("--renderer", choices=list(RENDERERS), default="shaded")
-    p.add_argument("--size", type=int, default=None,
-                   help="image side in pixels (default: the scene's; nvr, which draws the image itself: 256)")
-    p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel (denoised)")
-    p.add_argument("--model", default=None, help="network weights (.safetensors); default: the shipped model")
-    p.add_argument("--force", action="store_true", help="replace an existing GIF or frames")
-    p.set_defaults(func=cmd_turntable)
-
-    data = sub.add_parser("data", help="make training and test sets").add_subparsers(dest="data_command", required=True)
-    p = data.add_parser("generate", help="render objects and views after the paper's protocol")
-    p.add_argument("--out", required=True, help="data folder (created; rerun to resume)")
-    p.add_argument("--objects", type=int, required=True, help="number of objects")
-    p.add_argument("--views", type=int, default=20, help="views per object (test: frames per sequence)")
-    p.add_argument("--setting", choices=["single", "default", "textured"], default="single")
-    p.add_argument("--split", choices=["train", "test"], default="train")
-    p.add_argument("--size", type=int, default=256, help="image side in pixels")
-    p.add_argument("--photo-size", type=int, default=0,
-                   help="side in pixels of the source photo that colors the voxels (default 0: --size)")
-    p.add_argument("--spp", type=int, default=16, help="path tracing samples per pixel")
-    p.add_argument("--no-denoise", action="store_true", help="keep the raw path-traced targets")
-    p.add_argument("--no-delight", action="store_true",
-                   help="photo-colored voxels keep the source photo's light (the paper's inputs)")
-    p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
-                   help="voxels the source photo does not show: a blend of the colors seen around them, or the "
-                        "paper's first voxel on the camera ray")
-    p.add_argument("--delight-shader", choices=DELIGHT_SHADERS, default=DELIGHT_SHADERS[0], help=DELIGHT_HELP)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--categories", default="chair",
-                   help="comma-separated object categories: chair, table, sofa, stool, solids (random assemblies, "
-                        "for training), novel (the generalisation shapes, for testing)")
-    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help=f"object voxels per side (default {DEFAULT_RESOLUTION})")
-    p.add_argument("--shard", default=None, help="I/N: make only part I of N (merge the parts afterwards)")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes")
-    p.set_defaults(func=cmd_data_generate)
-    p = data.add_parser("merge", help="merge shard folders into one data set")
-    p.add_argument("--out", required=True)
-    p.add_argument("parts", nargs="+", help="shard folders")
-    p.set_defaults(func=cmd_data_merge)
-    p = data.add_parser("recolor", help="copy a data set whose photo colors other rules made (light kept, or the "
-                                        "other rule for hidden voxels), recoloring its voxels with the light divided "
-                                        "out and the --hidden-voxels rule; --res: at another voxel resolution")
-    p.add_argument("data", help="the data folder to copy (left unchanged)")
-    p.add_argument("--out", required=True, help="new data folder (rerun to resume); targets are hard links")
-    p.add_argument("--workers", type=int, default=1, help="parallel processes")
-    p.add_argument("--hidden-voxels", choices=HIDDEN_VOXEL_RULES, default=HIDDEN_VOXEL_RULES[0],
-                   help="the rule for voxels the source photo does not show (as for generate)")
-    p.add_argument("--delight-shader", choices=DELIGHT_SHADERS, default=DELIGHT_SHADERS[0], help=DELIGHT_HELP)
-    p.add_argument("--res", type=int, default=None,
-                   help="voxelise every object anew at this many voxels per side (its mesh remade from its record; "
-                        "its targets kept); default: keep the set's voxels")
-    p.add_argument("--photo-size", type=int, default=None,
-                   help="path trace every source photo again at this side in pixels (0: the images' size); "
-                        "default: keep the set's photos")
-    p.set_defaults(func=cmd_data_recolor)
-
-    p = sub.add_parser("train", help="train NVR or NVR+ on data folders (resumable; torchrun for DDP)")
-    p.add_argument("--data", required=True, nargs="+", help="data folders made by `nvr data generate`")
-    p.add_argument("--out", required=True, help="run folder")
-    p.add_argument("--model", choices=[n for n, e in RENDERERS.items() if e.architecture], default="nvr+")
-    p.add_argument("--config", choices=["compact", "paper", "shader_refiner", "half_res_refiner"], default="compact",
-                   help="network widths and inputs: compact (live on a CPU), paper (the published widths), "
-                        "shader_refiner (compact, correcting the voxel shader's image), half_res_refiner (the same, "
-                        "its correction computed at half the image's side)")
-    p.add_argument("--steps", type=int, default=10000)
-    p.add_argument("--batch", type=int, default=10, help="global batch size (paper: 10)")
-    p.add_argument("--lr", type=float, default=1e-4, help="Adam learning rate (paper: 1e-4)")
-    p.add_argument("--lr-decay-steps", type=int, default=0, metavar="N",
-                   help="over the last N steps the rate falls linearly to --lr-final-fraction of --lr (0: constant)")
-    p.add_argument("--lr-final-fraction", type=float, default=0.1, help="the rate on the last step, as a share of --lr")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--device", default="cpu", help="cpu or cuda")
-    p.add_argument("--precision", choices=["auto", "fp32", "bf16"], default="auto",
-                   help="the forward pass in bf16 autocast, weights and Adam in fp32 (auto: bf16 on CPUs with native "
-                        "bfloat16, else fp32)")
-    p.add_argument("--threads", type=int, default=0, help="CPU threads (0: torch's default)")
-    p.add_argument("--loader-workers", type=int, default=1,
-                   help="processes preparing the next batches while a step runs (0: between steps, in this process)")
-    p.add_argument("--checkpoint-minutes", type=float, default=5.0)
-    p.add_argument("--vgg-weights", default=None, help="torchvision VGG16 state dict for the perceptual loss")
-    p.add_argument("--perceptual-crop", type=int, default=128, help="side of the perceptual loss crop (0: whole image)")
-    p.add_argument("--mse-weight", type=float, default=0.0, metavar="GAMMA",
-                   help="add GAMMA x the mean squared error to the loss (0: the paper's L1 + perceptual)")
-    p.add_argument("--color-permutation", action="store_true",
-                   help="reorder each sample's RGB channels at random (light and sky are white: still a true render)")
-    p.add_argument("--freeze-voxel-branch", action="store_true",
-                   help="keep the voxel branch as it starts (from --init); a step then skips its backward pass")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a network config field, e.g. --set grid_size=64 (repeatable)")
-    p.add_argument("--resume", action="store_true", help="continue the run in --out from its checkpoint")
-    p.add_argument("--init", default=None, metavar="WEIGHTS",
-                   help="start a new run from these weights (new input channels start at zero)")
-    p.set_defaults(func=cmd_train)
-
-    p = sub.add_parser("distill", help="an NVR+ with fewer residual blocks after the light merge (a faster light "
-                                       "edit), trained to give a trained one's features; no rendered data needed")
-    p.add_argument("--model", required=True, help="the teacher's weights (.safetensors), e.g. "
-                                                  "assets/models/nvrplus_half_res_refiner.safetensors")
-    p.add_argument("--out", required=True, help="weights file to write")
-    p.add_argument("--post-light-blocks", type=int, default=1, help="the student's residual blocks after the merge")
-    p.add_argument("--objects", type=int, default=160, help="procedural training-split objects to take latents from")
-    p.add_argument("--views", type=int, default=10, help="random training views per object")
-    p.add_argument("--steps", type=int, default=1500)
-    p.add_argument("--batch", type=int, default=16)
-    p.add_argument("--lr", type=float, default=3e-4, help="Adam learning rate, falling to zero along a cosine")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--res", type=int, default=DEFAULT_RESOLUTION, help="voxel resolution of the objects")
-    p.add_argument("--categories", default="chair,table,sofa,stool", help="comma-separated object categories")
-    p.add_argument("--train-merge", action="store_true",
-                   help="the light code and the merge learn too (else they keep the teacher's weights)")
-    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
-    p.set_defaults(func=cmd_distill)
-
-    p = sub.add_parser("eval", help="table 1 metrics of a model (or the splat baseline) on a test split")
-    p.add_argument("--data", required=True, nargs="+", help="test data folders")
-    p.add_argument("--model", default=None, help="weights (.safetensors); default: the shipped model")
-    p.add_argument("--renderer", choices=list(EVALUATED), default="nvr+")
-    p.add_argument("--report", required=True, help="Markdown report to write (a figure is written beside it)")
-    p.add_argument("--limit", type=int, default=0, help="evaluate at most this many samples (0: all)")
-    p.add_argument("--shading-grid", type=int, default=256, metavar="N",
-                   help="the grid the shaded renderer stands in for: 256 (the object's voxels unmerged, the editor's) "
-                        "or 128 (the network's: merged in pairs, faster)")
-    _add_quality_argument(p)
-    p.add_argument("--resolution-study", default=None, metavar="100,75,50,25",
-                   help="instead: the metrics with object voxels downsampled to each resolution (paper table 2)")
-    p.add_argument("--force", action="store_true", help="overwrite the report if it exists")
-    p.set_defaults(func=cmd_eval)
-
+def add_bench_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="every renderer on the same scenes: time, memory and error, as a report")
     p.add_argument("--data", nargs="+", default=None, help="test data folders to take scenes from (default: procedural)")
     p.add_argument("--model", action="append", default=None, help="weights to include (repeatable; default: assets/models)")
@@ -607,9 +548,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--note", default="", help="a line for the report, e.g. what else ran on the machine")
     p.set_defaults(func=cmd_bench)
 
-    p = sub.add_parser("info", help="what a scene holds, its voxel counts, values outside the training range")
-    p.add_argument("scene")
-    p.set_defaults(func=cmd_info)
+
+# --- the command line ------------------------------------------------------------------------
+
+COMMANDS = (add_render_parser, add_voxelize_parser, add_capture_parser, add_import_vox_parser, add_export_vox_parser,
+            add_turntable_parser, add_data_parser, add_train_parser, add_distill_parser, add_eval_parser,
+            add_bench_parser, add_info_parser)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """`nvr` and its commands, each added by the add_<command>_parser beside the command."""
+    parser = OneLineParser(prog="nvr", description="NVR Studio: neural voxel rendering tools.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in COMMANDS:
+        add(sub)
     return parser
 
 

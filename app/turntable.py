@@ -10,18 +10,18 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-
-import numpy as np
-from PIL import Image
+from typing import TYPE_CHECKING
 
 from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer, render_at
-from renderer.color import to_uint8
 from renderer.errors import InputError
-from renderer.io import atomic_path, save_png
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
-from renderer.scene import LightSpec, Scene
+
+if TYPE_CHECKING:  # the command line reads TurntableConfig at start-up: the image and scene modules load when used
+    import numpy as np
+
+    from renderer.scene import Scene
 
 SWEEPS = ("rotation", "light")
 MAX_FRAMES = 3600
@@ -31,12 +31,17 @@ MIN_LIGHT_RADIUS = 1.0  # a light straight above the object circles at this dist
 
 @dataclass(frozen=True)
 class TurntableConfig:
-    frames: int = 36
-    sweep: str = "rotation"
-    renderer: str = "shaded"
-    size: int | None = None  # None: the scene's (a network that draws the image itself, like NVR: its own)
-    spp: int = 64  # path tracing only
-    model: str | None = None  # network weights; None: the shipped model
+    """What `nvr turntable` and the editor's Export turntable render; a field with help is a command-line option."""
+
+    frames: int = field(default=36, metadata={"help": "frames in one full turn"})
+    sweep: str = field(default="rotation", metadata={
+        "help": "rotation: the object turns; light: the light circles at its height", "choices": SWEEPS})
+    renderer: str = field(default="shaded", metadata={"help": "what draws each frame", "choices": list(RENDERERS)})
+    size: int | None = field(default=None, metadata={
+        "help": "image side in pixels (default: the scene's; nvr, which draws the image itself: 256)"})
+    spp: int = field(default=64, metadata={"help": "path tracing: samples per pixel (denoised)"})
+    model: str | None = field(default=None, metadata={
+        "help": "network weights (.safetensors); default: the shipped model"})
 
     def check(self) -> None:
         if isinstance(self.frames, bool) or not isinstance(self.frames, int) or not 1 <= self.frames <= MAX_FRAMES:
@@ -52,6 +57,8 @@ class TurntableConfig:
 def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
     """The scene of each frame: the object turned by 360 / frames degrees a frame, or the light moved as far
     around the vertical axis through the scene centre, at its height and distance."""
+    from renderer.scene import LightSpec
+
     x, y, z = scene.light.position
     radius, start = max(math.hypot(x, z), MIN_LIGHT_RADIUS), math.atan2(z, x)
     for f in range(frames):
@@ -80,6 +87,8 @@ def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = Tru
     the terminal; `on_frame` gets the fraction done after each frame (the editor's progress bar)."""
     from tqdm import tqdm
 
+    from renderer.color import to_uint8
+
     config.check()
     render, name = frame_renderer(scene, config)
     images, seconds = [], []
@@ -96,6 +105,10 @@ def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = Tru
 def write_frames(out: Path, images: list[np.ndarray]) -> list[Path]:
     """An animated GIF when `out` ends in .gif (one turn in GIF_SECONDS, looping), else a folder of
     frame_0000.png ...; each file written atomically."""
+    from PIL import Image
+
+    from renderer.io import atomic_path, save_png
+
     if out.suffix.lower() == ".gif":
         frames = [Image.fromarray(image) for image in images]
         duration = max(20, round(1000.0 * GIF_SECONDS / len(frames)))

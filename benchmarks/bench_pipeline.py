@@ -19,7 +19,7 @@ import numpy as np
 import trimesh
 
 from renderer.camera import Camera
-from renderer.grid import gather, pool_factors, pool_voxels, sample_indices, scene_grid
+from renderer.grid import GridPlacement, gather, pool_factors, pool_voxels, sample_indices, scene_grid
 from renderer.limits import DEFAULT_RESOLUTION
 from renderer.mesh import normalise_mesh
 from renderer.photo import color_voxels_from_photo
@@ -59,14 +59,14 @@ def grid_all_stages() -> Callable[[], object]:
 def grid_geometry_stage() -> Callable[[], object]:
     """What an elevation or placement edit recomputes."""
     factors = pool_factors(RESOLUTION, SPEC.scale)
-    return lambda: sample_indices(RESOLUTION, factors, SPEC, ELEVATION)
+    return lambda: sample_indices(GridPlacement(RESOLUTION, factors, SPEC, ELEVATION))
 
 
 def grid_appearance_stage() -> Callable[[], object]:
     """What a paint edit recomputes: merging the voxels and the gather."""
     rgba = object_voxels()
     factors = pool_factors(RESOLUTION, SPEC.scale)
-    indices = sample_indices(RESOLUTION, factors, SPEC, ELEVATION)
+    indices = sample_indices(GridPlacement(RESOLUTION, factors, SPEC, ELEVATION))
     return lambda: gather(pool_voxels(rgba, factors), FLOOR, indices)
 
 
@@ -75,7 +75,7 @@ def grid_floor_color_stage() -> Callable[[], object]:
     rgba = object_voxels()
     factors = pool_factors(RESOLUTION, SPEC.scale)
     pooled = pool_voxels(rgba, factors)
-    indices = sample_indices(RESOLUTION, factors, SPEC, ELEVATION)
+    indices = sample_indices(GridPlacement(RESOLUTION, factors, SPEC, ELEVATION))
     return lambda: gather(pooled, FLOOR, indices)
 
 

@@ -33,9 +33,19 @@ from typing import Any
 
 import numpy as np
 
+from renderer.dataset_config import (  # noqa: F401  (the data set names, re-exported)
+    DELIGHT_SHADERS,
+    MADE_DELIGHT_SHADERS,
+    MAX_OBJECTS,
+    MAX_SPP,
+    MAX_VIEWS,
+    MAX_WORKERS,
+    SETTINGS,
+    SPLITS,
+    DataConfig,
+)
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_image, load_json, remove_stale_temporaries, save_json, save_png
-from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 from renderer.scene import (
     ELEVATION_RANGE,
     LIGHT_XZ_RANGE,
@@ -51,92 +61,9 @@ from renderer.scene import (
 )
 
 DATA_FORMAT = 1
-# Option limits: far above any use (the paper's set is 2,000 objects x 20 views), low enough to catch a typo.
-MAX_OBJECTS = 1_000_000
-MAX_VIEWS = 1000
-MAX_SPP = 65536
-MAX_WORKERS = 256
-SETTINGS = ("single", "default", "textured")
-SPLITS = ("train", "test")
 TEST_ELEVATION_RANGE = (15.0, 45.0)
 TEST_ROTATION_STEP_DEG = 10.0
 FACING_ROTATION_RANGE = (-90.0, 90.0)  # the half of all rotations that faces the camera
-DELIGHT_SHADERS = ("path traced", "object voxels", "camera grid")  # DataConfig.delight_shader: today's first
-MADE_DELIGHT_SHADERS = DELIGHT_SHADERS[:2]  # those a set can still be made with
-
-
-@dataclass(frozen=True)
-class DataConfig:
-    """Everything that determines a data set; stored in its config.json."""
-
-    setting: str = "single"
-    split: str = "train"
-    objects: int = 10
-    views: int = 20
-    size: int = 256
-    spp: int = 16
-    denoise: bool = True
-    seed: int = 0
-    categories: tuple[str, ...] = ("chair",)
-    resolution: int = DEFAULT_RESOLUTION
-    delight: bool = True  # photo-colored voxels carry the source photo's colors with its light divided out
-    hidden_rule: str = "blend"  # how photo coloring colors voxels the photo does not show (renderer.photo.HIDDEN_RULES)
-    # What the light divided out was computed with (a set's colors follow it): "path traced", renders of the mesh
-    # (renderer.photo.unmixed_albedo); "object voxels", the voxel shader (photo_albedo); "camera grid", the voxel
-    # shader before it drew the object's own voxels (no longer made).
-    delight_shader: str = "path traced"
-    photo_size: int = 0  # side of the source photo photo-colored voxels take their colors from (0: the images' size)
-
-    def __post_init__(self) -> None:
-        if self.photo_size == self.size:  # one config per set: a photo of the images' size is written 0
-            object.__setattr__(self, "photo_size", 0)
-
-    @property
-    def source_size(self) -> int:
-        """The source photo's side in pixels."""
-        return self.photo_size or self.size
-
-    def check(self) -> None:
-        """Refuse values no data set can be made with, naming the option and its limits (before anything is written)."""
-        if self.setting not in SETTINGS:
-            raise InputError(f"unknown setting {self.setting!r} (choose from {', '.join(SETTINGS)})")
-        if self.split not in SPLITS:
-            raise InputError(f"unknown split {self.split!r} (choose from {', '.join(SPLITS)})")
-        for name, low, high in (("objects", 1, MAX_OBJECTS), ("views", 1, MAX_VIEWS), ("spp", 1, MAX_SPP),
-                                ("size", MIN_IMAGE_SIZE, MAX_IMAGE_SIZE), ("seed", 0, 2**32 - 1),
-                                ("res", MIN_RESOLUTION, MAX_RESOLUTION)):
-            value = getattr(self, "resolution" if name == "res" else name)
-            if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-                raise InputError(f"--{name} must be a whole number from {low} to {high}, got {value!r}")
-        size = self.photo_size
-        if isinstance(size, bool) or not isinstance(size, int) or not (size == 0 or MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE):
-            raise InputError(f"--photo-size must be 0 (the images' size) or a whole number from {MIN_IMAGE_SIZE} to "
-                             f"{MAX_IMAGE_SIZE}, got {self.photo_size!r}")
-        if not self.categories:
-            raise InputError("at least one object category is needed")
-        from renderer.photo import check_hidden_rule  # not at the top: it slows importing this module
-
-        check_hidden_rule(self.hidden_rule)
-        if self.delight_shader not in MADE_DELIGHT_SHADERS:
-            raise InputError(f"delight shader {self.delight_shader!r} is unknown or no longer made "
-                             f"(choose from {', '.join(MADE_DELIGHT_SHADERS)})")
-
-    def to_dict(self) -> dict[str, Any]:
-        d = dataclasses.asdict(self)
-        d["categories"] = list(self.categories)
-        return d
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> DataConfig:
-        data = dict(data)
-        data["categories"] = tuple(data.get("categories", ("chair",)))
-        data.setdefault("delight", False)  # data sets made before the light was divided out
-        data.setdefault("hidden_rule", "ray")  # and before hidden voxels took a blend of the colors around them
-        data.setdefault("delight_shader", "camera grid")  # and before the shader drew the object's own voxels
-        data.setdefault("photo_size", 0)  # and before the source photo had a size of its own
-        return cls(**data)
-
-
 # --- the sampling protocol ----------------------------------------------------------------
 
 

@@ -17,14 +17,15 @@ the floor square. Object parts outside the grid are clipped.
 Caching: scene_grid is four pure stages, so an engine can keep each result until its inputs change:
     factors = pool_factors(resolution, spec.scale)                        # resolution, scale
     pooled = pool_voxels(rgba, factors)                                   # voxels (paint), factors
-    indices = sample_indices(resolution, factors, spec, elevation_deg)    # placement, camera
+    indices = sample_indices(GridPlacement(resolution, factors, spec, elevation_deg))  # placement, camera
     grid = gather(pooled, floor_color, indices)                           # floor color: only this
 """
 
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numba import njit, prange
@@ -42,7 +43,7 @@ def scene_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, floor_color: tu
     resolution = object_rgba.shape[0]
     factors = pool_factors(resolution, object_spec.scale, grid_size)
     pooled = pool_voxels(object_rgba, factors)
-    indices = sample_indices(resolution, factors, object_spec, elevation_deg, grid_size)
+    indices = sample_indices(GridPlacement(resolution, factors, object_spec, elevation_deg, grid_size))
     return gather(pooled, floor_color, indices)
 
 
@@ -237,30 +238,67 @@ def grid_index_to_world(elevation_deg: float, grid_size: int = GRID_SIZE) -> np.
     return Camera(elevation_deg).camera_to_world() @ np.linalg.inv(camera_to_grid)
 
 
-def sample_indices(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec,
-                   elevation_deg: float, grid_size: int = GRID_SIZE,
-                   within: tuple[tuple[int, int], ...] | None = None,
-                   box: list[tuple[int, int]] | None = None,
-                   window: list[tuple[int, int]] | None = None) -> np.ndarray:
+@dataclass(frozen=True)
+class GridPlacement:
+    """Where an N^3 object's voxels, merged by `factors`, stand in a `grid_size`^3 camera grid: one object pose and
+    camera, built once and handed to the grid functions, which read its derived maps (computed once, when asked)."""
+
+    resolution: int  # N, object voxels per side
+    factors: tuple[int, int, int]  # the merge factors (pool_factors)
+    object_spec: ObjectSpec  # translation, rotation, scale
+    elevation_deg: float  # the camera's
+    grid_size: int = GRID_SIZE
+    # A box of merged voxels, (start, stop) per axis, outside which every merged voxel is empty (pool_object finds
+    # it), if the caller knows one: only it is sampled.
+    within: tuple[tuple[int, int], ...] | None = None
+
+    @cached_property
+    def pooled_shape(self) -> tuple[int, int, int]:
+        """The merged voxels' shape, (P0, P1, P2): P = their product rows of `gather`."""
+        return tuple(-(-self.resolution // f) for f in self.factors)
+
+    @cached_property
+    def merged_box(self) -> tuple[np.ndarray, np.ndarray]:
+        """(first, stop): the merged voxels that may be non-empty, per axis."""
+        if self.within is None:
+            return np.zeros(3), np.asarray(self.pooled_shape, dtype=np.float64)
+        return tuple(np.asarray(self.within, dtype=np.float64).T)
+
+    @cached_property
+    def grid_to_object(self) -> np.ndarray:
+        """4x4: continuous grid coordinates (depth, row, column) to object coordinates."""
+        return world_to_object(self.object_spec) @ grid_index_to_world(self.elevation_deg, self.grid_size)
+
+    @cached_property
+    def window(self) -> list[tuple[int, int]]:
+        """The grid ranges, (start, stop) per axis, that sample_indices samples the object in: every grid voxel it
+        gives a merged voxel lies inside them (they may be empty)."""
+        first, stop = self.merged_box
+        block = np.asarray(self.factors, dtype=np.float64) * (OBJECT_SIZE / self.resolution)
+        return _grid_ranges_covering(self.grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block,
+                                     self.grid_size)
+
+
+def sample_indices(placement: GridPlacement, box: list[tuple[int, int]] | None = None,
+                   with_object: bool = True) -> np.ndarray:
     """Row of `gather` (D, H, W) int32 for every grid voxel: a merged object voxel, empty (P) or floor (P + 1).
 
-    The P merged voxels are those pool_voxels makes from an N^3 object with `factors`. `within`: a box
-    of merged voxels, (start, stop) per axis, outside which every merged voxel is empty (all zero), if
-    the caller knows one; grid voxels there take the empty row P instead, the same values, and only the
-    box is sampled. (The ground lies below every object box, so no ground voxel is affected.) `box`: only the
-    grid voxels in these ranges, (start, stop) per axis (default: the whole grid; a crop around the object
-    costs a fraction of it). `window`: object_window's ranges for these arguments, if the caller has them.
+    The P merged voxels are those pool_voxels makes with the placement's factors; outside its `within` box grid
+    voxels take the empty row P instead, the same values. (The ground lies below every object box, so no ground
+    voxel is affected.) `box`: only the grid voxels in these ranges, (start, stop) per axis (default: the whole grid;
+    a crop around the object costs a fraction of it). `with_object`: False gives the ground and empty rows alone.
     """
-    n_rows = int(np.prod([-(-resolution // f) for f in factors]))
-    box = [(0, grid_size)] * 3 if box is None else box
+    g = placement.grid_size
+    n_rows = int(np.prod(placement.pooled_shape))
+    box = [(0, g)] * 3 if box is None else box
     indices = np.full(tuple(hi - lo for lo, hi in box), n_rows, dtype=np.int32)
-    np.copyto(indices, n_rows + 1, where=ground_mask(elevation_deg, grid_size)[tuple(slice(*span) for span in box)])
-    if window is None:
-        window = object_window(resolution, factors, object_spec, elevation_deg, grid_size, within)
-    ranges = [(max(lo, start), min(hi, stop)) for (lo, hi), (start, stop) in zip(window, box)]
+    np.copyto(indices, n_rows + 1, where=ground_mask(placement.elevation_deg, g)[tuple(slice(*span) for span in box)])
+    if not with_object:
+        return indices
+    ranges = [(max(lo, start), min(hi, stop)) for (lo, hi), (start, stop) in zip(placement.window, box)]
     if all(lo < hi for lo, hi in ranges):
         out = indices[tuple(slice(lo - start, hi - start) for (lo, hi), (start, _) in zip(ranges, box))]  # a view
-        _sample_window(resolution, factors, object_spec, elevation_deg, grid_size, within, ranges, out)
+        _sample_window(placement, ranges, out)
     return indices
 
 
@@ -273,27 +311,16 @@ def pool_object(object_rgba: np.ndarray, factors: tuple[int, int, int],
     return pooled, occupied_spans(non_empty_voxels(pooled))
 
 
-def _sample_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
-                   grid_size: int, within: tuple[tuple[int, int], ...] | None, ranges: list[tuple[int, int]],
-                   out: np.ndarray) -> None:
-    """Over the grid ranges `ranges` (inside the object_window; `out` has their shape), the merged voxel (flat row
-    index) each grid voxel centre falls in, written into `out` where it falls in one (elsewhere left as it is)."""
-    pooled_shape = tuple(-(-resolution // f) for f in factors)
-    first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
-    cell = _merged_cell_map(resolution, factors, object_spec, elevation_deg, grid_size)
+def _sample_window(placement: GridPlacement, ranges: list[tuple[int, int]], out: np.ndarray) -> None:
+    """Over the grid ranges `ranges` (inside the placement's window; `out` has their shape), the merged voxel (flat
+    row index) each grid voxel centre falls in, written into `out` where it falls in one (elsewhere left as it is)."""
+    first, stop = placement.merged_box
+    block = np.asarray(placement.factors, dtype=np.float64) * (OBJECT_SIZE / placement.resolution)  # merged voxel sides
+    cell = placement.grid_to_object[:3] / block[:, None]  # the merged-voxel coordinate, affine in (d, r, c, 1)
+    cell[:, 3] -= OBJECT_BOX_MIN / block
     centres = [np.arange(lo, hi) + 0.5 for lo, hi in ranges]
     _merged_voxel_rows(cell, *centres, np.asarray(first, dtype=np.float64), np.asarray(stop, dtype=np.float64),
-                       np.asarray(pooled_shape, dtype=np.int64), out)
-
-
-def _merged_cell_map(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
-                     grid_size: int) -> np.ndarray:
-    """(3, 4): the merged-voxel coordinate along each object axis, affine in a grid position (depth, row, column, 1)."""
-    block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)  # merged voxel sides, object units
-    grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
-    cell = grid_to_object[:3] / block[:, None]
-    cell[:, 3] -= OBJECT_BOX_MIN / block
-    return cell
+                       np.asarray(placement.pooled_shape, dtype=np.int64), out)
 
 
 @njit(cache=True, parallel=True)
@@ -340,17 +367,6 @@ def _shifted(array: np.ndarray, axis: int, side: int) -> np.ndarray:
     index = [slice(None)] * 3
     index[axis] = slice(1, None) if side == 1 else slice(None, -1)
     return array[tuple(index)]
-
-
-def object_window(resolution: int, factors: tuple[int, int, int], object_spec: ObjectSpec, elevation_deg: float,
-                  grid_size: int = GRID_SIZE, within: tuple[tuple[int, int], ...] | None = None) -> list[tuple[int, int]]:
-    """The grid ranges, (start, stop) per axis, that sample_indices samples the object in: every grid voxel it
-    gives a merged voxel lies inside them (they may be empty)."""
-    pooled_shape = tuple(-(-resolution // f) for f in factors)
-    first, stop = (np.zeros(3), np.asarray(pooled_shape)) if within is None else np.asarray(within).T  # merged voxels
-    block = np.asarray(factors, dtype=np.float64) * (OBJECT_SIZE / resolution)
-    grid_to_object = world_to_object(object_spec) @ grid_index_to_world(elevation_deg, grid_size)
-    return _grid_ranges_covering(grid_to_object, OBJECT_BOX_MIN + first * block, OBJECT_BOX_MIN + stop * block, grid_size)
 
 
 def non_empty_voxels(pooled: np.ndarray) -> np.ndarray:

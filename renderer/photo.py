@@ -40,6 +40,7 @@ from PIL import Image
 
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.dataset_config import check_hidden_rule
 from renderer.errors import InputError
 from renderer.raymarch import OccupancyMarcher
 from renderer.resample import downscaled, resized
@@ -65,7 +66,6 @@ MIN_SLOPE = 0.05
 # the silhouette's pixels and blurred thin parts' shadows: on 3 of 4 novel objects it colored the seen voxels worse
 # than a photo of half the side did.)
 UNMIX_MAX_SIDE = 512
-HIDDEN_RULES = ("blend", "ray")  # how voxels the photo does not show well are colored (see the module docstring)
 # The blend's Gaussians, in voxels: the narrowest whose weight of well-seen voxels reaches HIDDEN_MIN_WEIGHT
 # colors a voxel (a plane of well-seen voxels reaches it from 3.3 voxels away at 1.5, 6 at 3, ...); the widest
 # colors whatever is left.
@@ -113,12 +113,6 @@ def color_voxels_from_photo(object_rgba: np.ndarray, object_to_world_matrix: np.
         source = _trusted_sources(source, visible, occupied, matrix, camera, np.asarray(trusted, dtype=bool))
     rgba[occupied, :3] = _photo_at_voxels(photo, matrix, camera, source[occupied], n)
     return PhotoColors(rgba, visible)
-
-
-def check_hidden_rule(hidden_rule: str) -> None:
-    """InputError unless `hidden_rule` is one of HIDDEN_RULES."""
-    if hidden_rule not in HIDDEN_RULES:
-        raise InputError(f"unknown rule for hidden voxels {hidden_rule!r} (choose from {', '.join(HIDDEN_RULES)})")
 
 
 def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, camera: Camera, mirror: bool,

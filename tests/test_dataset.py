@@ -156,16 +156,6 @@ def test_a_retired_delight_shader_is_refused_before_anything_is_written(tmp_path
     assert not (tmp_path / "d").exists()
 
 
-def test_the_command_line_offers_the_rules_a_set_can_be_made_with():
-    """app.cli writes the choices out (importing renderer.photo there would slow every command): they must agree."""
-    from app.cli import DELIGHT_SHADERS as CLI_DELIGHT
-    from app.cli import HIDDEN_VOXEL_RULES
-    from renderer.dataset import MADE_DELIGHT_SHADERS
-    from renderer.photo import HIDDEN_RULES
-
-    assert CLI_DELIGHT == MADE_DELIGHT_SHADERS and HIDDEN_VOXEL_RULES == HIDDEN_RULES
-
-
 @pytest.mark.parametrize("setting", ["default", "single"])
 def test_a_set_moved_to_finer_voxels_equals_one_generated_at_them(setting, tmp_path):
     """`nvr data recolor --res`: every object voxelised anew from its remade mesh and colored from its stored source

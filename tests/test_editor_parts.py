@@ -455,26 +455,6 @@ def test_a_dialog_runs_the_program_and_returns_its_choice(tmp_path, monkeypatch)
     assert missing.path is None and "cannot start the file dialog no-such-dialog-program" in missing.error
 
 
-@pytest.fixture(scope="module")
-def refiner_file(tmp_path_factory):
-    """A small NVR+ that corrects the shader's 64 px image, its correction layer random (a fresh one is zero)."""
-    import torch
-
-    from models.networks.checkpoint import save_model
-    from models.networks.config import ShaderRefinerConfig
-    from models.networks.nvr import build_model
-
-    config = ShaderRefinerConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16,
-                                 light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
-    torch.manual_seed(0)
-    model = build_model("nvr_plus", config).eval()
-    for parameter in model.rerender.to_rgb.parameters():
-        parameter.data.normal_(0.0, 0.05)
-    path = tmp_path_factory.mktemp("refiner") / "refiner.safetensors"
-    save_model(path, model, config)
-    return path
-
-
 def test_an_nvr_plus_that_corrects_the_shader_exports_other_sizes_drawn_at_that_size(box_scene, tmp_path,
                                                                                      refiner_file):
     """The File tab's export at another size than the network's: for a network that corrects the shader's image, the

@@ -77,15 +77,8 @@ def model():
 
 
 @pytest.fixture
-def scene(tmp_path) -> Scene:
-    """A two-colored 16^3 box object (voxel file), scale 0.8, seen from 30 degrees."""
-    rgba = np.zeros((16, 16, 16, 4), np.float32)
-    rgba[4:12, 0:10, 4:12] = (0.8, 0.3, 0.2, 1.0)
-    rgba[4:12, 10:12, 4:12] = (0.2, 0.3, 0.8, 1.0)
-    save_voxels(tmp_path / "box.npz", rgba)
-    return Scene(object=ObjectSpec(voxels="box.npz", rotation_deg=20.0, scale=(0.8, 0.8, 0.8)),
-                 floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec((1.0, 2.75, 0.5)), camera=CameraSpec(30.0),
-                 image_size=64, base_dir=tmp_path)
+def scene(two_color_box) -> Scene:
+    return two_color_box
 
 
 VOXEL_BRANCH = ["gather", "voxel_branch", "splat", "splat_branch", "light"]  # edits that keep the splat layout

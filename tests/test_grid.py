@@ -9,11 +9,11 @@ from scipy import ndimage
 
 from renderer.camera import Camera, camera_to_grid_index, grid_centers_camera
 from renderer.grid import (
+    GridPlacement,
     colors_and_changes,
     gather,
     grid_index_to_world,
     ground_mask,
-    object_window,
     occupied_spans,
     pool_factors,
     pool_voxels,
@@ -197,7 +197,7 @@ def test_floor_color_change_needs_only_the_gather():
     spec = ObjectSpec(mesh="m", rotation_deg=10.0)
     factors = pool_factors(10, spec.scale)
     pooled = pool_voxels(rgba, factors)
-    indices = sample_indices(10, factors, spec, 20.0)
+    indices = sample_indices(GridPlacement(10, factors, spec, 20.0))
     for floor in [(0.0, 0.0, 0.0), (1.0, 0.5, 0.25)]:
         np.testing.assert_array_equal(gather(pooled, floor, indices), scene_grid(rgba, spec, floor, 20.0))
 
@@ -242,8 +242,9 @@ def test_every_object_voxel_of_the_grid_lies_in_the_object_window(elevation, rot
     spec = ObjectSpec(translation=translation, rotation_deg=rotation, scale=scale)
     factors = pool_factors(rgba.shape[0], scale)
     empty_row = pool_voxels(rgba, factors)[..., 0].size
-    full = sample_indices(rgba.shape[0], factors, spec, elevation)
-    box = tuple(slice(a, b) for a, b in object_window(rgba.shape[0], factors, spec, elevation))
+    placement = GridPlacement(rgba.shape[0], factors, spec, elevation)
+    full = sample_indices(placement)
+    box = tuple(slice(a, b) for a, b in placement.window)
     outside = full.copy()
     outside[box] = empty_row
     assert np.all(outside >= empty_row)
@@ -260,11 +261,12 @@ def test_sample_indices_over_a_box_are_the_whole_grids_there(box, kinds):
     spec = ObjectSpec(translation=(0.1, -0.2), rotation_deg=35.0, scale=(1.0, 1.2, 0.9))
     factors = pool_factors(rgba.shape[0], spec.scale)
     empty_row = pool_voxels(rgba, factors)[..., 0].size
-    full = sample_indices(rgba.shape[0], factors, spec, 25.0)
-    window = object_window(rgba.shape[0], factors, spec, 25.0)
-    for known in (None, window):
-        part = sample_indices(rgba.shape[0], factors, spec, 25.0, box=box, window=known)
-        np.testing.assert_array_equal(part, full[tuple(slice(*span) for span in box)])
+    placement = GridPlacement(rgba.shape[0], factors, spec, 25.0)
+    full = sample_indices(placement)
+    part = sample_indices(placement, box=box)
+    np.testing.assert_array_equal(part, full[tuple(slice(*span) for span in box)])
+    background = sample_indices(placement, box=box, with_object=False)  # the ground and empty rows alone
+    np.testing.assert_array_equal(background, np.where(part > empty_row, part, empty_row))
     found = {"object": (part < empty_row).any(), "empty": (part == empty_row).any(), "ground": (part > empty_row).any()}
     assert {kind for kind, present in found.items() if present} == kinds
 

@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from renderer.camera import Camera
+from renderer.dataset_config import HIDDEN_RULES
 from renderer.errors import InputError
-from renderer.photo import HIDDEN_RULES, color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
+from renderer.photo import color_voxels_from_photo, is_mirror_symmetric, mirror_symmetry_score
 from renderer.scene import ObjectSpec
 from renderer.transform import object_to_world
 

@@ -8,13 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from app.cli import build_parser
 from models.engine.render_engine import RenderEngine
-from models.networks.checkpoint import save_model
-from models.networks.config import ShaderRefinerConfig
-from models.networks.nvr import build_model
 from models.renderers import (
     EVALUATED,
     INTERACTIVE,
@@ -29,10 +25,9 @@ from renderer.errors import InputError
 from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.reference_object import reference_scene
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene
+from renderer.scene import CameraSpec, LightSpec, PaintOp, Scene
 from renderer.shading import FAST_QUALITY, FULL_QUALITY, shade_scene
 from renderer.splat import splat_scene
-from renderer.voxels import save_voxels
 
 ROOT = Path(__file__).resolve().parents[1]
 # Each edit keeps some of a renderer's cached stages: the cached image must still be the one drawn from scratch.
@@ -45,29 +40,8 @@ EDITS = {
 
 
 @pytest.fixture
-def scene(tmp_path) -> Scene:
-    """A two-colored 16^3 box (voxel file) seen from 30 degrees, at 48 px."""
-    rgba = np.zeros((16, 16, 16, 4), np.float32)
-    rgba[4:12, 0:10, 4:12] = (0.8, 0.3, 0.2, 1.0)
-    rgba[4:12, 10:12, 4:12] = (0.2, 0.3, 0.8, 1.0)
-    save_voxels(tmp_path / "box.npz", rgba)
-    return Scene(object=ObjectSpec(voxels="box.npz", rotation_deg=20.0, scale=(0.8, 0.8, 0.8)),
-                 floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec((1.0, 2.75, 0.5)), camera=CameraSpec(30.0),
-                 image_size=48, base_dir=tmp_path)
-
-
-@pytest.fixture(scope="module")
-def refiner_file(tmp_path_factory) -> Path:
-    """A tiny NVR+ that corrects the shader's 64 px image, its correction layer random (a fresh one is zero)."""
-    config = ShaderRefinerConfig(grid_size=64, output_size=64, voxel_channels=(4, 8, 8), latent_channels=16,
-                                 light_channels=8, decoder_channels=(8, 8), splat_channels=4, unet_channels=(4, 8))
-    torch.manual_seed(0)
-    model = build_model("nvr_plus", config).eval()
-    for parameter in model.rerender.to_rgb.parameters():
-        parameter.data.normal_(0.0, 0.3)
-    path = tmp_path_factory.mktemp("weights") / "refiner.safetensors"
-    save_model(path, model, config)
-    return path
+def scene(two_color_box) -> Scene:
+    return two_color_box
 
 
 def _painted(scene: Scene):

@@ -28,7 +28,8 @@ def data(tmp_path_factory) -> Path:
 
 
 def config(data: Path, **changes) -> TrainConfig:
-    base = dict(data=(str(data),), steps=4, batch=2, threads=1, config_overrides=TINY, perceptual_crop=0, log_every=1)
+    base = dict(data=(str(data),), steps=4, batch=2, threads=1, config_overrides=TINY, perceptual_crop=0, log_every=1,
+                loader_workers=0)
     base.update(changes)
     return TrainConfig(**base)
 
@@ -444,7 +445,7 @@ def save_and_die_on_the_third(tensors, filename, metadata=None):
     os.kill(os.getpid(), signal.SIGKILL)
 
 train_module.save_file = save_and_die_on_the_third
-config = TrainConfig(data=(sys.argv[1],), steps=4, batch=2, threads=1, perceptual_crop=0, log_every=1,
+config = TrainConfig(data=(sys.argv[1],), steps=4, batch=2, threads=1, perceptual_crop=0, log_every=1, loader_workers=0,
                      checkpoint_minutes=1e-9, config_overrides=(("grid_size", 16), ("output_size", 32)))
 train(sys.argv[2], config, progress=False)
 """

@@ -47,3 +47,30 @@ class BackgroundJob:
             self.error = f"{self.title} failed: {type(exc).__name__}: {exc}"
         finally:
             self._done.set()
+
+
+class JobRunner:
+    """One background job at a time; its result goes to its handler on the UI thread, its error to `say`."""
+
+    def __init__(self, say: Callable[..., None]) -> None:
+        self._say = say
+        self.current: BackgroundJob | None = None  # the job under way (or done and not yet handed over)
+        self._on_result: Callable[[Any], None] | None = None
+
+    def start(self, title: str, work: Callable[[Progress], Any], on_result: Callable[[Any], None]) -> None:
+        """Run `work(progress)` in the background; `on_result` gets its result on the UI thread (`finish`)."""
+        if self.current is not None and not self.current.done:
+            self._say(f"busy: {self.current.title}", error=True)
+            return
+        self.current = BackgroundJob(title, work)
+        self._on_result = on_result
+
+    def finish(self) -> None:
+        """Once per frame: hand a finished job's result to its handler, or show its error."""
+        if self.current is None or not self.current.done:
+            return
+        job, self.current = self.current, None
+        if job.error:
+            self._say(job.error, error=True)
+        else:
+            self._on_result(job.result)

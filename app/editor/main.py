@@ -116,8 +116,8 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
             work_start = time.perf_counter()
             app.update()
             interface.draw()
-            drawn = window.end_frame(interface.underlay, interface.images, force=app.screenshot_due)
-            app.take_screenshots()
+            drawn = window.end_frame(interface.underlay, interface.images, force=app.screenshots.due)
+            app.screenshots.take()
             window.present()
             frame += 1
             if window.close_requested:
@@ -125,12 +125,12 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
                 app.request_quit()
             if app.quit_requested or finishing:
                 break
-            if headless and app.unloadable_source is not None and app.job is None:
+            if headless and app.unloadable_source is not None and app.jobs.current is None:
                 return EXIT_USER_ERROR  # the start-up scene's object cannot be loaded; its error is printed
             if headless and frame >= args.frames and (replay is None or replay.done) and not app.busy:
                 finishing = True  # one more frame, with everything finished, for the screenshot
                 if args.screenshot:
-                    app.screenshot(args.screenshot)
+                    app.screenshots.request(args.screenshot)
             if headless and time.monotonic() - started > IDLE_TIMEOUT_SECONDS:
                 print(f"nvr-editor: error: still busy after {IDLE_TIMEOUT_SECONDS:.0f} s: {app.busy}", file=sys.stderr)
                 return 1
@@ -138,9 +138,9 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
             time.sleep(max(0.0, FRAME_SECONDS - (time.perf_counter() - frame_start)))
             if wait == 0.0:
                 app.stats.add(time.perf_counter() - frame_start, work, rendering=not app.live.idle, drawn=drawn)
-        if args.export and not app.export(args.export, overwrite=True):  # checked up front, with --force
+        if args.export and not app.files.export(args.export, overwrite=True):  # checked up front, with --force
             return EXIT_USER_ERROR
-        if args.export_side_by_side and not app.export_side_by_side(args.export_side_by_side, overwrite=True):
+        if args.export_side_by_side and not app.files.export_side_by_side(args.export_side_by_side, overwrite=True):
             return EXIT_USER_ERROR
     finally:
         interface.close()

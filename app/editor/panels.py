@@ -14,8 +14,9 @@ import numpy as np
 from imgui_bundle import imgui
 
 from app.editor import edits, state
-from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp, shipped
+from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
+from app.editor.files import shipped
 from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import viewport_camera
@@ -114,30 +115,30 @@ class Interface:
             return
         if imgui.begin_menu("File"):
             if imgui.menu_item_simple("New", "Ctrl+N"):
-                app.new_scene()
+                app.files.new_scene()
             if imgui.menu_item_simple("Open...", "Ctrl+O"):
-                self._ask_path(SCENE_FILES, "scene_path", app.open_scene)
+                self._ask_path(SCENE_FILES, "scene_path", app.files.open_scene)
             if imgui.begin_menu("Open recent", enabled=bool(self._recent)):
                 for path in self._recent:
                     if imgui.menu_item_simple(str(path)):
-                        app.open_scene(path)
+                        app.files.open_scene(path)
                 imgui.end_menu()
             if imgui.menu_item_simple("Save", "Ctrl+S"):
-                app.save()
+                app.files.save()
             if imgui.menu_item_simple("Save as...", "Ctrl+Shift+S"):
-                self._ask_path(NEW_SCENE_FILE, "save_path", app.save)
+                self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
             imgui.separator()
             if imgui.menu_item_simple("Export render", "Ctrl+E"):
-                app.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
+                app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
             if imgui.menu_item_simple("Export viewport and render"):
-                app.export_side_by_side(self.fields.side_by_side_path)
+                app.files.export_side_by_side(self.fields.side_by_side_path)
             if imgui.menu_item_simple("Export turntable"):
-                app.export_turntable(self.fields.turntable_path)
+                app.files.export_turntable(self.fields.turntable_path)
             imgui.separator()
             if imgui.menu_item_simple("Import .vox..."):
-                self._ask_path(VOX_FILES, "vox_in_path", app.import_vox)
+                self._ask_path(VOX_FILES, "vox_in_path", app.files.import_vox)
             if imgui.menu_item_simple("Export .vox"):
-                app.export_vox(self.fields.vox_out_path)
+                app.files.export_vox(self.fields.vox_out_path)
             imgui.separator()
             if imgui.menu_item_simple("Quit", "Ctrl+Q"):
                 app.request_quit()
@@ -171,13 +172,13 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.y, False):
             app.redo()
         elif imgui.is_key_pressed(imgui.Key.s, False):
-            self._ask_path(NEW_SCENE_FILE, "save_path", app.save) if io.key_shift else app.save()
+            self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save) if io.key_shift else app.files.save()
         elif imgui.is_key_pressed(imgui.Key.n, False):
-            app.new_scene()
+            app.files.new_scene()
         elif imgui.is_key_pressed(imgui.Key.o, False):
-            self._ask_path(SCENE_FILES, "scene_path", app.open_scene)
+            self._ask_path(SCENE_FILES, "scene_path", app.files.open_scene)
         elif imgui.is_key_pressed(imgui.Key.e, False):
-            app.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
+            app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
         elif imgui.is_key_pressed(imgui.Key.q, False):
             app.request_quit()
 
@@ -207,7 +208,7 @@ class Interface:
         self._bucket_preview(inputs.hovered_voxel)
         imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
         imgui.text_colored(GRAY, inputs.hint)
-        _range_note(app.scene, imgui.ImVec2(origin.x + 8, origin.y + h - (60 if app.job is not None else 30)))
+        _range_note(app.scene, imgui.ImVec2(origin.x + 8, origin.y + h - (60 if app.jobs.current is not None else 30)))
         if inputs.light_hovered or inputs.light_drag is not None:
             imgui.set_mouse_cursor(imgui.MouseCursor_.resize_all)
         if hovered and app.bucket_active:
@@ -217,9 +218,9 @@ class Interface:
             color = imgui.get_color_u32(imgui.ImVec4(*app.paint_color, 1.0))
             draw.add_circle_filled(imgui.ImVec2(mouse.x + 12, mouse.y + 12), 7.0, color)
             draw.add_circle(imgui.ImVec2(mouse.x + 12, mouse.y + 12), 7.0, imgui.get_color_u32(imgui.ImVec4(1, 1, 1, 1)))
-        if app.job is not None:
+        if app.jobs.current is not None:
             imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + h - 34))
-            imgui.progress_bar(app.job.progress, imgui.ImVec2(min(360, w - 16), 0), f"{app.job.title} {app.job.progress:.0%}")
+            imgui.progress_bar(app.jobs.current.progress, imgui.ImVec2(min(360, w - 16), 0), f"{app.jobs.current.title} {app.jobs.current.progress:.0%}")
         imgui.end()
 
     def _bucket_preview(self, voxel: tuple[int, int, int] | None) -> None:
@@ -255,7 +256,7 @@ class Interface:
         self._renderer_choice()
         imgui.same_line()
         if imgui.small_button("Reference"):
-            app.reference_render()
+            app.reference.start()
         if imgui.is_item_hovered():
             imgui.set_tooltip("Path trace the scene (edits included) in the background and show it beside this render")
         imgui.same_line()
@@ -341,7 +342,7 @@ class Interface:
         self._browse("mesh", MESH_FILES, "mesh_path")
         _, f.mesh_up = imgui.combo("up axis", f.mesh_up, ["y up", "z up"])
         if imgui.button("Load and voxelise") and f.mesh_path:
-            self.app.load_mesh(f.mesh_path, up="yz"[f.mesh_up])
+            self.app.files.load_mesh(f.mesh_path, up="yz"[f.mesh_up])
 
     def _light_tab(self) -> None:
         scene = self.app.scene
@@ -382,14 +383,14 @@ class Interface:
     def _file_tab(self) -> None:
         f, app = self.fields, self.app
         for key, kind, field_name, label, act in (
-                ("open", SCENE_FILES, "scene_path", "Open scene", app.open_scene),
-                ("save", NEW_SCENE_FILE, "save_path", "Save as", app.save),
+                ("open", SCENE_FILES, "scene_path", "Open scene", app.files.open_scene),
+                ("save", NEW_SCENE_FILE, "save_path", "Save as", app.files.save),
                 ("export", NEW_PNG_FILE, "export_path", "Export PNG",
-                 lambda p: app.export(p, size=EXPORT_SIZES[f.export_size])),
-                ("side by side", NEW_PNG_FILE, "side_by_side_path", "Export viewport + render", app.export_side_by_side),
-                ("turntable", NEW_GIF_FILE, "turntable_path", "Export turntable", app.export_turntable),
-                ("import vox", VOX_FILES, "vox_in_path", "Import .vox", app.import_vox),
-                ("export vox", NEW_VOX_FILE, "vox_out_path", "Export .vox", app.export_vox)):
+                 lambda p: app.files.export(p, size=EXPORT_SIZES[f.export_size])),
+                ("side by side", NEW_PNG_FILE, "side_by_side_path", "Export viewport + render", app.files.export_side_by_side),
+                ("turntable", NEW_GIF_FILE, "turntable_path", "Export turntable", app.files.export_turntable),
+                ("import vox", VOX_FILES, "vox_in_path", "Import .vox", app.files.import_vox),
+                ("export vox", NEW_VOX_FILE, "vox_out_path", "Export .vox", app.files.export_vox)):
             imgui.set_next_item_width(200)
             _, path = imgui.input_text(f"##{key}", getattr(f, field_name))
             setattr(f, field_name, path)
@@ -448,23 +449,23 @@ class Interface:
 
     def _reference_window(self, viewport: Rect) -> None:
         """The path-traced reference, over the viewport's top right, with its error against the live render."""
-        app = self.app
-        if app.reference is None or app.reference_texture is None:
+        app, reference = self.app, self.app.reference
+        if reference.shown is None or reference.texture is None:
             return
         side = min(256, viewport.width // 2, viewport.height - 80)
         imgui.set_next_window_pos(imgui.ImVec2(viewport.x + viewport.width - side - 24, viewport.y + 8), imgui.Cond_.always)
         opened, keep = imgui.begin("Reference", True, FIXED | imgui.WindowFlags_.always_auto_resize)
         if opened:
-            imgui.image(imgui.ImTextureRef(app.reference_texture.glo), imgui.ImVec2(side, side))
-            imgui.text_colored(GRAY, app.reference.label)
-            error = app.reference_error()
+            imgui.image(imgui.ImTextureRef(reference.texture.glo), imgui.ImVec2(side, side))
+            imgui.text_colored(GRAY, reference.shown.label)
+            error = reference.error(app.shown_frame)
             if error is not None:
                 imgui.text(f"{app.live.label} vs reference: MSE {error:.1f} (0-255)")
             else:
                 imgui.text_colored(AMBER, "the scene changed since: press Reference again")
         imgui.end()
         if not keep:
-            app.reference = None
+            reference.close()
 
     # --- status bar and questions -------------------------------------------------------
 

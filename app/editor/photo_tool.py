@@ -17,7 +17,7 @@ import trimesh
 
 from app.editor import edits, state
 from app.editor.document import Document
-from app.editor.jobs import BackgroundJob, Progress
+from app.editor.jobs import JobRunner, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from renderer.capture.align import Alignment
 from renderer.capture.capture import find_pose, fit_advice, segment_photo
@@ -34,14 +34,11 @@ class Editor(Protocol):
 
     doc: Document
     voxels: VoxelCache
-    job: BackgroundJob | None
+    jobs: JobRunner
 
     def say(self, text: str, error: bool = False) -> None: ...
 
     def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool: ...
-
-    def start_job(self, title: str, work: Callable[[Progress], object],
-                  on_result: Callable[[object], None]) -> None: ...
 
 
 class PhotoTool:
@@ -68,7 +65,7 @@ class PhotoTool:
             start = "its camera file" if camera else "the scene's view"
             self.app.say(f"loaded {Path(photo).name} ({w}x{h}), posed from {start}: align by hand on the photo, or Align")
 
-        self.app.start_job(f"Loading {Path(photo).name}", work, done)
+        self.app.jobs.start(f"Loading {Path(photo).name}", work, done)
 
     def adjust(self, change: Callable[[PhotoAlignment], None]) -> None:
         """Change the pose by hand (`change` calls turn, shift, zoom or set_pose on the alignment)."""
@@ -102,7 +99,7 @@ class PhotoTool:
                          f"in {found.seconds:.1f} s (rotation {p.rotation_deg:.1f} deg, "
                          f"elevation {p.camera.elevation_deg:.1f} deg)")
 
-        self.app.start_job(f"Aligning to {alignment.path.name}", work, done)
+        self.app.jobs.start(f"Aligning to {alignment.path.name}", work, done)
 
     def color_object(self) -> None:
         """Recolor the object's voxels from the photo at the current pose: one undo step."""
@@ -120,7 +117,7 @@ class PhotoTool:
             if self.app.edit(lambda s: recolored(s, capture)):
                 self.app.say(f"colored the object from {alignment.path.name}")
 
-        self.app.start_job(f"Coloring from {alignment.path.name}", work, done)
+        self.app.jobs.start(f"Coloring from {alignment.path.name}", work, done)
 
     def show_mask(self) -> None:
         """Segment the photo with the box and strokes in the background and show the mask over it."""
@@ -131,7 +128,7 @@ class PhotoTool:
         def work(_progress: Progress):
             return segment_photo(alignment.rgb, alignment.alpha, alignment.path, **alignment.hints())
 
-        self.app.start_job(f"Segmenting {alignment.path.name}", work, alignment.set_mask)
+        self.app.jobs.start(f"Segmenting {alignment.path.name}", work, alignment.set_mask)
 
     def match_view(self) -> None:
         """Place the object and set the camera elevation as in the photo: one undo step."""
@@ -142,7 +139,7 @@ class PhotoTool:
     def follow_object(self) -> None:
         """Once a frame: when the object's shape changed (another mesh, undo), load the new one for the alignment."""
         alignment, app = self.alignment, self.app
-        if alignment is None or app.job is not None:
+        if alignment is None or app.jobs.current is not None:
             return
         scene = app.doc.history.current
         key = shape_key(scene)
@@ -155,7 +152,7 @@ class PhotoTool:
             if self.alignment is alignment:
                 alignment.set_mesh(*shape)
 
-        app.start_job("Loading the object's shape for the photo", lambda _progress: load_shape(scene, voxels), done)
+        app.jobs.start("Loading the object's shape for the photo", lambda _progress: load_shape(scene, voxels), done)
 
     def _needed(self) -> PhotoAlignment | None:
         if self.alignment is None:

@@ -125,7 +125,7 @@ class ViewportInput:
     # --- picking --------------------------------------------------------------------------
 
     def _voxel_under(self, app, ray) -> tuple[int, int, int] | None:
-        if app.job is not None or app.shown_occupancy is None:
+        if app.jobs.current is not None or app.shown_occupancy is None:
             return None
         return pick_voxel(app.shown_occupancy, app.scene.object, *ray)
 

@@ -24,6 +24,7 @@ import numpy as np
 from imgui_bundle import imgui
 
 from app.editor.frame_damage import Box, FrameSummary, changed_boxes, intersection, summarize
+from renderer.errors import InputError
 
 _GL_READ_FRAMEBUFFER, _GL_DRAW_FRAMEBUFFER = 0x8CA8, 0x8CA9
 _GL_COLOR_BUFFER_BIT, _GL_NEAREST = 0x4000, 0x2600
@@ -237,3 +238,32 @@ def upload_image(ctx: moderngl.Context, texture: moderngl.Texture | None, image:
         texture = ctx.texture((w, h), 3)
     texture.write(np.ascontiguousarray(pixels).tobytes())
     return texture
+
+
+class Screenshots:
+    """Screenshots of the whole window asked for during a frame, saved once it is drawn and before it is shown."""
+
+    def __init__(self, window: Window, say: Callable[..., None]) -> None:
+        self._window = window
+        self._say = say
+        self._paths: list[Path] = []
+
+    def request(self, path: str | Path) -> None:
+        """Save the whole window at the end of this frame."""
+        self._paths.append(Path(path))
+
+    @property
+    def due(self) -> bool:
+        """A screenshot waits for this frame, which must then be drawn even if it looks like the last one."""
+        return bool(self._paths)
+
+    def take(self) -> None:
+        """Save the screenshots asked for this frame (the frame is drawn but not yet shown)."""
+        from renderer.io import save_png
+
+        for path in self._paths:
+            try:
+                save_png(path, self._window.screenshot())
+            except InputError as exc:
+                self._say(str(exc), error=True)
+        self._paths.clear()

@@ -81,12 +81,12 @@ from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
 from renderer.grid import (
+    GridPlacement,
     colors_and_changes,
     gather,
     grid_index_to_world,
     ground_mask,
     non_empty_voxels,
-    object_window,
     occupied_spans,
     pool_factors,
     pool_voxels,
@@ -422,21 +422,21 @@ class RenderEngine:
         """Where the grid samples the object: for the whole grid (crop=False), else for the crop around what it
         changes, found from the grid ranges the object can reach (the grid's other voxels are not visited)."""
         g, elevation = self.config.grid_size, scene.camera.elevation_deg
-        within = pooled.within
+        placement = GridPlacement(n, factors, scene.object, elevation, g, pooled.within)
         if not self.crop:
-            return _Placement(sample_indices(n, factors, scene.object, elevation, g, within), None)
-        window = object_window(n, factors, scene.object, elevation, g, within)
+            return _Placement(sample_indices(placement), None)
+        window = placement.window
         if any(lo >= hi for lo, hi in window):
             return _Placement(None, None)  # the object changes nothing in the grid
-        taken = sample_indices(n, factors, scene.object, elevation, g, within, window, window)
+        taken = sample_indices(placement, window)
         spans = changed_spans(taken, pooled.object_rows, ground_mask(elevation, g), window)
         plan = None if spans is None else self.encoder.plan(spans)
         if plan is None:
             return _Placement(None, None)
-        # The crop's rows: the ground and empty rows (no window to sample), then the window's, which hold every object
-        # row and were just sampled.
+        # The crop's rows: the ground and empty rows, then the window's, which hold every object row and were just
+        # sampled.
         box = [(crop.start, crop.stop) for crop in plan.grid]
-        indices = sample_indices(n, factors, scene.object, elevation, g, within, box, [(0, 0)] * 3)
+        indices = sample_indices(placement, box, with_object=False)
         overlap = [(max(lo, start), min(hi, stop)) for (lo, hi), (start, stop) in zip(window, box)]
         if all(lo < hi for lo, hi in overlap):
             indices[tuple(slice(lo - start, hi - start) for (lo, hi), (start, _) in zip(overlap, box))] = \
@@ -557,7 +557,7 @@ def changed_spans(taken: np.ndarray, object_rows: np.ndarray, ground: np.ndarray
                   window: list[tuple[int, int]]) -> tuple[tuple[int, int], ...] | None:
     """Bounding box (one span per axis) of the grid voxels that differ from the ground-only grid; None if none do.
 
-    `taken` are renderer.grid.sample_indices over the grid ranges `window` (renderer.grid.object_window, non-empty);
+    `taken` are renderer.grid.sample_indices over the grid ranges `window` (GridPlacement.window, non-empty);
     every voxel that takes a merged voxel lies in the window, `object_rows` (P + 2,) says which of gather's rows hold a
     non-empty one, and `ground` is the grid's ground_mask. A voxel differs where it takes a non-empty merged voxel,
     or a ground voxel took an object row. The object's box is mostly empty, and its all-zero rows equal the empty

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,51 +21,10 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+from models.training.config import DistillConfig
 from renderer.errors import InputError
-from renderer.limits import DEFAULT_RESOLUTION, MAX_RESOLUTION, MIN_RESOLUTION
 
 HELD_OUT_EVERY = 10  # every tenth latent is kept out of training and measures the student
-
-
-@dataclass(frozen=True)
-class DistillConfig:
-    """Everything that determines a distilled network; stored in its weights file's metadata."""
-
-    teacher: str
-    post_light_blocks: int = 1
-    objects: int = 160
-    views: int = 10
-    steps: int = 1500
-    batch: int = 16
-    lr: float = 3e-4  # Adam, falling to zero along a cosine
-    seed: int = 0
-    resolution: int = DEFAULT_RESOLUTION  # of the objects' voxels, as the data sets have them
-    categories: tuple[str, ...] = ("chair", "table", "sofa", "stool")  # the training sets' (renderer/objects/)
-    # The light code and the merge learn too (else they keep the teacher's weights): a student with no block after
-    # the merge has only the decoder to learn with otherwise.
-    train_merge: bool = False
-
-    def check(self, teacher_blocks: int) -> None:
-        """Refuse values no distillation can run with, naming the option (before anything is computed)."""
-        if not 0 <= self.post_light_blocks < teacher_blocks:
-            raise InputError(f"--post-light-blocks must be from 0 to {teacher_blocks - 1} (the teacher has "
-                             f"{teacher_blocks}), got {self.post_light_blocks}")
-        for name, low in (("objects", 1), ("views", 1), ("steps", 1), ("batch", 1)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
-                raise InputError(f"--{name} must be a whole number of at least {low}, got {value!r}")
-        if self.objects * self.views < 2:
-            raise InputError("--objects x --views must be at least 2 (one latent is held out to measure the student)")
-        if not (isinstance(self.lr, float) and math.isfinite(self.lr) and self.lr > 0.0):
-            raise InputError(f"--lr must be a positive number, got {self.lr!r}")
-        from renderer.objects import CATEGORIES
-
-        unknown = [c for c in self.categories if c not in CATEGORIES]
-        if not self.categories or unknown:
-            raise InputError(f"--categories must name object categories ({', '.join(CATEGORIES)}), got "
-                             f"{', '.join(self.categories) or 'none'}")
-        if not MIN_RESOLUTION <= self.resolution <= MAX_RESOLUTION:
-            raise InputError(f"--res must be from {MIN_RESOLUTION} to {MAX_RESOLUTION}, got {self.resolution}")
 
 
 def student_of(teacher, post_light_blocks: int):

