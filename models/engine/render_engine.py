@@ -129,9 +129,22 @@ class _Pooled(NamedTuple):
     #                          keeps them (it recolors occupied voxels, whose merged voxels stay occupied)
 
 
+class _PaintedObject(NamedTuple):
+    """The paint stage's result and what it was made from."""
+
+    voxels: np.ndarray  # the painted object voxels (painted again in place by the next paint edit)
+    floor: tuple  # the floor color after the floor's paint strokes
+    key: tuple  # (source, object color, strokes): what the voxels depend on
+    replay: PaintReplay  # the voxels stage's result: the object's occupied voxels and their box
+
+
 class _Keys(NamedTuple):
     """The scene parts each stage depends on (see the module docstring)."""
 
+    source: tuple  # the object's file (_voxel_source): its occupancy, which paint keeps
+    paint: tuple  # the painted voxels (_PaintedObject.key)
+    resolution: int
+    factors: tuple[int, int, int]  # the network grid's merge factors
     pool: tuple
     placement: tuple
     grid: tuple
@@ -152,8 +165,7 @@ class _NetworkInputs(NamedTuple):
     buffers: Callable[[], np.ndarray | None]  # the shader's buffers, made on the first call (None: the network reads none)
     buffers_tensor: Callable[[], torch.Tensor | None]  # the same as the network's input tensor
     keys: _Keys
-    painted: np.ndarray
-    floor: tuple
+    painted: _PaintedObject
 
 
 class RenderEngine:
@@ -246,17 +258,17 @@ class RenderEngine:
         else the splatted object over the lit empty floor; from stages the full render then reuses."""
         start = self._begin()
         with torch.inference_mode():
-            painted, floor, paint_key = self._painted(scene)
-            keys = self._keys(scene, painted, floor, paint_key)
+            painted = self._painted(scene)
+            keys = self._keys(scene, painted)
             # Only the light changed: the voxel branch and the splat are kept, the rest is a light edit.
             if self._cached("voxel_branch", (keys.grid, self.crop)) and (not self._reads_splat or self._cached("splat", keys.splat)):
                 image = self._render(scene)
             elif self._reads_shading:  # the shaded image, which the full render then corrects
-                image = np.clip(self._shaded(scene, painted, floor, keys).image, 0.0, 1.0)
+                image = np.clip(self._shaded(scene, painted, keys).image, 0.0, 1.0)
             else:
-                splat = self._splat(scene, painted, floor, keys)
+                splat = self._splat(scene, painted, keys)
                 on_object = self._splat_layout(scene, painted, keys).voxel >= 0
-                image = np.where(on_object[..., None], splat, self._floor_light(scene, floor, keys))
+                image = np.where(on_object[..., None], splat, self._floor_light(scene, painted.floor, keys))
         self._finish(start, preview=True)
         return image.copy()
 
@@ -281,7 +293,7 @@ class RenderEngine:
         with torch.inference_mode():
             inputs = self._network_inputs(scene)
             _, correction = self._light(scene, inputs)  # kept by the light stage: a redraw after a render reuses it
-            shaded = self._shaded(scene, inputs.painted, inputs.floor, inputs.keys, size)
+            shaded = self._shaded(scene, inputs.painted, inputs.keys, size)
             image = apply_correction(_to_array(correction.cpu()), shaded.image)
         self._finish(start, preview=False)
         return image
@@ -308,22 +320,22 @@ class RenderEngine:
 
     def _network_inputs(self, scene: Scene) -> _NetworkInputs:
         """What the light stage reads, from the stages before it."""
-        painted, floor, paint_key = self._painted(scene)
-        keys = self._keys(scene, painted, floor, paint_key)
-        latent = self._latent(scene, painted, floor, keys)
+        painted = self._painted(scene)
+        keys = self._keys(scene, painted)
+        latent = self._latent(scene, painted, keys)
         # The shader's buffers (S, S, SHADING_CHANNELS), and as a tensor (off the compiled passes), made only if a
         # stage that reads them reruns.
-        buffers = functools.cache(lambda: self._shading(scene, painted, floor, keys) if self._reads_shading else None)
+        buffers = functools.cache(lambda: self._shading(scene, painted, keys) if self._reads_shading else None)
         buffers_tensor = functools.cache(lambda: None if buffers() is None else self._image_tensor(buffers()))
         features = None
         if self._reads_splat:
-            splat = self._splat(scene, painted, floor, keys)
-            floor_light = self._floor_light(scene, floor, keys) if self._reads_floor_light else None
+            splat = self._splat(scene, painted, keys)
+            floor_light = self._floor_light(scene, painted.floor, keys) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
         light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
         return _NetworkInputs(latent, light.to(self.device, self.dtype), features, buffers, buffers_tensor, keys,
-                              painted, floor)
+                              painted)
 
     def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
                       buffers: Callable[[], np.ndarray | None], buffers_tensor: Callable[[], torch.Tensor | None]
@@ -337,7 +349,7 @@ class RenderEngine:
 
     # --- stages ---------------------------------------------------------------------------
 
-    def _painted(self, scene: Scene) -> tuple[np.ndarray, tuple[float, float, float], tuple]:
+    def _painted(self, scene: Scene) -> _PaintedObject:
         """Painted object voxels, the floor color after floor strokes, and the paint stage's key."""
         source = _voxel_source(scene)
         plain = replace(scene, object=replace(scene.object, color=None))  # the base color is painted below
@@ -346,37 +358,39 @@ class RenderEngine:
         paint_key = (source, scene.object.color, strokes)
         painted = self._stage("paint", paint_key, lambda: replay.painted(scene.object.color, strokes))
         _, floor = apply_paint(painted, scene.floor.color, [op for op in scene.paint if op.target == "floor"])
-        return painted, tuple(floor), paint_key
+        return _PaintedObject(painted, tuple(floor), paint_key, replay)
 
-    def _keys(self, scene: Scene, painted: np.ndarray, floor: tuple, paint_key: tuple) -> _Keys:
-        o, elevation = scene.object, scene.camera.elevation_deg
-        n = painted.shape[0]
+    def _keys(self, scene: Scene, painted: _PaintedObject) -> _Keys:
+        o, elevation, floor, paint_key = scene.object, scene.camera.elevation_deg, painted.floor, painted.key
+        source, n = paint_key[0], painted.voxels.shape[0]
         factors = pool_factors(n, o.scale, self.config.grid_size)
         # Placement reads which object rows are empty, and layout the occupancy: neither changes with paint.
-        placement = (paint_key[0], n, factors, o.translation, o.rotation_deg, o.scale, elevation)
-        layout = (paint_key[0], o.translation, o.rotation_deg, o.scale, elevation)
+        placement = (source, n, factors, o.translation, o.rotation_deg, o.scale, elevation)
+        layout = (source, o.translation, o.rotation_deg, o.scale, elevation)
         splat = (paint_key, layout, floor)
         floor_light = (elevation, floor, scene.light.position)
         grid = (paint_key, placement, floor)
         painted_placed = (paint_key, placement)
         shade = (painted_placed, floor, scene.light.position)
         splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
-        return _Keys(pool=(paint_key, factors), placement=placement, grid=grid, layout=layout, splat=splat,
+        return _Keys(source=source, paint=paint_key, resolution=n, factors=factors, pool=(paint_key, factors),
+                     placement=placement, grid=grid, layout=layout, splat=splat,
                      floor_light=floor_light, painted=painted_placed, shade=shade, splat_branch=splat_branch)
 
-    def _placed(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> tuple[np.ndarray, _Placement]:
+    def _placed(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> tuple[np.ndarray, _Placement]:
         """The merged voxels and where each grid voxel samples them."""
-        n, factors = keys.placement[1:3]
+        n, factors = keys.resolution, keys.factors
         pooled = self._network_pool(painted, keys)
         # The crop's placement is not the whole grid's: the key says which (`crop` can change between renders).
         return pooled.voxels, self._stage("placement", (keys.placement, self.crop),
                                           lambda: self._place(n, factors, scene, pooled))
 
-    def _network_pool(self, painted: np.ndarray, keys: _Keys) -> _Pooled:
+    def _network_pool(self, painted: _PaintedObject, keys: _Keys) -> _Pooled:
         """The object voxels merged for the network's grid (keys.pool: the paint and the merge factors)."""
-        return self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.pool[0][0], keys.pool[1]))
+        return self._stage("pool", keys.pool, lambda: self._pool("pool", painted, keys.factors))
 
-    def _latent(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> torch.Tensor:
+    def _latent(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> torch.Tensor:
+        floor = painted.floor
         pooled, placement = self._placed(scene, painted, keys)
         grid_key = (keys.grid, self.crop)
         if not self.crop:
@@ -393,23 +407,23 @@ class RenderEngine:
         self._grid_fraction = plan.grid_fraction(self.config.grid_size)
         return self._stage("voxel_branch", grid_key, lambda: self.encoder.encode(background, plan, self._grid_tensor(crop)))
 
-    def _pool(self, stage: str, painted: np.ndarray, source: tuple, factors: tuple[int, int, int]) -> _Pooled:
+    def _pool(self, stage: str, painted: _PaintedObject, factors: tuple[int, int, int]) -> _Pooled:
         """Merged voxels (the network's grid's, or the shader's finer grid's); after a paint edit (same object, same
         merge factors) only the blocks it touched are merged again, in the last merge's array (the stage keeps one
         result and nothing else reads it), and their box stays. Paint changes the colors of occupied voxels alone,
         so only they are compared: work in proportion to the surface, not the grid."""
-        replay = self._cache.last("voxels")  # this object's (the voxels stage ran for `source` first)
+        replay, source, voxels = painted.replay, painted.key[0], painted.voxels
         occupied = replay.occupied
         last = self._cache.last(stage)
         if last is None or (last.source, last.factors) != (source, factors):
-            pooled = pool_voxels(painted, factors, replay.box)  # only the blocks the object reaches
+            pooled = pool_voxels(voxels, factors, replay.box)  # only the blocks the object reaches
             non_empty = non_empty_voxels(pooled)  # for the box to sample and the rows the placement reads
             object_rows = np.append(non_empty.reshape(-1), [False, False])  # the empty and floor rows: no object
-            return _Pooled(pooled, painted.reshape(-1, 4)[occupied], source, factors, occupied_spans(non_empty),
+            return _Pooled(pooled, voxels.reshape(-1, 4)[occupied], source, factors, occupied_spans(non_empty),
                            object_rows)
         self._cache.forget(stage)  # updated in place below: never a stale entry under the old key
-        colors, changed = colors_and_changes(painted, occupied, last.colors)
-        return _Pooled(repool_voxels(last.voxels, painted, factors, changed, in_place=True), colors, source, factors,
+        colors, changed = colors_and_changes(voxels, occupied, last.colors)
+        return _Pooled(repool_voxels(last.voxels, voxels, factors, changed, in_place=True), colors, source, factors,
                        last.within, last.object_rows)
 
     def _background(self, floor: tuple, elevation: float) -> Background:
@@ -443,36 +457,33 @@ class RenderEngine:
                 taken[tuple(slice(lo - start, hi - start) for (lo, hi), (start, _) in zip(overlap, window))]
         return _Placement(indices, plan)
 
-    def _splat_layout(self, scene: Scene, painted: np.ndarray, keys: _Keys) -> SplatLayout:
-        shell = self._stage("shell", keys.layout[0], lambda: Shell(occupancy(painted)))  # paint keeps occupancy
+    def _splat_layout(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> SplatLayout:
+        shell = self._stage("shell", keys.source, lambda: Shell(occupancy(painted.voxels)))  # paint keeps occupancy
         return self._stage("splat_layout", keys.layout, lambda: splat_layout(
             shell, object_to_world(scene.object), Camera.from_scene(scene, self.output_size)))
 
-    def _splat(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+    def _splat(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> np.ndarray:
         layout = self._splat_layout(scene, painted, keys)
-        return self._stage("splat", keys.splat, lambda: color_splat(layout, painted, floor))
+        return self._stage("splat", keys.splat, lambda: color_splat(layout, painted.voxels, painted.floor))
 
-    def _shaded(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys,
-                size: int | None = None) -> ShadedImage:
+    def _shaded(self, scene: Scene, painted: _PaintedObject, keys: _Keys, size: int | None = None) -> ShadedImage:
         """The voxel shader's image of the scene (renderer/shading/staged.py, its stages in this engine's cache),
         drawing the object voxels merged as for the grid the network's shader input stands for
         (config.shading_grid_size). `size`: another size than the network's (render_sized), whose stages from the
         surface on are computed, not kept."""
-        source = keys.pool[0][0]
-
         def pool(factors: tuple[int, int, int]) -> np.ndarray:
             if self.config.shading_grid_factor > 1:  # the finer grid's own merged voxels
-                return self._stage("shade_pool", (keys.pool[0], factors),
-                                   lambda: self._pool("shade_pool", painted, source, factors)).voxels
+                return self._stage("shade_pool", (keys.paint, factors),
+                                   lambda: self._pool("shade_pool", painted, factors)).voxels
             return self._network_pool(painted, keys).voxels  # shader_pool_factors are the network's on its own grid
 
         size = size or self.output_size
-        return self._shader.run(scene, keys.pool[0], painted, floor, size, shape_key=source,
+        return self._shader.run(scene, keys.paint, painted.voxels, painted.floor, size, shape_key=keys.source,
                                 keep=size == self.output_size, pool=pool)
 
-    def _shading(self, scene: Scene, painted: np.ndarray, floor: tuple, keys: _Keys) -> np.ndarray:
+    def _shading(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
-        return network_buffers(self._shaded(scene, painted, floor, keys))
+        return network_buffers(self._shaded(scene, painted, keys))
 
     def _floor_light(self, scene: Scene, floor: tuple, keys: _Keys) -> np.ndarray:
         return self._stage("floor_light", keys.floor_light, lambda: lit_floor_image(
