@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal, Protocol
 
 from renderer.errors import InputError
+from renderer.stage_cache import RenderReport
 
 if TYPE_CHECKING:  # the CLI reads the table's names before any renderer loads: nothing heavy at import
     import numpy as np
@@ -21,17 +22,6 @@ if TYPE_CHECKING:  # the CLI reads the table's names before any renderer loads: 
     from renderer.voxel_cache import VoxelCache
 
 RendererKind = Literal["network", "shader", "splat", "pathtrace"]
-
-
-@dataclass(frozen=True)
-class RenderReport:
-    """What one render did, for status bars, benchmarks and tests: the stages that ran (in order) and their times."""
-
-    stages_run: tuple[str, ...]
-    stage_ms: dict[str, float]
-    total_ms: float
-    preview: bool
-    grid_fraction: float | None = None  # share of the grid the voxel branch read, if it ran
 
 
 class Renderer(Protocol):

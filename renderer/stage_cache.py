@@ -1,5 +1,7 @@
 """The one stage cache: each stage's last result with the key it was computed for, and what the last pass ran.
 
+RenderReport is that record for one render, the same for every renderer (models/renderers.py).
+
 A staged renderer asks for each stage by name with the key of exactly what that stage reads; the cache returns the
 kept result when the key is the same, else computes, times and keeps the new one. One result per stage: a live
 editor asks for the latest scene, so older keys are never asked for again.
@@ -9,6 +11,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Hashable
+from dataclasses import dataclass
 from typing import Any
 
 
@@ -54,3 +57,14 @@ class StageCache:
     def clear(self) -> None:
         """Forget every stage: the next pass computes all of them."""
         self._memo.clear()
+
+
+@dataclass(frozen=True)
+class RenderReport:
+    """What one render did, for status bars, benchmarks and tests: the stages that ran (in order) and their times."""
+
+    stages_run: tuple[str, ...]
+    stage_ms: dict[str, float]
+    total_ms: float
+    preview: bool
+    grid_fraction: float | None = None  # share of the grid the voxel branch read, if it ran

@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
 
 from app.editor import state
 from app.editor.document import Document
+from app.editor.editor_parts import Editor
 from renderer.errors import InputError
-
-if TYPE_CHECKING:
-    from app.editor.app import EditorApp
 
 AUTOSAVE_SECONDS = 5.0
 
@@ -18,7 +15,7 @@ AUTOSAVE_SECONDS = 5.0
 class Autosave:
     """Keeps the recovery file of `app`'s document in `slot` (state.RECOVERY, or state.HEADLESS_RECOVERY for scripts)."""
 
-    def __init__(self, app: EditorApp, slot: str) -> None:
+    def __init__(self, app: Editor, slot: str) -> None:
         self.app = app
         self.slot = slot
         self.keep_on_close = True  # False once the user saved or discarded the changes on closing

@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from app.editor import edits, side_by_side, state
 from app.editor.document import Document
+from app.editor.editor_parts import EditorWithViews
 from app.editor.jobs import Progress
 from app.editor.orbit_view import viewport_camera
 from app.editor.render_panel import export_render, final_render
@@ -19,9 +19,6 @@ from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
 from renderer.scene import ObjectSpec, Scene, save_scene
-
-if TYPE_CHECKING:
-    from app.editor.app import EditorApp
 
 SHIPPED_ASSETS = Path(__file__).resolve().parents[2] / "assets"  # the demo scene and models: Save writes elsewhere
 
@@ -39,7 +36,7 @@ def new_scene() -> Scene:
 class FileCommands:
     """What the File menu and tab, the keys and the replay file ask of `app`'s document and files."""
 
-    def __init__(self, app: EditorApp) -> None:
+    def __init__(self, app: EditorWithViews) -> None:
         self.app = app
 
     # --- documents ----------------------------------------------------------------------------

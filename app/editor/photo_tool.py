@@ -11,13 +11,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Protocol
 
 import trimesh
 
 from app.editor import edits, state
-from app.editor.document import Document
-from app.editor.jobs import JobRunner, Progress
+from app.editor.editor_parts import Editor
+from app.editor.jobs import Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from renderer.capture.align import Alignment
 from renderer.capture.capture import find_pose, fit_advice, segment_photo
@@ -26,19 +25,6 @@ from renderer.scene import Scene
 from renderer.voxel_cache import VoxelCache
 
 Shape = tuple[trimesh.Trimesh, tuple, SilhouetteRenderer]  # the object's shape, its shape_key, its silhouettes
-
-
-class Editor(Protocol):
-    """What the tool needs from the editor (app/editor/app.py's EditorApp has it): the document, the
-    voxel cache, the status line, undoable edits and background jobs."""
-
-    doc: Document
-    voxels: VoxelCache
-    jobs: JobRunner
-
-    def say(self, text: str, error: bool = False) -> None: ...
-
-    def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool: ...
 
 
 class PhotoTool:

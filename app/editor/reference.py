@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from app.editor.editor_parts import EditorWithViews
 from app.editor.jobs import Progress
 from app.editor.window import upload_image
 from renderer.scene import Scene
 
 if TYPE_CHECKING:
-    from app.editor.app import EditorApp
     from app.editor.render_panel import RenderedFrame
 
 REFERENCE_SPP = 64  # with OIDN: the project's reference quality (docs/pathtrace_spp.md)
@@ -31,7 +31,7 @@ class Reference:
 class ReferenceRender:
     """The last reference image and its texture; the error against a frame is computed once per pair."""
 
-    def __init__(self, app: EditorApp) -> None:
+    def __init__(self, app: EditorWithViews) -> None:
         self.app = app
         self.shown: Reference | None = None
         self.texture = None

@@ -75,7 +75,6 @@ from models.engine.paint_replay import PaintReplay
 from models.networks.config import IMAGE_CHANNELS
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
-from models.renderers import RenderReport
 from models.threads import set_threads
 from renderer.camera import Camera
 from renderer.errors import InputError
@@ -103,7 +102,7 @@ from renderer.shading import (
 )
 from renderer.shading.staged import StagedShader
 from renderer.splat import SplatLayout, color_splat, splat_layout
-from renderer.stage_cache import StageCache
+from renderer.stage_cache import RenderReport, StageCache
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
