@@ -17,6 +17,7 @@ from renderer.errors import InputError
 from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
 
 EXIT_USER_ERROR = 2
+RENDERER_HELP = "; ".join(f"{name}: {entry.summary}" for name, entry in RENDERERS.items())
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -81,15 +82,10 @@ def cmd_render(args: argparse.Namespace) -> None:
 
 
 def add_render_parser(sub: argparse._SubParsersAction) -> None:
-
     p = sub.add_parser("render", help="render a scene file to a PNG")
     p.add_argument("scene", help="scene file (JSON, version 1)")
     p.add_argument("-o", "--output", required=True, help="PNG to write")
-    p.add_argument("--renderer", choices=list(RENDERERS), default="nvr+",
-                   help="nvr+ (default): the editor's image, the shaded voxels corrected by the network (any size: the "
-                        "correction computed at 256 px); "
-                        "shaded: the voxels lit physically (soft shadows, lit floor; any size); splat: voxel colors; "
-                        "pathtrace: the mesh in Mitsuba 3; nvr: the paper's network without the splat (256 px)")
+    p.add_argument("--renderer", choices=list(RENDERERS), default="nvr+", help=RENDERER_HELP)
     p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
     p.add_argument("--spp", type=int, default=64, help="path tracing: samples per pixel")
     p.add_argument("--seed", type=int, default=0, help="path tracing: random seed (same seed, same image)")

@@ -61,6 +61,7 @@ class RendererEntry:
     label: str  # what it is, in words: the panel's menu, the bench's rows and plots
     kind: RendererKind
     make: Callable[[RendererOptions], Renderer]
+    summary: str  # what draws the image, for --help
     architecture: str | None = None  # a network's architecture (models.networks), which its weights must hold
     interactive: bool = False  # offered by the editor's render panel
 
@@ -191,11 +192,15 @@ def _network(architecture: str) -> Callable[[RendererOptions], Renderer]:
 
 
 RENDERERS: dict[str, RendererEntry] = {entry.name: entry for entry in (
-    RendererEntry("nvr+", "NVR+", "network", _network("nvr_plus"), architecture="nvr_plus", interactive=True),
-    RendererEntry("shaded", "voxel shader", "shader", ShaderRenderer, interactive=True),
-    RendererEntry("nvr", "NVR", "network", _network("nvr"), architecture="nvr"),
-    RendererEntry("splat", "splatting", "splat", SplatRenderer),
-    RendererEntry("pathtrace", "path tracing", "pathtrace", PathTraceRenderer),
+    RendererEntry("nvr+", "NVR+", "network", _network("nvr_plus"),
+                  "the editor's image: the shaded voxels corrected by the network (any size)",
+                  architecture="nvr_plus", interactive=True),
+    RendererEntry("shaded", "voxel shader", "shader", ShaderRenderer,
+                  "the voxels lit physically: soft shadows, lit floor (any size)", interactive=True),
+    RendererEntry("nvr", "NVR", "network", _network("nvr"), "the paper's network without the splat (256 px)",
+                  architecture="nvr"),
+    RendererEntry("splat", "splatting", "splat", SplatRenderer, "the surface voxels' colors"),
+    RendererEntry("pathtrace", "path tracing", "pathtrace", PathTraceRenderer, "the mesh in Mitsuba 3, the reference"),
 )}
 INTERACTIVE = tuple(name for name, entry in RENDERERS.items() if entry.interactive)
 EVALUATED = tuple(name for name, entry in RENDERERS.items() if entry.kind != "pathtrace")  # eval's reference
