@@ -1,14 +1,15 @@
 """The voxel shader's compiled kernels alone, on the very calls an object move makes, and against another checkout's.
 
 Usage: python -m benchmarks.bench_shader_kernels [--data DIR ...] [--scenes N] [--repeats R] [--quality full|fast]
-       [--against OTHER/renderer/shading/kernels.py]
+       [--against OTHER_CHECKOUT]
 Renders each bench scene with the staged shader (as `nvr bench` does), records the arguments of every kernel call
 of one object move, then times each call alone `repeats` times (its output arrays fresh each time) and prints, per
-kernel and scene, the fastest and the median ms. With --against, the other file's kernels run the same calls in turn
-with these (one of each, then the next repeat), in one process: on a machine whose speed swings within minutes, the
-only comparison that holds; their outputs are compared too (a change meant to keep the images must give the same
-arrays; trace_surface's `deepest` may differ past a ray's full coverage, where it no longer counts). The other file
-is copied to a temporary folder first, so its compiled cache never mixes with this one's.
+kernel and scene, the fastest and the median ms. With --against, the other checkout's kernels run the same calls in
+turn with these (one of each, then the next repeat), in one process: on a machine whose speed swings within minutes,
+the only comparison that holds. Their outputs are compared too: a change meant to keep the images must give the same
+arrays (trace_surface's `deepest` may differ past a ray's full coverage, where it no longer counts). The other
+checkout's stage modules (renderer/shading/geometry.py, surface.py, lighting.py) are copied to a temporary folder
+first, so their compiled cache never mixes with this one's; what they import (fields.py, quality.py) is this one's.
 """
 
 from __future__ import annotations
@@ -27,16 +28,18 @@ import numpy as np
 
 from models.bench.benchmark import _PaintedShader, move_pair
 from models.bench.scenes import data_scenes
-from renderer.shading import kernels
+from renderer.shading import lighting, surface
 
-KERNELS = ("trace_surface", "mark_surface_pixels", "surface_normals_and_voxels", "filtered_colors",
-           "occlusion_along", "build_shadow_maps", "light_visibility", "light_form_factors", "composite")
+# The kernels an object move calls, by the stage module that holds (and calls) them.
+KERNELS = {"trace_surface": surface, "mark_surface_pixels": surface, "surface_normals_and_voxels": surface,
+           "filtered_colors": surface, "occlusion_along": surface, "build_shadow_maps": lighting,
+           "light_visibility": lighting, "light_form_factors": lighting, "composite": lighting}
 
 
 def recorded_calls(scene_folders: list[str], count: int, quality: str) -> list[tuple[str, str, list]]:
     """(scene, kernel, arguments copied) of every KERNELS call of one object move per scene, in call order."""
     calls: list[tuple[str, str, list]] = []
-    originals = {name: getattr(kernels, name) for name in KERNELS}
+    originals = {name: getattr(module, name) for name, module in KERNELS.items()}
     for bench in data_scenes(scene_folders, count):
         shader, (before, after) = _PaintedShader(bench, quality=quality), move_pair(bench.scene)
         shader.render(before)
@@ -47,24 +50,29 @@ def recorded_calls(scene_folders: list[str], count: int, quality: str) -> list[t
                 return originals[name](*args)
             return call
 
-        for name in KERNELS:
-            setattr(kernels, name, recording(name))
+        for name, module in KERNELS.items():
+            setattr(module, name, recording(name))
         try:
             shader.render(after)
         finally:
             for name, kernel in originals.items():
-                setattr(kernels, name, kernel)
+                setattr(KERNELS[name], name, kernel)
     return calls
 
 
-def other_kernels(path: Path, folder: Path) -> ModuleType:
-    """Another checkout's kernels module, loaded from a copy in `folder` (its own numba cache)."""
-    copy = shutil.copy(path, folder / "other_kernels.py")
-    spec = importlib.util.spec_from_file_location("other_kernels", copy)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+def other_kernels(checkout: Path, folder: Path) -> dict[str, ModuleType]:
+    """Another checkout's stage modules by this one's module name, each loaded from a copy in `folder` (its own numba
+    cache)."""
+    loaded = {}
+    for module in set(KERNELS.values()):
+        stage = module.__name__.rsplit(".", 1)[1]
+        copy = shutil.copy(checkout / "renderer" / "shading" / f"{stage}.py", folder / f"other_{stage}.py")
+        spec = importlib.util.spec_from_file_location(f"other_{stage}", copy)
+        other = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = other
+        spec.loader.exec_module(other)
+        loaded[module.__name__] = other
+    return loaded
 
 
 def timed(kernel, args: list) -> tuple[float, list[np.ndarray]]:
@@ -83,7 +91,7 @@ def main() -> None:
     p.add_argument("--scenes", type=int, default=3)
     p.add_argument("--repeats", type=int, default=40)
     p.add_argument("--quality", choices=["full", "fast"], default="full", help="the voxel shader's")
-    p.add_argument("--against", type=Path, default=None, help="another checkout's renderer/shading/kernels.py")
+    p.add_argument("--against", type=Path, default=None, help="another checkout's root folder")
     args = p.parse_args()
 
     calls = recorded_calls(args.data, args.scenes, args.quality)
@@ -94,7 +102,8 @@ def main() -> None:
         seen: dict[tuple[str, str], int] = {}
         for scene, name, kernel_args in calls:
             index = seen[(scene, name)] = seen.get((scene, name), -1) + 1
-            kernels_in_turn = [getattr(kernels, name)] + ([getattr(other, name)] if other else [])
+            module = KERNELS[name]
+            kernels_in_turn = [getattr(module, name)] + ([getattr(other[module.__name__], name)] if other else [])
             times: list[list[float]] = [[] for _ in kernels_in_turn]
             for _ in range(args.repeats + 1):  # the first round compiles or loads
                 outputs = []

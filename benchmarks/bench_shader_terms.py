@@ -15,10 +15,11 @@ from dataclasses import replace
 import numpy as np
 import torch
 
-import renderer.shading.shader as shader
 from models.evaluation.metrics import dssim, mse_255
 from models.training.data import VoxelRenderSet
-from renderer.shading import FULL_QUALITY, kernels
+from renderer.shading import FULL_QUALITY, geometry, lighting, quality, shade_scene, surface
+
+STAGES = (geometry, surface, lighting)  # the modules whose values and kernels an ablation replaces
 
 
 def _lit_everywhere(receivers, bias, lights, depth, bounds, nearest, spread, out):
@@ -26,32 +27,31 @@ def _lit_everywhere(receivers, bias, lights, depth, bounds, nearest, spread, out
 
 
 @contextmanager
-def patched(module, **values):
-    """Set module attributes for the duration of a `with` block."""
-    before = {name: getattr(module, name) for name in values}
-    for name, value in values.items():
-        setattr(module, name, value)
+def patched(**values):
+    """Replace a value or kernel in every stage module that reads it, for the duration of a `with` block."""
+    before = [(module, name, getattr(module, name)) for name in values for module in STAGES if hasattr(module, name)]
+    for module, name, _ in before:
+        setattr(module, name, values[name])
     try:
         yield
     finally:
-        for name, value in before.items():
+        for module, name, value in before:
             setattr(module, name, value)
 
 
-# Each ablation: the module attributes it sets, and the shader quality it renders at (the full one, or a term of it
+# Each ablation: the values or kernels it replaces, and the shader quality it renders at (the full one, or a term of it
 # taken out).
 ABLATIONS = {
-    "full shader": (shader, {}),
-    "no shadows (every point sees the whole light)": (kernels, {"light_visibility": _lit_everywhere}),
-    "hull silhouettes (no thinning towards the mesh)": (shader, {"COVERAGE_FULL": 1e-6}),
-    "no ambient occlusion": (shader, {"OCCLUSION_WEIGHTS": np.zeros(4, np.float32),
-                                      "FLOOR_OCCLUSION_WEIGHTS": np.zeros(4, np.float32)}),
-    "no light bounced from the floor": (shader, {"FLOOR_BOUNCE": 0.0}),
-    "less smooth normals (from the surface's own field)": (shader, {"NORMAL_SIGMA": shader.DISTANCE_SIGMA}),
-    "normals not averaged over the tangent plane's disc": (shader, {}, replace(FULL_QUALITY, normal_rings=0)),
-    "no reflection of the object in the floor": (shader, {"REFLECTION_SCALE": 0.0}),
-    "each point colored by one voxel (not averaged over the pixel's footprint)": (shader, {},
-                                                                                  replace(FULL_QUALITY, color_spread=0.0)),
+    "full shader": ({},),
+    "no shadows (every point sees the whole light)": ({"light_visibility": _lit_everywhere},),
+    "hull silhouettes (no thinning towards the mesh)": ({"COVERAGE_FULL": 1e-6},),
+    "no ambient occlusion": ({"OCCLUSION_WEIGHTS": np.zeros(4, np.float32),
+                               "FLOOR_OCCLUSION_WEIGHTS": np.zeros(4, np.float32)},),
+    "no light bounced from the floor": ({"FLOOR_BOUNCE": 0.0},),
+    "less smooth normals (from the surface's own field)": ({"NORMAL_SIGMA": quality.DISTANCE_SIGMA},),
+    "normals not averaged over the tangent plane's disc": ({}, replace(FULL_QUALITY, normal_rings=0)),
+    "no reflection of the object in the floor": ({"REFLECTION_SCALE": 0.0},),
+    "each point colored by one voxel (not averaged over the pixel's footprint)": ({}, replace(FULL_QUALITY, color_spread=0.0)),
 }
 
 
@@ -70,12 +70,12 @@ def main() -> None:
     print(f"{len(samples)} test images; MSE (0-255) / DSSIM per setting\n")
     print("| shader | " + " | ".join(settings) + " |")
     print("|---|" + "---:|" * len(settings))
-    for name, (module, values, *quality) in ABLATIONS.items():
+    for name, (values, *chosen) in ABLATIONS.items():
         scores = defaultdict(list)
-        with patched(module, **values):
+        with patched(**values):
             for target, scene, rgba, setting in samples:
-                image = shader.shade_scene(scene, rgba, scene.floor.color, target.shape[-1], args.shading_grid,
-                                           quality=quality[0] if quality else FULL_QUALITY).image
+                image = shade_scene(scene, rgba, scene.floor.color, target.shape[-1], args.shading_grid,
+                                    quality=chosen[0] if chosen else FULL_QUALITY).image
                 prediction = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
                 target = target[None]
                 scores[setting].append((float(mse_255(prediction, target)[0]), float(dssim(prediction, target)[0])))

@@ -345,7 +345,7 @@ def shader_pool_factors(resolution: int, scale: tuple[float, float, float], grid
     """How the voxel shader merges an N^3 object's voxels when it stands in for a `grid_size`^3 grid: as pool_factors
     for the network's grid (in pairs at scale 1), and for a finer one as for a grid four times as fine again, which
     merges none of the product's 200^3 voxels at scales of a half and above (the shader draws the object's own voxels:
-    renderer.shading.shader.object_geometry). Merged in pairs (as for a grid twice as fine), the test chairs' coverage,
+    renderer.shading.geometry.object_geometry). Merged in pairs (as for a grid twice as fine), the test chairs' coverage,
     most scaled below 1, differed from the mesh's by 0.00073-0.00087 (mean squared) against 0.00049-0.00058, and the
     NVR+ erred 8-12 % more (docs/results.md, "Design choices")."""
     return pool_factors(resolution, scale, 4 * grid_size if grid_size > GRID_SIZE else grid_size)

@@ -29,7 +29,6 @@ from renderer.shading import (
     FAST_QUALITY,
     FULL_QUALITY,
     ShaderQuality,
-    kernels,
     object_geometry,
     placed,
     repaint_surface,
@@ -37,7 +36,12 @@ from renderer.shading import (
     shade_scene,
     visible_surface,
 )
-from renderer.shading.shader import (
+from renderer.shading import fields as field_kernels
+from renderer.shading import geometry as geometry_stage
+from renderer.shading import lighting as lighting_stage
+from renderer.shading import surface as surface_stage
+from renderer.shading.lighting import light_points
+from renderer.shading.quality import (
     COARSE_CELLS,
     COLOR_LEAST,
     COLOR_SPREAD,
@@ -49,15 +53,16 @@ from renderer.shading.shader import (
     REFLECTION_SUBSAMPLING,
     SURFACE_LEVEL,
     THIN_LEVEL,
+)
+from renderer.shading.staged import StagedShader
+from renderer.shading.surface import (
     _any_in_3x3,
     _differs_from_a_neighbour,
     _pixel_window,
     _ray_candidates,
     _trace,
     _trace_candidates,
-    light_points,
 )
-from renderer.shading.staged import StagedShader
 
 FLOOR = (0.6, 0.6, 0.6)
 SIZE = 96
@@ -258,7 +263,7 @@ def test_trilinear_sample_matches_scipy():
     field = rng.random((7, 9, 5)).astype(np.float32)
     points = rng.uniform(0.5, [6.5, 8.5, 4.5], size=(200, 3))  # voxel centres at i + 0.5
     expected = ndimage.map_coordinates(field, (points - 0.5).T, order=1)
-    got = np.array([kernels.sample(field, *p) for p in points])
+    got = np.array([field_kernels.sample(field, *p) for p in points])
     np.testing.assert_allclose(got, expected, atol=1e-5)
 
 
@@ -273,7 +278,7 @@ def test_grid_interpolation_matches_scipy_beyond_the_edges_too(shape):
     x1, z1 = x0 + shape[0] * step, z0 + shape[1] * step
     points = np.stack([x0 + a * step, np.zeros(300), z0 + b * step], axis=1)
     got = np.full(300, -1.0)
-    kernels.interpolate_grid(values, x0, z0, step, points, x1, z1, got)
+    lighting_stage.interpolate_grid(values, x0, z0, step, points, x1, z1, got)
     inside = (points[:, 0] >= x0) & (points[:, 0] <= x1) & (points[:, 2] >= z0) & (points[:, 2] <= z1)
     expected = np.where(inside, ndimage.map_coordinates(values, [a, b], order=1, mode="nearest"), -1.0)
     assert inside.sum() > 20 and (~inside).sum() > 20  # both kinds of point are there
@@ -298,13 +303,13 @@ def test_shadow_maps_block_what_lies_between():
     occluders = np.array([[0.0, 1.0, 0.0]])
     maps = np.empty((1, 16, 16), dtype=np.float32)
     bounds = np.zeros((1, 3))
-    kernels.build_shadow_maps(occluders, 0.05, 0.0, lights, 16, maps, bounds)
+    lighting_stage.build_shadow_maps(occluders, 0.05, 0.0, lights, 16, maps, bounds)
     receivers = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
     seen = np.empty(3)
-    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
+    lighting_stage.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
     assert seen[0] < 0.01 and seen[1] == 1.0 and seen[2] == 1.0  # the last lies between occluder and light
-    kernels.build_shadow_maps(np.zeros((0, 3)), 0.05, 0.0, lights, 16, maps, bounds)
-    kernels.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
+    lighting_stage.build_shadow_maps(np.zeros((0, 3)), 0.05, 0.0, lights, 16, maps, bounds)
+    lighting_stage.light_visibility(receivers, 0.01, lights, maps, bounds, np.full(1, 2.0), 0.0, seen)
     assert np.all(seen == 1.0)
 
 
@@ -320,11 +325,11 @@ def test_occluders_spaced_wider_than_texels_cover_their_footprint():
     uncovered = []
     for footprint in (0.0, 0.04 / np.sqrt(2.0)):
         maps, bounds = np.empty((1, 96, 96), dtype=np.float32), np.zeros((1, 3))
-        kernels.build_shadow_maps(layer, 0.002, footprint, lights, 96, maps, bounds)
+        lighting_stage.build_shadow_maps(layer, 0.002, footprint, lights, 96, maps, bounds)
         a0, b0, texel = bounds[0]
         centres = (np.arange(96) + 0.5) * texel
         over = (np.abs(a0 + centres)[:, None] < 0.49) & (np.abs(b0 + centres)[None, :] < 0.49)  # height 1: a = x
-        uncovered.append(int((maps[0][over] >= kernels.FAR).sum()))
+        uncovered.append(int((maps[0][over] >= field_kernels.FAR).sum()))
     assert uncovered[0] > 1000 and uncovered[1] == 0
 
 
@@ -351,7 +356,7 @@ def _reference_shadow_map(occluders, radius, footprint, light, size):
               & (rows >= (b - r).astype(int)[:, None, None]) & (rows <= (b + r).astype(int)[:, None, None]))
     covered = (in_box & (d2 <= (r * r + 0.5)[:, None, None])) | (d2 <= (f * f)[:, None, None])
     near = (ly - occluders[:, 1] - radius).astype(np.float32)
-    return np.where(covered, near[:, None, None], kernels.FAR).min(axis=0), (a_min, b_min, texel)
+    return np.where(covered, near[:, None, None], field_kernels.FAR).min(axis=0), (a_min, b_min, texel)
 
 
 @pytest.mark.parametrize("footprint", [0.0, 0.01, 0.05])  # none, under the discs' radius, over it
@@ -359,7 +364,7 @@ def test_shadow_maps_hold_the_nearest_covering_occluder_per_texel(footprint):
     occluders = np.random.default_rng(7).uniform([-0.5, 0.0, -0.5], [0.5, 1.5, 0.5], (400, 3))
     lights = np.array([[0.1, 3.0, -0.2], [-0.3, 3.0, 0.25]])
     maps, bounds = np.empty((2, 24, 24), dtype=np.float32), np.zeros((2, 3))
-    kernels.build_shadow_maps(occluders, 0.02, footprint, lights, 24, maps, bounds)
+    lighting_stage.build_shadow_maps(occluders, 0.02, footprint, lights, 24, maps, bounds)
     for k in range(2):
         expected, expected_bounds = _reference_shadow_map(occluders, 0.02, footprint, lights[k], 24)
         np.testing.assert_allclose(bounds[k], expected_bounds, rtol=1e-12)
@@ -372,10 +377,10 @@ def test_shadow_maps_of_light_points_at_other_heights_are_each_points_own():
     occluders = np.random.default_rng(3).uniform([-0.5, 0.0, -0.5], [0.5, 2.5, 0.5], (500, 3))
     lights = np.array([[0.1, 3.0, -0.2], [0.3, 2.0, 0.1], [-0.2, 3.0, 0.0]])
     maps, bounds = np.empty((3, 32, 32), dtype=np.float32), np.zeros((3, 3))
-    kernels.build_shadow_maps(occluders, 0.02, 0.0, lights, 32, maps, bounds)
+    lighting_stage.build_shadow_maps(occluders, 0.02, 0.0, lights, 32, maps, bounds)
     for k in range(3):
         alone, alone_bounds = np.empty((1, 32, 32), dtype=np.float32), np.zeros((1, 3))
-        kernels.build_shadow_maps(occluders, 0.02, 0.0, lights[k:k + 1], 32, alone, alone_bounds)
+        lighting_stage.build_shadow_maps(occluders, 0.02, 0.0, lights[k:k + 1], 32, alone, alone_bounds)
         np.testing.assert_array_equal(maps[k], alone[0])
         np.testing.assert_array_equal(bounds[k], alone_bounds[0])
 
@@ -395,7 +400,7 @@ def test_soft_shadow_of_a_plate_matches_the_area_light(points):
     plate = np.stack([ox.ravel(), np.full(ox.size, plate_height), oz.ravel()], axis=1)
     maps = np.empty((len(lights), 96, 96), dtype=np.float32)
     bounds = np.zeros((len(lights), 3))
-    kernels.build_shadow_maps(plate, 0.005, 0.0, lights, 96, maps, bounds)
+    lighting_stage.build_shadow_maps(plate, 0.005, 0.0, lights, 96, maps, bounds)
     nearest = maps.reshape(len(lights), -1).min(axis=1).astype(np.float64)
     xs = np.linspace(-1.5, 1.5, 301)
     receivers = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
@@ -408,7 +413,7 @@ def test_soft_shadow_of_a_plate_matches_the_area_light(points):
     errors = {}
     for spread in (0.0, light_side / points):
         seen = np.empty(len(xs))
-        kernels.light_visibility(receivers, 0.01, lights, maps, bounds, nearest, spread, seen)
+        lighting_stage.light_visibility(receivers, 0.01, lights, maps, bounds, nearest, spread, seen)
         errors[spread] = np.abs(seen - exact)
     soft = errors[light_side / points]
     # 2 x 2 points (the fast quality) leave coarser steps: up to a fifth of the light off at the worst receiver.
@@ -453,13 +458,13 @@ def test_distance_transform_matches_scipy():
     rng = np.random.default_rng(1)
     occupied = rng.random((13, 17, 11)) < 0.02
     occupied[0, 0, 0] = True
-    np.testing.assert_allclose(kernels.distance_to_occupied(occupied), ndimage.distance_transform_edt(~occupied),
+    np.testing.assert_allclose(geometry_stage.distance_to_occupied(occupied), ndimage.distance_transform_edt(~occupied),
                                rtol=1e-5, atol=1e-5)
 
 
 def test_closing_and_filling_make_a_shell_solid():
     from renderer.grid import dilate_cube
-    from renderer.shading.shader import _erode_cube, _solid
+    from renderer.shading.geometry import _erode_cube, _solid
 
     rng = np.random.default_rng(2)
     mask = rng.random((9, 10, 8)) < 0.3
@@ -475,7 +480,8 @@ def test_closing_and_filling_make_a_shell_solid():
 
 
 def test_specks_inside_a_covered_part_close_and_openings_stay():
-    from renderer.shading.shader import SPECK_PIXELS, _close_specks
+    from renderer.shading.quality import SPECK_PIXELS
+    from renderer.shading.surface import _close_specks
 
     cover = np.zeros((40, 40), dtype=np.float32)
     cover[5:35, 5:35] = 1.0
@@ -593,7 +599,7 @@ def lattice(n: int = 40, bars: int = 4) -> np.ndarray:
 
 def test_ray_candidates_leave_out_the_inside_of_a_solid():
     # A ray stops on the surface, never deep inside a part, so no cell wholly inside the ball is a candidate
-    # (kernels.near_surface_cell_mask): every candidate cell lies near the sphere of its 20-voxel radius.
+    # (geometry_stage.near_surface_cell_mask): every candidate cell lies near the sphere of its 20-voxel radius.
     geometry = geometry_of(ball(), ObjectSpec(voxels="v.npz"), 30.0)
     centre = np.argwhere(geometry.occupied).mean(axis=0) + 0.5
     cells = geometry.surface_cells  # boxes: first and last i, j, k; here runs along k
@@ -629,9 +635,9 @@ def test_candidate_cells_are_those_whose_corners_allow_a_hit():
     corners = [fields[a:a + 8, b:b + 11, c:c + 14] for a in (0, 1) for b in (0, 1) for c in (0, 1)]
     least, most = np.minimum.reduce(corners), np.maximum.reduce(corners)
     level, thin, slack, depth = 0.8, 0.35, 0.01, 0.25
-    expected = ((least[..., 0] - np.maximum(level, most[..., 1] + thin) < kernels.HIT_GAP + slack)
+    expected = ((least[..., 0] - np.maximum(level, most[..., 1] + thin) < field_kernels.HIT_GAP + slack)
                 & (most[..., 0] - np.maximum(level, least[..., 1] + thin) >= -depth))
-    mask = kernels.near_surface_cell_mask(fields, level, thin, slack, depth)
+    mask = geometry_stage.near_surface_cell_mask(fields, level, thin, slack, depth)
     assert 0.2 < expected.mean() < 0.8  # both kinds of cell
     np.testing.assert_array_equal(mask, expected)
 
@@ -660,7 +666,7 @@ def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, trans
     for full, far, fast in zip(every, bounded, skipping):
         np.testing.assert_array_equal(far, full)
         np.testing.assert_array_equal(fast, full)
-    hits = every[0] < kernels.FAR
+    hits = every[0] < field_kernels.FAR
     assert 0 < hits.sum() < hits.size
     assert np.all(candidates[hits]) and candidates[~hits].mean() < 0.6
     assert np.isfinite(nearest[hits]).all() and (nearest[~candidates] > nearest[hits].min()).mean() > 0.3
@@ -675,7 +681,7 @@ def test_skipped_rays_and_skipped_depths_hold_no_surface(shape, elevation, trans
                                                cols[None, :] + du, nearest, farthest)):
             np.testing.assert_array_equal(far, full)
         t_near = from_near[0]
-        face, near = t_face < kernels.FAR, t_near < kernels.FAR
+        face, near = t_face < field_kernels.FAR, t_near < field_kernels.FAR
         depth = (points_face[face] - origin) @ axis
         assert np.all(depth >= nearest[face] - 1e-9) and np.all(depth <= farthest[face] + 1e-9)
         # Rays that graze a lattice's thin bars may step past a bar from one start and not the other (2.7 % of them
@@ -696,13 +702,13 @@ def test_a_rays_coverage_is_that_of_its_whole_probe(shape):
     rows, cols = _pixel_window(geometry, camera)
     t, points, cover = _trace(geometry, camera, world_to_voxel, origin, rows[:, None] + 0.5, cols[None, :] + 0.5,
                               cover_behind=False)
-    hits = t < kernels.FAR
+    hits = t < field_kernels.FAR
     directions = points[hits] - origin
     directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
     fields = geometry.distance_and_core
     expected = []
     for point, direction in zip(points[hits], directions):
-        samples = [kernels.sample_pair(fields, *(point + COVERAGE_PROBE * k / 8.0 * direction)) for k in range(9)]
+        samples = [field_kernels.sample_pair(fields, *(point + COVERAGE_PROBE * k / 8.0 * direction)) for k in range(9)]
         core = samples[0][1]
         level = max(SURFACE_LEVEL, core + THIN_LEVEL)
         least = min(distance for distance, _ in samples)
@@ -773,7 +779,7 @@ def test_the_composite_lays_the_object_over_the_lit_floor_by_its_coverage():
     radiance = rng.random((3, 3), dtype=np.float32)
     cover = np.array([1.0, 0.25, 0.0], dtype=np.float32)
     out = np.empty((size, size, 3), dtype=np.float32)
-    kernels.composite(from_light, from_ambient, top, top + 1, down, left, left + 1, across, floor, visibility,
+    lighting_stage.composite(from_light, from_ambient, top, top + 1, down, left, left + 1, across, floor, visibility,
                       floor_occlusion, background, rows, cols, radiance, cover, out)
 
     def full(term):
@@ -792,7 +798,7 @@ def test_the_composite_lays_the_object_over_the_lit_floor_by_its_coverage():
 
 def test_network_buffers_hold_the_shaded_image_and_its_buffers_in_order():
     from renderer.scene import CAMERA_DISTANCE, GRID_EXTENT
-    from renderer.shading.shader import BUFFER_CHANNELS, network_buffers
+    from renderer.shading.buffers import BUFFER_CHANNELS, network_buffers
 
     image = shaded(cube(), ObjectSpec(voxels="v.npz", scale=(0.4, 0.4, 0.4)), (0.4, 2.7, 0.3), size=48)
     buffers = network_buffers(image)
@@ -858,7 +864,7 @@ def test_filtered_colors_average_the_voxels_around_the_point_by_their_distance(s
     points = voxels + np.array([[0.75, 0.5, 0.5], [0.3, 0.6, 0.5], [0.5, 0.5, 0.5], [0.9, 0.1, 0.5], [0.5, 0.5, 0.5]])
     spread = np.array([sigma, sigma, sigma, 0.0, sigma])
     out = np.empty((len(voxels), 3), dtype=np.float32)
-    kernels.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, points, np.asarray(sides),
+    surface_stage.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, points, np.asarray(sides),
                             spread, 0.0, out)
     crop_rgb = rgb[1:13, 1:13, 1:4]
     for row in (0, 1):
@@ -881,7 +887,7 @@ def test_filtered_colors_change_smoothly_across_a_voxel_at_a_small_spread():
     points = np.stack([along, np.full_like(along, 6.5), np.full_like(along, 1.5)], axis=1)
     voxels = np.stack([np.floor(along).astype(np.int64), np.full(len(along), 6), np.full(len(along), 1)], axis=1)
     out = np.empty((len(along), 3), dtype=np.float32)
-    kernels.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, points,
+    surface_stage.filtered_colors(rgb, np.array([1, 1, 1], dtype=np.int64), occupied, voxels, points,
                             np.ones(3), np.full(len(along), 0.05), COLOR_LEAST, out)
     red = out[:, 0]
     assert red[0] > 0.85 and red[-1] < 0.15
@@ -909,13 +915,13 @@ def test_an_object_reaching_up_to_the_light_reads_only_the_floor_in_view(monkeyp
     """A tall object whose top comes just under the light casts a shadow box that grows without bound (nothing
     clips an object to a grid): the floor's shadows are read only over the floor the camera sees."""
     read = []
-    light_visibility = kernels.light_visibility
+    light_visibility = lighting_stage.light_visibility
 
     def counting(receivers, *args):
         read.append(len(receivers))
         return light_visibility(receivers, *args)
 
-    monkeypatch.setattr(kernels, "light_visibility", counting)
+    monkeypatch.setattr(lighting_stage, "light_visibility", counting)
     out = shaded(cube(12), ObjectSpec(voxels="v.npz", scale=(0.3, 2.74, 0.3)), (1.0, 2.75, 0.5), size=48)
     assert np.all(np.isfinite(out.image)) and out.visibility.min() < 0.5  # it does cast a shadow
     floor_side = 2 * FLOOR_HALF_SIZE / FLOOR_SHADOW_STEP + 3

@@ -475,12 +475,12 @@ def test_the_thread_count_holds_after_a_compiled_shader_kernel():
     import numba
 
     from models.threads import set_threads
-    from renderer.shading import kernels
+    from renderer.shading import geometry as geometry_stage
 
     before = torch.get_num_threads(), numba.get_num_threads()
     try:
         set_threads(1)
-        kernels.distance_to_occupied(np.zeros((6, 6, 6), dtype=bool))
+        geometry_stage.distance_to_occupied(np.zeros((6, 6, 6), dtype=bool))
         assert torch.get_num_threads() == 1 and numba.get_num_threads() == 1
     finally:
         torch.set_num_threads(before[0])

@@ -30,17 +30,10 @@ from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import pool_voxels, shader_pool_factors
 from renderer.scene import SHADER_GRID_SIZE, Scene
-from renderer.shading.shader import (
-    FULL_QUALITY,
-    ShadedImage,
-    ShaderQuality,
-    floor_reflection,
-    object_geometry,
-    placed,
-    repaint_surface,
-    shade,
-    visible_surface,
-)
+from renderer.shading.geometry import object_geometry, placed
+from renderer.shading.lighting import ShadedImage, shade
+from renderer.shading.quality import FULL_QUALITY, ShaderQuality
+from renderer.shading.surface import floor_reflection, repaint_surface, visible_surface
 from renderer.stage_cache import StageCache
 
 Pool = Callable[[tuple[int, int, int]], np.ndarray]  # merge factors -> the painted voxels merged by them
