@@ -80,7 +80,7 @@ class SplatRenderer:
     """The splatted surface voxels over the empty floor (paper 3.4), the networks' input."""
 
     renders_any_size = True
-    description = "splat"
+    description = "the splatted surface voxels"
 
     def __init__(self, options: RendererOptions) -> None:
         self._voxels = options.voxels
