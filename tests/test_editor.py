@@ -754,12 +754,21 @@ def test_export_turntable_renders_in_the_background_with_the_panels_renderer(dis
 
 
 def test_the_reference_button_path_traces_the_edited_scene_beside_the_render(display, tmp_path, scene_file):
+    """The reference window shows the edited scene inside the viewport; Escape closes it, and so does another scene."""
     result = run_editor(display, tmp_path, scene_file, [
         {"action": "fill_object", "color": list(GREEN)},
         {"action": "screenshot", "path": str(tmp_path / "before.png")},
         {"action": "reference_render", "spp": 4},
         {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": str(tmp_path / "after.png")},
+        {"action": "key", "key": "escape"},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "closed.png")},
+        {"action": "reference_render", "spp": 4},
+        {"action": "open", "path": str(scene_file)},
+        {"action": "answer", "choice": "Discard"},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "reopened.png")},
     ])
     assert result.returncode == 0, result.stderr[-2000:]
     v = PANELS.viewport
@@ -767,6 +776,12 @@ def test_the_reference_button_path_traces_the_edited_scene_beside_the_render(dis
     before, after = pixels(tmp_path / "before.png", corner), pixels(tmp_path / "after.png", corner)
     assert np.abs(after - before).max(axis=-1).mean() > 0.1  # the window appeared
     assert share_of(after, GREEN) > 0.003  # the path tracer shows the painted object, not the mesh's own colors
+    closed, reopened = pixels(tmp_path / "closed.png", corner), pixels(tmp_path / "reopened.png", corner)
+    assert np.abs(closed - before).max(axis=-1).mean() < 0.01  # Escape closed it
+    assert share_of(reopened, GREEN) == 0.0  # the old scene's reference went with it
+    right = Image.open(tmp_path / "after.png").convert("RGB").crop((v.x + v.width, v.y + 8, v.x + v.width + 40, v.y + 40))
+    assert np.array_equal(np.asarray(right), np.asarray(Image.open(tmp_path / "before.png").convert("RGB").crop(
+        (v.x + v.width, v.y + 8, v.x + v.width + 40, v.y + 40))))  # the window stays inside the viewport
 
 
 def test_exports_at_a_chosen_size_render_the_shader_there_and_upscale_the_network(display, tmp_path, scene_file, model_file):

@@ -196,6 +196,7 @@ class EditorApp:
         """Edit `document` from now on (Open, New, a restored autosave)."""
         self.doc = document
         self.photo = PhotoTool(self)  # a photo aligned to the old scene's object does not carry over
+        self.reference.close()  # nor a reference render of the old scene
         self._synced = -1
         self.autosave.reset()
 

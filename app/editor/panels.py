@@ -91,13 +91,14 @@ class Interface:
         app = self.app
         width, height = app.window.size
         panels = layout_for(width, height)
+        escape_is_free = not self.viewport_input.interacting  # else Esc cancels the drag or the G/R/S in progress
         self._menu()
         self._viewport(panels.viewport)
         self._render_panel(panels.render, panels.render_image)
         self.photo_panel.shown = None  # set again if the Photo tab is open
         self._tools(panels.tools)
         self._status(panels.status)
-        self._reference_window(panels.viewport)
+        self._reference_window(panels.viewport, escape_is_free)
         self._prompt()
         self._shortcuts()
         self._poll_file_dialog()
@@ -447,22 +448,31 @@ class Interface:
 
     # --- the reference render -------------------------------------------------------------
 
-    def _reference_window(self, viewport: Rect) -> None:
-        """The path-traced reference, over the viewport's top right, with its error against the live render."""
+    def _reference_window(self, viewport: Rect, escape_is_free: bool) -> None:
+        """The path-traced reference over the viewport's top right, inside it whatever its label's length: its error
+        against the live render first, then the image. Its close button, or Escape, closes it."""
         app, reference = self.app, self.app.reference
         if reference.shown is None or reference.texture is None:
             return
+        io = imgui.get_io()
+        if escape_is_free and not io.want_text_input and app.prompt is None and imgui.is_key_pressed(imgui.Key.escape):
+            reference.close()
+            return
         side = min(256, viewport.width // 2, viewport.height - 80)
-        imgui.set_next_window_pos(imgui.ImVec2(viewport.x + viewport.width - side - 24, viewport.y + 8), imgui.Cond_.always)
-        opened, keep = imgui.begin("Reference", True, FIXED | imgui.WindowFlags_.always_auto_resize)
+        width = side + 2 * imgui.get_style().window_padding.x
+        imgui.set_next_window_pos(imgui.ImVec2(viewport.x + viewport.width - width - 8, viewport.y + 8), imgui.Cond_.always)
+        imgui.set_next_window_size(imgui.ImVec2(width, 0), imgui.Cond_.always)
+        opened, keep = imgui.begin("Reference", True, FIXED | imgui.WindowFlags_.no_scrollbar)
         if opened:
-            imgui.image(imgui.ImTextureRef(reference.texture.glo), imgui.ImVec2(side, side))
-            imgui.text_colored(GRAY, reference.shown.label)
+            imgui.push_text_wrap_pos(0.0)  # wrap at the window's edge: a long model name never widens it
             error = reference.error(app.shown_frame)
             if error is not None:
-                imgui.text(f"{app.live.label} vs reference: MSE {error:.1f} (0-255)")
+                imgui.text_wrapped(f"MSE {error:.1f} (0-255) against {app.live.label}")
             else:
                 imgui.text_colored(AMBER, "the scene changed since: press Reference again")
+            imgui.image(imgui.ImTextureRef(reference.texture.glo), imgui.ImVec2(side, side))
+            imgui.text_colored(GRAY, reference.shown.label)
+            imgui.pop_text_wrap_pos()
         imgui.end()
         if not keep:
             reference.close()
