@@ -921,3 +921,19 @@ def test_a_fine_object_is_drawn_in_merged_blocks_while_the_user_drags(display, m
     assert viewport.quads_in_motion == 0
     quads_at_rest = viewport.set_voxels(rgba)
     assert viewport.quads_in_motion <= quads_at_rest / 3.5
+
+
+def test_save_as_and_exports_follow_the_open_scene(display, tmp_path, scene_file):
+    """After Save as into another folder, Ctrl+E exports beside the new scene file, not where the editor started."""
+    moved = tmp_path / "elsewhere" / "scene.json"
+    moved.parent.mkdir()
+    started_in = tmp_path / "started here"
+    started_in.mkdir()
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "save", "path": str(moved)},
+        {"action": "wait", "frames": 2},
+        {"action": "key", "key": "e", "mods": ["ctrl"]},
+        {"action": "wait", "frames": 2},
+    ], cwd=started_in)
+    assert (moved.parent / "render.png").is_file()
+    assert not (started_in / "render.png").exists() and not (scene_file.parent / "render.png").exists()

@@ -97,7 +97,7 @@ class FileCommands:
             doc.mark_saved(target)
             app.autosave.forget()
             state.remember_scene(target)
-            return f"saved {target}"
+            return f"saved {target.resolve()}"
 
         return self.write_file(target, overwrite or own_file, write)
 
@@ -111,7 +111,7 @@ class FileCommands:
         def write() -> str:
             used = export_render(app.doc.history.current, path, app.live.model_path, app.live.renderer, app.voxels,
                                  size)
-            return f"exported {path} ({used})"
+            return f"exported {Path(path).resolve()} ({used})"
 
         return self.write_file(path, overwrite, write)
 
@@ -128,7 +128,7 @@ class FileCommands:
             viewport = app.viewport.image(height, height, viewport_camera(app.view, height, height), scene,
                                           app.floor_color)
             save_png(path, side_by_side.compose(viewport, to_uint8(render)))
-            return f"exported the viewport and the render side by side to {path} ({used})"
+            return f"exported the viewport and the render side by side to {Path(path).resolve()} ({used})"
 
         return self.write_file(path, overwrite, write)
 
@@ -139,7 +139,7 @@ class FileCommands:
         def write() -> str:
             rgba, _ = self.app.voxels.painted(self.app.doc.history.current)
             colors = write_vox(path, rgba)
-            return f"exported {path} ({rgba.shape[0]}^3 voxels, {colors} colors)"
+            return f"exported {Path(path).resolve()} ({rgba.shape[0]}^3 voxels, {colors} colors)"
 
         return self.write_file(path, overwrite, write)
 
@@ -158,7 +158,7 @@ class FileCommands:
         def work(progress: Progress) -> str:
             images, seconds, name = render_turntable(scene, config, progress=False, on_frame=progress)
             write_frames(target, images)
-            return f"exported {path} ({frames} frames, {sweep} sweep, {name}, {1000 * sum(seconds) / len(seconds):.0f} ms a frame)"
+            return f"exported {target.resolve()} ({frames} frames, {sweep} sweep, {name}, {1000 * sum(seconds) / len(seconds):.0f} ms a frame)"
 
         app.jobs.start(f"Turntable {target.name}", work, app.say)
         return True

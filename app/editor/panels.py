@@ -64,15 +64,17 @@ class Fields:
     camera_path: str = ""
 
 
+OUTPUT_FIELDS = ("export_path", "side_by_side_path", "turntable_path", "vox_out_path")  # written beside the scene
+
+
 class Interface:
     """Draws the whole window for an EditorApp and routes what the user does to its commands."""
 
     def __init__(self, app: EditorApp):
         self.app = app
-        folder = _output_folder(app.doc.path)
-        self.fields = Fields(scene_path=str(app.doc.path or ""), save_path=str(_save_as_default(app.doc.path)),
-                             export_path=str(folder / "render.png"), side_by_side_path=str(folder / "viewport_and_render.png"),
-                             turntable_path=str(folder / "turntable.gif"), vox_out_path=str(folder / "object.vox"))
+        self.fields = Fields(scene_path=str(app.doc.path or ""))
+        self._outputs_for: Path | None | bool = False  # the scene file the output fields follow (False: none yet)
+        self._follow_scene_file()
         self.viewport_input = ViewportInput()
         self.photo_panel = PhotoPanel(app)
         self.underlay = None
@@ -87,8 +89,20 @@ class Interface:
         self._preview_key = None  # what the viewport's tinted region shows, None when it shows the voxels as they are
         self._rate_text, self._rate_time = "", 0.0
 
+    def _follow_scene_file(self) -> None:
+        """Save as and the exports default to the open scene's folder: when the scene file changes (Open, New, Save
+        as), each output field keeps its file name and moves beside the new scene."""
+        path = self.app.doc.path
+        if path == self._outputs_for:
+            return
+        self._outputs_for, f, folder = path, self.fields, _output_folder(path)
+        f.save_path = str(_save_as_default(path))
+        for name in OUTPUT_FIELDS:
+            setattr(f, name, str(folder / Path(getattr(f, name)).name))
+
     def draw(self) -> None:
         app = self.app
+        self._follow_scene_file()
         width, height = app.window.size
         panels = layout_for(width, height)
         escape_is_free = not self.viewport_input.interacting  # else Esc cancels the drag or the G/R/S in progress
@@ -578,13 +592,13 @@ def _output_folder(path: Path | None) -> Path:
     """Where exports go by default: beside the scene file, or the working folder for a scene shipped with the
     product (or none)."""
     if path is None or shipped(path):
-        return Path(".")
-    return path.parent
+        return Path(".").resolve()
+    return path.resolve().parent
 
 
 def _save_as_default(path: Path | None) -> Path:
     """The Save-as field's first value: the scene's own file, or for a scene that ships with the product
     (or none) a file of that name in the working folder."""
     if path is None:
-        return Path("scene.json")
-    return Path(path.name) if shipped(path) else path
+        return Path("scene.json").resolve()
+    return Path(path.name).resolve() if shipped(path) else path.resolve()
