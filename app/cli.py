@@ -49,7 +49,7 @@ def _material_warnings(mesh_path) -> list[str]:
 
 
 def cmd_render(args: argparse.Namespace) -> None:
-    from models.renderers import RendererOptions, fixed_size, make_renderer
+    from models.renderers import RendererOptions, correction_note, fixed_size, make_renderer
     from renderer.io import save_png
     from renderer.scene import load_scene, range_warnings
 
@@ -76,9 +76,8 @@ def cmd_render(args: argparse.Namespace) -> None:
         raise InputError(exc.problem, args.scene) from None
     elapsed = time.perf_counter() - start
     save_png(out, image)
-    corrected = "" if own is not None or getattr(renderer, "output_size", size) == size else \
-        f", corrected at {renderer.output_size} px"
-    print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{corrected}, {elapsed:.2f} s)")
+    print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{correction_note(renderer, size)}, "
+          f"{elapsed:.2f} s)")
 
 
 def add_render_parser(sub: argparse._SubParsersAction) -> None:
@@ -239,7 +238,6 @@ def add_info_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="what a scene holds, its voxel counts, values outside the training range")
     p.add_argument("scene")
     p.set_defaults(func=cmd_info)
-
 
 
 # --- nvr import-vox / export-vox ---------------------------------------------------------

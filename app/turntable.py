@@ -14,7 +14,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer, render_at
+from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer
 from renderer.errors import InputError
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 
@@ -77,8 +77,10 @@ def frame_renderer(scene: Scene, config: TurntableConfig) -> tuple[Callable[[Sce
     if own is not None and config.size is not None and config.size != own:
         raise InputError(f"the model renders {own}x{own}; --size {config.size} is not supported")
     size = own or config.size or scene.image_size
-    # Every frame at the scene's image size, so the renderers keep their size-dependent stages between frames.
-    return (lambda s: render_at(renderer, replace(s, image_size=size), size)), f"{config.renderer}, {renderer.description}"
+    # Every frame at the scene's image size, so the renderers keep their size-dependent stages between frames (a
+    # network's render_sized at its own size is its live render).
+    return (lambda s: renderer.render_sized(replace(s, image_size=size), size)), \
+        f"{config.renderer}, {renderer.description}"
 
 
 def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = True,

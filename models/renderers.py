@@ -228,11 +228,7 @@ def fixed_size(renderer: Renderer) -> int | None:
     return None if renderer.renders_any_size else renderer.output_size  # type: ignore[attr-defined]
 
 
-def render_at(renderer: Renderer, scene: Scene, size: int) -> np.ndarray:
-    """The scene at `size` pixels; the live render when that is the renderer's own size (its stages kept)."""
-    own = fixed_size(renderer)
-    if own is not None:
-        if size != own:
-            raise InputError(f"the model renders {own}x{own}; size {size} is not supported")
-        return renderer.render(scene)
-    return renderer.render_sized(scene, size)
+def correction_note(renderer: Renderer, size: int) -> str:
+    """", corrected at N px" when a network corrects the shader's `size` px image with what it computes at its own N."""
+    own = getattr(renderer, "output_size", None)  # only a network works at a size of its own
+    return f", corrected at {own} px" if renderer.renders_any_size and own not in (None, size) else ""

@@ -18,7 +18,6 @@ from models.renderers import (
     RendererOptions,
     fixed_size,
     make_renderer,
-    render_at,
     renderer_entry,
 )
 from renderer.errors import InputError
@@ -63,7 +62,7 @@ def test_the_splat_by_name_is_splat_scene(scene):
     splat = make_renderer("splat")
     for edited in [scene, EDITS["paint"](scene), EDITS["move"](scene)]:
         np.testing.assert_array_equal(splat.render(edited), splat_scene(edited, *_painted(edited)))
-        np.testing.assert_array_equal(render_at(splat, edited, 40), splat_scene(edited, *_painted(edited), size=40))
+        np.testing.assert_array_equal(splat.render_sized(edited, 40), splat_scene(edited, *_painted(edited), size=40))
 
 
 def test_the_path_tracer_by_name_traces_the_painted_reference(scene):
@@ -80,7 +79,7 @@ def test_the_network_by_name_is_the_engine_of_its_weights(scene, refiner_file):
     assert fixed_size(network) is None  # it corrects the shader's image: any size
     for edited in [scene, *(edit(scene) for edit in EDITS.values())]:
         np.testing.assert_array_equal(network.render(edited), direct.render(edited))
-    np.testing.assert_array_equal(render_at(network, scene, 40), direct.render_sized(scene, 40))
+    np.testing.assert_array_equal(network.render_sized(scene, 40), direct.render_sized(scene, 40))
     with pytest.raises(InputError, match="not nvr"):
         make_renderer("nvr", RendererOptions(model=str(refiner_file)))
 

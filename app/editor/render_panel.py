@@ -24,6 +24,7 @@ from models.renderers import (
     Renderer,
     RendererOptions,
     SplatRenderer,
+    correction_note,
     fixed_size,
     make_renderer,
     renderer_entry,
@@ -241,14 +242,9 @@ def final_render(scene: Scene, model_path: str | None = None, renderer: str = "n
         if model_path is not None:
             raise
         return SplatRenderer(options).render(scene), "splat, no trained model"
-    entry = renderer_entry(renderer)
-    if entry.architecture is None:
-        return engine.render_sized(scene, scene.image_size), entry.label
-    if fixed_size(engine) is not None:
-        return engine.render(scene), f"{renderer} {engine.model_name}"
-    size = scene.image_size
-    corrected = "" if size == engine.output_size else f", corrected at {engine.output_size} px"
-    return engine.render_sized(scene, size), f"{renderer} {engine.model_name}{corrected}"
+    entry, size = renderer_entry(renderer), fixed_size(engine) or scene.image_size
+    name = entry.label if entry.architecture is None else f"{renderer} {engine.model_name}"
+    return engine.render_sized(scene, size), name + correction_note(engine, size)
 
 
 def export_render(scene: Scene, path: str | Path, model_path: str | None = None, renderer: str = "nvr+",

@@ -136,6 +136,11 @@ class _PaintedObject(NamedTuple):
     key: tuple  # (source, object color, strokes): what the voxels depend on
     replay: PaintReplay  # the voxels stage's result: the object's occupied voxels and their box
 
+    @property
+    def source(self) -> tuple:
+        """The object's file (_voxel_source): what its occupancy depends on."""
+        return self.key[0]
+
 
 class _Keys(NamedTuple):
     """The scene parts each stage depends on (see the module docstring)."""
@@ -361,7 +366,7 @@ class RenderEngine:
 
     def _keys(self, scene: Scene, painted: _PaintedObject) -> _Keys:
         o, elevation, floor, paint_key = scene.object, scene.camera.elevation_deg, painted.floor, painted.key
-        source, n = paint_key[0], painted.voxels.shape[0]
+        source, n = painted.source, painted.voxels.shape[0]
         factors = pool_factors(n, o.scale, self.config.grid_size)
         # Placement reads which object rows are empty, and layout the occupancy: neither changes with paint.
         placement = (source, n, factors, o.translation, o.rotation_deg, o.scale, elevation)
@@ -411,7 +416,7 @@ class RenderEngine:
         merge factors) only the blocks it touched are merged again, in the last merge's array (the stage keeps one
         result and nothing else reads it), and their box stays. Paint changes the colors of occupied voxels alone,
         so only they are compared: work in proportion to the surface, not the grid."""
-        replay, source, voxels = painted.replay, painted.key[0], painted.voxels
+        replay, source, voxels = painted.replay, painted.source, painted.voxels
         occupied = replay.occupied
         last = self._cache.last(stage)
         if last is None or (last.source, last.factors) != (source, factors):
