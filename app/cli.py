@@ -78,6 +78,9 @@ def cmd_render(args: argparse.Namespace) -> None:
     save_png(out, image)
     print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{correction_note(renderer, size)}, "
           f"{elapsed:.2f} s)")
+    report = renderer.last_report
+    if report is not None and report.note:
+        print(f"note: {report.note}")
 
 
 def add_render_parser(sub: argparse._SubParsersAction) -> None:

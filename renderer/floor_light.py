@@ -20,6 +20,7 @@ copies on every light edit (docs/results.md, "Measurements behind the code").
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -78,6 +79,52 @@ def lit_floor_terms(camera: Camera, light_position, floor_color) -> FloorTerms:
     geometry = _coarse_geometry(camera)
     from_light, from_ambient = _coarse_radiance(geometry, light_position, floor_color)
     return FloorTerms(from_light, from_ambient, geometry.floor, geometry.row_weights, geometry.col_weights)
+
+
+@dataclass(frozen=True)
+class FloorSky:
+    """An environment as the floor receives it: the diffuse irradiance from the sky above it (rgb) and the radiance
+    its coat mirrors, a function of world directions (h, w, 3) -> (h, w, 3), blurred by the coat's roughness."""
+
+    irradiance: np.ndarray
+    mirrored: Callable[[np.ndarray], np.ndarray]
+
+
+def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky,
+                            directions: np.ndarray, irradiance: np.ndarray) -> tuple[FloorTerms, list[np.ndarray]]:
+    """The empty floor under an environment: FloorTerms whose `from_light` is the area light's (zero when
+    `light_position` is None) and whose `from_ambient` is the sky's, and per directional light (unit world
+    `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its coarse (h, w, 3) radiance, unshadowed."""
+    geometry = _coarse_geometry(camera)
+    albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64)).astype(np.float32)
+    through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
+    if light_position is None:
+        from_light = np.zeros((*geometry.cos_view.shape, 3), dtype=np.float32)
+    else:
+        from_light, _ = _coarse_radiance(geometry, light_position, floor_color)
+    view = geometry.view
+    mirror = np.stack([-view[..., 0], view[..., 1], -view[..., 2]], axis=-1)
+    from_sky = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
+                + ENVIRONMENT_SCALE * geometry.view_fresnel[..., None] * sky.mirrored(mirror))
+    per_light = []
+    for direction, power in zip(np.asarray(directions, dtype=np.float64), np.asarray(irradiance, dtype=np.float64)):
+        cos_in = max(float(direction[1]), 0.0)
+        half = view + direction.astype(np.float32)
+        half /= np.maximum(np.linalg.norm(half, axis=-1, keepdims=True), 1e-12)
+        cos_half = np.clip(half[..., 1], 0.0, 1.0)
+        cos_in_half = np.clip(np.sum(half * direction.astype(np.float32), axis=-1), 0.0, 1.0)
+        glossy = (coat_reflectance(cos_in_half) * _ggx(cos_half) * _smith_g1(max(cos_in, 1e-4))
+                  * geometry.view_masking / (4.0 * geometry.cos_view))
+        term = cos_in * through_coat[..., None] * albedo + glossy[..., None]
+        per_light.append((term * power.astype(np.float32)).astype(np.float32))
+    terms = FloorTerms(from_light, from_sky.astype(np.float32), geometry.floor, geometry.row_weights,
+                       geometry.col_weights)
+    return terms, per_light
+
+
+def upsample(coarse: np.ndarray, terms: FloorTerms) -> np.ndarray:
+    """A coarse (h, w, c) floor term at every pixel, by FloorTerms' weights."""
+    return _upsample(coarse, terms.row_weights, terms.col_weights)
 
 
 def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,4 @@
-"""The scene as data: one object on a ground plane, one rectangular area light, one camera.
+"""The scene as data: one object on a ground plane, one rectangular area light, an optional environment, one camera.
 
 A `Scene` mirrors the JSON scene file (version 1) key for key. It is immutable: an edit
 makes a new scene with `dataclasses.replace`, which lets undo keep old scenes and lets the
@@ -12,7 +12,9 @@ on the +z side of the scene at azimuth 0.
 
 from __future__ import annotations
 
+import difflib
 import math
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -51,6 +53,9 @@ SCALE_RANGE = (0.75, 1.25)
 
 # Hard limits; values outside them are impossible and rejected (sizes: renderer/limits.py).
 MAX_ABS_POSITION = 100.0
+MAX_ABS_ANGLE = 36000.0  # degrees: a hundred turns, far beyond what a drag makes, far from float32's limits
+MAX_STRENGTH = 1000.0  # environment strength
+TURBIDITY_RANGE = (1.0, 10.0)  # the sky model's range (Hosek-Wilkie, as Mitsuba's sunsky)
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,21 @@ class PaintOp:
 
 
 @dataclass(frozen=True)
+class MaterialSpec:
+    """The object's surface, as Disney's principled BSDF: GGX `roughness` (alpha = roughness^2); `specular`, the
+    dielectric reflectance head on over 0.08 (0.5: index 1.5, a plastic or ceramic); `metallic`, the share that
+    reflects like a metal tinted by the albedo. Specular and metallic 0 is Lambertian (today's object)."""
+
+    roughness: float = 1.0
+    specular: float = 0.0
+    metallic: float = 0.0
+
+    @property
+    def diffuse_only(self) -> bool:
+        return self.specular == 0.0 and self.metallic == 0.0
+
+
+@dataclass(frozen=True)
 class ObjectSpec:
     mesh: str | None = None  # path relative to the scene file
     up: str = "y"
@@ -78,6 +98,7 @@ class ObjectSpec:
     rotation_deg: float = 0.0  # about the vertical axis
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     voxels: str | None = None  # optional .npz of RGBA object voxels (e.g. captured colors)
+    material: MaterialSpec = field(default_factory=MaterialSpec)
 
 
 @dataclass(frozen=True)
@@ -88,6 +109,27 @@ class FloorSpec:
 @dataclass(frozen=True)
 class LightSpec:
     position: tuple[float, float, float] = (1.0, 2.75, 0.5)
+    enabled: bool = True  # False: the environment alone lights the scene
+
+
+@dataclass(frozen=True)
+class SkySpec:
+    """A physical sun and sky (renderer/environment.py); azimuth from the camera's side (+z) towards +x."""
+
+    sun_elevation_deg: float = 35.0
+    sun_azimuth_deg: float = 120.0
+    turbidity: float = 3.0
+
+
+@dataclass(frozen=True)
+class EnvironmentSpec:
+    """Light from all around the scene, instead of the uniform ambient light: an equirectangular image (path relative
+    to the scene file) or a sky, turned by `rotation_deg` about the vertical axis and scaled by `strength`."""
+
+    image: str | None = None
+    sky: SkySpec | None = None
+    rotation_deg: float = 0.0
+    strength: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -103,6 +145,7 @@ class Scene:
     camera: CameraSpec = field(default_factory=CameraSpec)
     image_size: int = 256
     paint: tuple[PaintOp, ...] = ()
+    environment: EnvironmentSpec | None = None  # None: the uniform ambient light
     base_dir: Path = field(default=Path("."), compare=False)  # where relative paths start
 
     def mesh_path(self) -> Path | None:
@@ -112,6 +155,11 @@ class Scene:
     def voxels_path(self) -> Path | None:
         return None if self.object.voxels is None else (self.base_dir / self.object.voxels)
 
+    def environment_path(self) -> Path | None:
+        """Absolute path of the environment image, or None."""
+        env = self.environment
+        return None if env is None or env.image is None else (self.base_dir / env.image)
+
     def with_changes(self, **parts: Any) -> Scene:
         """A copy with whole parts replaced, validated (e.g. `light=LightSpec((0, 3, 0))`)."""
         scene = replace(self, **parts)
@@ -119,16 +167,25 @@ class Scene:
         return scene
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON form (version 1); keys that are None are left out."""
-        obj = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.object).items() if v is not None}
+        """The JSON form (version 1); keys that are None, and new parts left at their defaults, are left out, so a
+        scene without them saves as it did before they existed."""
+        obj = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.object).items()
+               if v is not None and k != "material"}
+        if self.object.material != MaterialSpec():
+            obj["material"] = asdict(self.object.material)
+        light: dict[str, Any] = {"position": list(self.light.position)}
+        if not self.light.enabled:
+            light["enabled"] = False
         data: dict[str, Any] = {
             "version": SCENE_VERSION,
             "object": obj,
             "floor": {"color": list(self.floor.color)},
-            "light": {"position": list(self.light.position)},
+            "light": light,
             "camera": {"elevation_deg": self.camera.elevation_deg},
             "image_size": self.image_size,
         }
+        if self.environment is not None:
+            data["environment"] = {k: v for k, v in asdict(self.environment).items() if v is not None}
         if self.paint:
             data["paint"] = [_paint_to_dict(op) for op in self.paint]
         return data
@@ -155,14 +212,30 @@ class _Reader:
     def fail(self, key: str, problem: str) -> InputError:
         return InputError(f"{key}: {problem}", self.path)
 
-    def section(self, data: dict, key: str, required: bool = False) -> dict:
+    def section(self, data: dict, key: str, required: bool = False, name: str | None = None) -> dict:
+        name = key if name is None else name
         if key not in data:
             if required:
-                raise self.fail(key, "missing")
+                raise self.fail(name, "missing")
             return {}
         value = data[key]
         if not isinstance(value, dict):
-            raise self.fail(key, f"must be an object, got {type(value).__name__}")
+            raise self.fail(name, f"must be an object, got {json_type(value)}")
+        return value
+
+    def known_keys(self, data: dict, keys: Iterable[str], where: str = "") -> None:
+        """Refuse a key the format does not have (a misspelt key would otherwise be ignored), naming the nearest."""
+        keys = list(keys)
+        for key in data:
+            if key not in keys:
+                near = difflib.get_close_matches(str(key), keys, n=1)
+                hint = f' (did you mean "{near[0]}"?)' if near else f" (known: {', '.join(keys)})"
+                raise self.fail(f"{where}{key}", f"unknown key{hint}")
+
+    def boolean(self, data: dict, key: str, name: str, default: bool) -> bool:
+        value = data.get(key, default)
+        if not isinstance(value, bool):
+            raise self.fail(name, f"must be true or false, got {json_type(value)}")
         return value
 
     def number(self, data: dict, key: str, name: str, default: float) -> float:
@@ -218,12 +291,18 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     version = data.get("version")
     if version != SCENE_VERSION:
         raise r.fail("version", f"unsupported scene version {version!r} (expected {SCENE_VERSION})")
+    r.known_keys(data, SCENE_KEYS)
     o = r.section(data, "object", required=True)
+    r.known_keys(o, OBJECT_KEYS, "object.")
     resolution = o.get("resolution", DEFAULT_RESOLUTION)
     if isinstance(resolution, bool) or not isinstance(resolution, int):
         raise r.fail("object.resolution", f"must be an integer, got {json_type(resolution)}")
     up = r.string(o, "up", "object.up", "y")
     color = None if o.get("color") is None else r.vector(o, "color", "object.color", 3, (0, 0, 0))
+    m = r.section(o, "material", name="object.material")
+    r.known_keys(m, MATERIAL_KEYS, "object.material.")
+    material = MaterialSpec(**{key: r.number(m, key, f"object.material.{key}", getattr(MaterialSpec(), key))
+                               for key in MATERIAL_KEYS})
     obj = ObjectSpec(
         mesh=r.file_path(o, "mesh", "object.mesh"),
         up=up,
@@ -233,10 +312,19 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
         rotation_deg=r.number(o, "rotation_deg", "object.rotation_deg", 0.0),
         scale=r.vector(o, "scale", "object.scale", 3, (1.0, 1.0, 1.0)),
         voxels=r.file_path(o, "voxels", "object.voxels"),
+        material=material,
     )
-    floor = FloorSpec(r.vector(r.section(data, "floor"), "color", "floor.color", 3, FloorSpec().color))
-    light = LightSpec(r.vector(r.section(data, "light"), "position", "light.position", 3, LightSpec().position))
-    camera = CameraSpec(r.number(r.section(data, "camera"), "elevation_deg", "camera.elevation_deg", 30.0))
+    f = r.section(data, "floor")
+    r.known_keys(f, ("color",), "floor.")
+    floor = FloorSpec(r.vector(f, "color", "floor.color", 3, FloorSpec().color))
+    li = r.section(data, "light")
+    r.known_keys(li, ("position", "enabled"), "light.")
+    light = LightSpec(r.vector(li, "position", "light.position", 3, LightSpec().position),
+                      r.boolean(li, "enabled", "light.enabled", True))
+    c = r.section(data, "camera")
+    r.known_keys(c, ("elevation_deg",), "camera.")
+    camera = CameraSpec(r.number(c, "elevation_deg", "camera.elevation_deg", 30.0))
+    environment = _environment_from_dict(r, data) if "environment" in data else None
     image_size = data.get("image_size", 256)
     if isinstance(image_size, bool) or not isinstance(image_size, int):
         raise r.fail("image_size", f"must be an integer, got {json_type(image_size)}")
@@ -248,6 +336,7 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
         name = f"paint[{i}]"
         if not isinstance(p, dict):
             raise r.fail(name, "must be an object")
+        r.known_keys(p, ("target", "color", "seed", "tolerance"), f"{name}.")
         seed = p.get("seed")
         if seed is not None:
             if not isinstance(seed, list) or len(seed) != 3 or not all(isinstance(s, int) and not isinstance(s, bool) for s in seed):
@@ -265,9 +354,28 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
             )
         )
     base_dir = path.parent if path is not None else Path(".")
-    scene = Scene(obj, floor, light, camera, image_size, tuple(paint), base_dir)
+    scene = Scene(obj, floor, light, camera, image_size, tuple(paint), environment, base_dir)
     validate(scene, path)
     return scene
+
+
+SCENE_KEYS = ("version", "object", "floor", "light", "camera", "image_size", "paint", "environment")
+OBJECT_KEYS = ("mesh", "up", "resolution", "color", "translation", "rotation_deg", "scale", "voxels", "material")
+MATERIAL_KEYS = ("roughness", "specular", "metallic")
+SKY_KEYS = ("sun_elevation_deg", "sun_azimuth_deg", "turbidity")
+
+
+def _environment_from_dict(r: _Reader, data: dict) -> EnvironmentSpec:
+    e = r.section(data, "environment")
+    r.known_keys(e, ("image", "sky", "rotation_deg", "strength"), "environment.")
+    sky = None
+    if "sky" in e:
+        s = r.section(e, "sky", name="environment.sky")
+        r.known_keys(s, SKY_KEYS, "environment.sky.")
+        sky = SkySpec(**{key: r.number(s, key, f"environment.sky.{key}", getattr(SkySpec(), key)) for key in SKY_KEYS})
+    return EnvironmentSpec(image=r.file_path(e, "image", "environment.image"), sky=sky,
+                           rotation_deg=r.number(e, "rotation_deg", "environment.rotation_deg", 0.0),
+                           strength=r.number(e, "strength", "environment.strength", 1.0))
 
 
 def validate(scene: Scene, path: str | Path | None = None) -> None:
@@ -300,6 +408,28 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
         raise fail("light.position", f"must be within +-{MAX_ABS_POSITION}")
     if not 0.0 <= scene.camera.elevation_deg < 90.0:
         raise fail("camera.elevation_deg", f"must be in [0, 90), got {scene.camera.elevation_deg}")
+    for key, value in asdict(o.material).items():
+        if not math.isfinite(value) or not 0.0 <= value <= 1.0:
+            raise fail(f"object.material.{key}", f"must be in [0, 1], got {value}")
+    env = scene.environment
+    if env is not None:
+        if (env.image is None) == (env.sky is None):
+            raise fail("environment", 'needs either "image" or "sky", not both or neither')
+        if not math.isfinite(env.rotation_deg) or abs(env.rotation_deg) > MAX_ABS_ANGLE:
+            raise fail("environment.rotation_deg", f"must be within +-{MAX_ABS_ANGLE:g}, got {env.rotation_deg}")
+        if not math.isfinite(env.strength) or not 0.0 <= env.strength <= MAX_STRENGTH:
+            raise fail("environment.strength", f"must be in [0, {MAX_STRENGTH:g}], got {env.strength}")
+        if env.sky is not None:
+            sky = env.sky
+            if not math.isfinite(sky.sun_elevation_deg) or not 0.0 <= sky.sun_elevation_deg <= 90.0:
+                raise fail("environment.sky.sun_elevation_deg", f"must be in [0, 90], got {sky.sun_elevation_deg}")
+            if not math.isfinite(sky.sun_azimuth_deg) or abs(sky.sun_azimuth_deg) > MAX_ABS_ANGLE:
+                raise fail("environment.sky.sun_azimuth_deg", f"must be within +-{MAX_ABS_ANGLE:g}, got {sky.sun_azimuth_deg}")
+            if not math.isfinite(sky.turbidity) or not TURBIDITY_RANGE[0] <= sky.turbidity <= TURBIDITY_RANGE[1]:
+                raise fail("environment.sky.turbidity", f"must be in [{TURBIDITY_RANGE[0]:g}, {TURBIDITY_RANGE[1]:g}], "
+                                                        f"got {sky.turbidity}")
+    if not scene.light.enabled and env is None:
+        raise fail("light.enabled", "the area light can be off only when an environment lights the scene")
     if not MIN_IMAGE_SIZE <= scene.image_size <= MAX_IMAGE_SIZE:
         raise fail("image_size", f"must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {scene.image_size}")
     for i, op in enumerate(scene.paint):
@@ -339,13 +469,15 @@ def load_scene(path: str | Path) -> Scene:
 
 
 def save_scene(scene: Scene, path: str | Path) -> None:
-    """Write a scene file atomically; mesh and voxel paths are rewritten relative to its folder."""
+    """Write a scene file atomically; mesh, voxel and environment paths are rewritten relative to its folder."""
     import os
 
     folder = Path(path).resolve().parent
-    obj = scene.object
-    rebased = {
-        key: None if value is None else os.path.relpath((scene.base_dir / value).resolve(), folder)
-        for key, value in (("mesh", obj.mesh), ("voxels", obj.voxels))
-    }
-    save_json(path, replace(scene, object=replace(obj, **rebased)).to_dict())
+
+    def rebase(value: str | None) -> str | None:
+        return None if value is None else os.path.relpath((scene.base_dir / value).resolve(), folder)
+
+    obj, env = scene.object, scene.environment
+    rebased = replace(scene, object=replace(obj, mesh=rebase(obj.mesh), voxels=rebase(obj.voxels)),
+                      environment=None if env is None else replace(env, image=rebase(env.image)))
+    save_json(path, rebased.to_dict())

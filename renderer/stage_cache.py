@@ -68,3 +68,4 @@ class RenderReport:
     total_ms: float
     preview: bool
     grid_fraction: float | None = None  # share of the grid the voxel branch read, if it ran
+    note: str = ""  # what the image is when it is not what the renderer usually draws

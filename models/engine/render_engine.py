@@ -100,6 +100,7 @@ from renderer.shading import (
     network_buffers,
     quality_named,
 )
+from renderer.shading.environment_shading import UNCORRECTED_NOTE, lighting_key, needs_environment_shading
 from renderer.shading.staged import StagedShader
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.stage_cache import RenderReport, StageCache
@@ -214,6 +215,7 @@ class RenderEngine:
         self._cache = StageCache(settle=(lambda: torch.cuda.synchronize(self.device)) if self.device.type == "cuda"
                                  else None)  # GPU work is asynchronous: time it, not its launch
         self._grid_fraction: float | None = None  # share of the grid the voxel branch read in this render, if it ran
+        self._note = ""  # what the last render's image is, when it is not the network's (RenderReport.note)
         # The voxel shader's stages, in this cache: without the floor's reflection, which the network does not read.
         self._shader = StagedShader(self.config.shading_grid_size, self._quality, cache=self._cache, prefix="shade_",
                                     reflection=False)
@@ -250,7 +252,7 @@ class RenderEngine:
 
     def render(self, scene: Scene) -> np.ndarray:
         """The image (S, S, 3) float32 sRGB of `scene` at the model's output size S (scene.image_size is not used)."""
-        start = self._begin()
+        start = self._begin(scene)
         with torch.inference_mode():
             image = self._render(scene)
         self._finish(start, preview=False)
@@ -260,7 +262,7 @@ class RenderEngine:
         """A fast image while the user drags: the full render when only the light changed (that is cheap), else for a
         network that reads the shader the shaded image (its geometry kept through every placement and camera edit),
         else the splatted object over the lit empty floor; from stages the full render then reuses."""
-        start = self._begin()
+        start = self._begin(scene)
         with torch.inference_mode():
             painted = self._painted(scene)
             keys = self._keys(scene, painted)
@@ -293,12 +295,13 @@ class RenderEngine:
         if not self.renders_any_size:
             raise InputError(f"the model renders {self.output_size}x{self.output_size} only ({self.config.name} draws "
                              f"the image itself), not {size}x{size}")
-        start = self._begin()
+        start = self._begin(scene)
         with torch.inference_mode():
             inputs = self._network_inputs(scene)
             _, correction = self._light(scene, inputs)  # kept by the light stage: a redraw after a render reuses it
             shaded = self._shaded(scene, inputs.painted, inputs.keys, size)
-            image = apply_correction(_to_array(correction.cpu()), shaded.image)
+            image = (np.clip(shaded.image, 0.0, 1.0) if correction is None
+                     else apply_correction(_to_array(correction.cpu()), shaded.image))
         self._finish(start, preview=False)
         return image
 
@@ -309,9 +312,11 @@ class RenderEngine:
         """The light stage: the image, and for a network that corrects the shader's image the correction it applied
         (correction_from_latent's output), which render_sized applies at other sizes."""
         latent, light, features, keys = inputs.latent, inputs.light, inputs.features, inputs.keys
-        key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, scene.light.position)
+        key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, lighting_key(scene))
 
         def render() -> tuple[np.ndarray, torch.Tensor | None]:
+            if needs_environment_shading(scene):  # no network is trained for it yet: the shader's image as it is
+                return np.clip(self._shaded(scene, inputs.painted, keys).image, 0.0, 1.0), None
             if not self._reads_shading:
                 return _to_image(self.model.render_from_latent(latent, light, features)), None
             correction = self.model.correction_from_latent(latent, light, features)
@@ -375,7 +380,7 @@ class RenderEngine:
         floor_light = (elevation, floor, scene.light.position)
         grid = (paint_key, placement, floor)
         painted_placed = (paint_key, placement)
-        shade = (painted_placed, floor, scene.light.position)
+        shade = (painted_placed, floor, lighting_key(scene))
         splat_branch = (splat, floor_light if self._reads_floor_light else None, shade if self._reads_shading else None)
         return _Keys(source=source, paint=paint_key, resolution=n, factors=factors, pool=(paint_key, factors),
                      placement=placement, grid=grid, layout=layout, splat=splat,
@@ -509,15 +514,16 @@ class RenderEngine:
     def _cached(self, name: str, key: Any) -> bool:
         return self._cache.cached(name, key)
 
-    def _begin(self) -> float:
+    def _begin(self, scene: Scene) -> float:
         self._cache.begin()
         self._grid_fraction = None
+        self._note = UNCORRECTED_NOTE if needs_environment_shading(scene) else ""
         return time.perf_counter()
 
     def _finish(self, start: float, preview: bool) -> None:
         stages = self._cache.stage_ms
         self.last_report = RenderReport(tuple(stages), dict(stages), (time.perf_counter() - start) * 1000.0, preview,
-                                        self._grid_fraction)
+                                        self._grid_fraction, self._note)
 
 
 # --- helpers ------------------------------------------------------------------------------------

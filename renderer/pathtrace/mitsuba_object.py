@@ -1,4 +1,4 @@
-"""The scene's object as in-memory Mitsuba meshes: placed in the world, two-sided diffuse, with its colors.
+"""The scene's object as in-memory Mitsuba meshes: placed in the world, two-sided, of the scene's material, with its colors.
 
 Color, first match wins: the scene's object color; the mesh's vertex (or face) colors; its
 UV texture; DEFAULT_OBJECT_SRGB. Faces get flat normals: the geometry is shaded as it is.
@@ -9,6 +9,9 @@ the angle between those edges is near 0 or 180 degrees (colors far outside the c
 range, even NaN). Each face is therefore started at its best-conditioned corner, and true
 slivers (every corner badly conditioned, so the face is a thin line) get one flat color,
 the mean of their corners, from a second mesh. Faces without area are dropped.
+
+Material (renderer.scene.MaterialSpec): Mitsuba's `diffuse` when specular and metallic are 0 (today's object);
+otherwise its `principled` BSDF with the same three values (specular 0.5 is a dielectric of index 1.5).
 """
 
 from __future__ import annotations
@@ -18,16 +21,19 @@ import trimesh
 
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
-from renderer.scene import Scene
+from renderer.scene import MaterialSpec, Scene
 from renderer.transform import apply_transform, object_to_world
 
 DEFAULT_OBJECT_SRGB = (0.5, 0.5, 0.5)  # an object with neither a set color nor its own colors
+MIN_SPECULAR = 1e-3  # principled's specular 0 is an index of refraction of 1, which also blacks out its metal
+MIN_ROUGHNESS = 0.05  # the smoothest drawn: roughness 0 is a near-perfect mirror, not a delta the shader lacks
 SLIVER_SIN2 = 1e-4  # squared sine of a corner's angle below which float32 barycentrics are unreliable
 
 
 def object_shapes(scene: Scene, mesh: trimesh.Trimesh) -> dict:
     """Mitsuba meshes for the object by scene-dictionary key ("object", and "object_slivers" if needed)."""
     _check_mesh(mesh, scene)
+    material = scene.object.material
     if mesh.visual.kind == "face":  # one vertex per face corner keeps each face's own color
         mesh = mesh.copy()
         mesh.unmerge_vertices()
@@ -38,17 +44,19 @@ def object_shapes(scene: Scene, mesh: trimesh.Trimesh) -> dict:
         raise InputError("the mesh has no face with an area to render", scene.mesh_path())
 
     if scene.object.color is not None:
-        return {"object": _mesh("object", vertices, everything, _rgb(srgb_to_linear(scene.object.color)))}
+        return {"object": _mesh("object", vertices, everything, _rgb(srgb_to_linear(scene.object.color)), material)}
     if mesh.visual.kind in ("vertex", "face"):
         colors = srgb_to_linear(np.asarray(mesh.visual.vertex_colors)[:, :3] / 255.0)
         shapes = {}
         if len(good):
             reflectance = {"type": "mesh_attribute", "name": "vertex_color"}
-            shapes["object"] = _mesh("object", vertices, good, reflectance, attribute=("vertex_color", colors))
+            shapes["object"] = _mesh("object", vertices, good, reflectance, material,
+                                     attribute=("vertex_color", colors))
         if len(slivers):
             reflectance = {"type": "mesh_attribute", "name": "face_color"}
             flat = colors[slivers].mean(axis=1)
-            shapes["object_slivers"] = _mesh("object_slivers", vertices, slivers, reflectance, attribute=("face_color", flat))
+            shapes["object_slivers"] = _mesh("object_slivers", vertices, slivers, reflectance, material,
+                                             attribute=("face_color", flat))
         return shapes
     texture = _texture_image(mesh)
     if texture is not None:
@@ -57,8 +65,8 @@ def object_shapes(scene: Scene, mesh: trimesh.Trimesh) -> dict:
         uv = np.asarray(mesh.visual.uv, dtype=np.float64)
         uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)  # trimesh: v up from the bottom; Mitsuba: from the top
         reflectance = {"type": "bitmap", "bitmap": mi.Bitmap(texture), "raw": True, "wrap_mode": "repeat"}
-        return {"object": _mesh("object", vertices, everything, reflectance, uv=uv)}
-    return {"object": _mesh("object", vertices, everything, _rgb(srgb_to_linear(DEFAULT_OBJECT_SRGB)))}
+        return {"object": _mesh("object", vertices, everything, reflectance, material, uv=uv)}
+    return {"object": _mesh("object", vertices, everything, _rgb(srgb_to_linear(DEFAULT_OBJECT_SRGB)), material)}
 
 
 def condition_faces(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -91,13 +99,22 @@ def _rgb(linear: np.ndarray) -> dict:
     return {"type": "rgb", "value": np.asarray(linear, dtype=np.float64).tolist()}
 
 
-def _mesh(name: str, vertices: np.ndarray, faces: np.ndarray, reflectance: dict, uv: np.ndarray | None = None,
-          attribute: tuple[str, np.ndarray] | None = None):
-    """One Mitsuba mesh with a two-sided diffuse BSDF, its buffers filled from numpy (no files)."""
+def material_bsdf(reflectance: dict, material: MaterialSpec) -> dict:
+    """The Mitsuba BSDF of `material` with albedo `reflectance` (one-sided): `diffuse` for a diffuse object, else
+    Disney's principled BSDF (the only one of Mitsuba's coated models that takes per-vertex colors)."""
+    if material.diffuse_only:
+        return {"type": "diffuse", "reflectance": reflectance}
+    return {"type": "principled", "base_color": reflectance, "roughness": max(material.roughness, MIN_ROUGHNESS),
+            "metallic": material.metallic, "specular": max(material.specular, MIN_SPECULAR)}
+
+
+def _mesh(name: str, vertices: np.ndarray, faces: np.ndarray, reflectance: dict, material: MaterialSpec,
+          uv: np.ndarray | None = None, attribute: tuple[str, np.ndarray] | None = None):
+    """One Mitsuba mesh with a two-sided BSDF of `material`, its buffers filled from numpy (no files)."""
     import mitsuba as mi
 
     props = mi.Properties()
-    props["bsdf"] = mi.load_dict({"type": "twosided", "material": {"type": "diffuse", "reflectance": reflectance}})
+    props["bsdf"] = mi.load_dict({"type": "twosided", "material": material_bsdf(reflectance, material)})
     out = mi.Mesh(name, len(vertices), len(faces), props=props, has_vertex_texcoords=uv is not None)
     params = mi.traverse(out)
     floats, ints = type(params["vertex_positions"]), type(params["faces"])  # drjit types differ per variant

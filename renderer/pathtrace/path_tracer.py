@@ -1,7 +1,8 @@
 """The physically based reference renderer (paper sections 3.1 and 4.2), built on Mitsuba 3.
 
-One diffuse object on a slightly specular floor, lit by a white square area light facing
-down and a uniform white ambient light, seen by the project's one camera model. Path
+One object (diffuse unless its material says otherwise) on a slightly specular floor, lit by a white square area
+light facing down (unless switched off) and a uniform white ambient light or the scene's environment (its map and
+its sun: renderer/environment.py), seen by the project's one camera model. Path
 tracing with MIS gives the soft shadows, floor reflections and color bleeding the network
 must learn. Every accuracy figure of the project is measured against these images.
 
@@ -24,6 +25,7 @@ import trimesh
 
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.environment import EnvironmentLight, environment_light
 from renderer.errors import InputError
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 from renderer.pathtrace.mitsuba_object import object_shapes
@@ -159,12 +161,28 @@ def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera, floor: bool
         "type": "scene",
         "integrator": _path_integrator(),
         "sensor": _sensor(camera),
-        "ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [AMBIENT_RADIANCE] * 3}},
-        "light": _light(scene.light.position),
+        **_environment(environment_light(scene)),
         **object_shapes(scene, mesh),
     }
+    if scene.light.enabled:
+        parts["light"] = _light(scene.light.position)
     if floor:
         parts["floor"] = _floor(scene.floor.color)
+    return parts
+
+
+def _environment(environment: EnvironmentLight | None) -> dict:
+    """The light from around the scene: the uniform ambient light, or the environment's map and its sun."""
+    import mitsuba as mi
+
+    if environment is None:
+        return {"ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [AMBIENT_RADIANCE] * 3}}}
+    parts = {"ambient": {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(environment.background)),
+                         "scale": environment.strength,
+                         "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], environment.rotation_deg)}}
+    if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
+        parts["sun"] = {"type": "directional", "direction": (-environment.sun_direction).tolist(),
+                        "irradiance": {"type": "rgb", "value": environment.sun_irradiance.tolist()}}
     return parts
 
 

@@ -186,13 +186,19 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
     reflection's pixels are blurred (the coat's roughness) and upsampled bilinearly over the box they reach."""
     radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
                                    light_position, lights, maps, bounds, nearest, block, floor_color)
+    add_reflection_change(image, surface, reflection, radiance - AMBIENT_RADIANCE)
+
+
+def add_reflection_change(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection,
+                          change: np.ndarray) -> None:
+    """Adds to the linear `image` the reflection's `change` (N, 3) of what the floor's coat mirrors, weighted by the
+    coat, blurred (the coat's roughness) and upsampled bilinearly over the box the reflection's pixels reach."""
     margin = math.ceil(REFLECTION_BLUR * BLUR_TRUNCATE) + 1
     (r0, c0), (r1, c1) = reflection.pixels.min(axis=0) - margin, reflection.pixels.max(axis=0) + 1 + margin
-    change = np.zeros((r1 - r0, c1 - c0, 3), dtype=np.float32)
-    change[reflection.pixels[:, 0] - r0, reflection.pixels[:, 1] - c0] = (
-        reflection.weight[:, None] * (radiance - AMBIENT_RADIANCE))
-    change = ndimage.gaussian_filter(change, (REFLECTION_BLUR, REFLECTION_BLUR, 0), mode="constant",
-                                     truncate=BLUR_TRUNCATE)
+    box = np.zeros((r1 - r0, c1 - c0, 3), dtype=np.float32)
+    box[reflection.pixels[:, 0] - r0, reflection.pixels[:, 1] - c0] = reflection.weight[:, None] * change
+    box = ndimage.gaussian_filter(box, (REFLECTION_BLUR, REFLECTION_BLUR, 0), mode="constant",
+                                  truncate=BLUR_TRUNCATE)
     # Interpolated where it is added, over the image rows and columns the box reaches (its pixels' centres at
     # (i + 0.5) * step), clamped at the box's edges.
     step = surface.size / reflection.side
@@ -203,7 +209,7 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
     first_row, first_col = max(top, 0), max(left, 0)
     rows = [w[first_row - top:min(bottom, surface.size) - top] for w in rows]
     cols = [w[first_col - left:min(right, surface.size) - left] for w in cols]
-    add_upsampled(image, change, *rows, *cols, first_row, first_col, surface.floor, surface.coverage)
+    add_upsampled(image, box, *rows, *cols, first_row, first_col, surface.floor, surface.coverage)
 
 
 # --- compiled loops (numba, cached on disk) ---------------------------------------------------------

@@ -41,6 +41,7 @@ import numpy as np
 
 from renderer.grid import pool_voxels, shader_pool_factors
 from renderer.scene import SHADER_GRID_SIZE, Scene
+from renderer.shading.environment_shading import needs_environment_shading, scene_environment, shade_environment
 from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
@@ -62,4 +63,8 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     size = scene.image_size if size is None else size
     surface = visible_surface(geometry, size, cover_behind, quality=quality)
     mirrored = floor_reflection(geometry, surface) if reflection else None
+    if needs_environment_shading(scene):
+        light = scene.light.position if scene.light.enabled else None
+        return shade_environment(geometry, surface, light, floor_color, scene_environment(scene),
+                                 scene.object.material, mirrored, quality)
     return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored, quality=quality)

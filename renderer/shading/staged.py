@@ -11,6 +11,8 @@ This chain is the one table of the shader's stages; the standalone shader and th
     reflection  colors (the object mirrored in the floor; optional)           the same
     floor       camera elevation, image size, light position, floor color     camera, floor color, a light move
     lighting    colors, reflection, floor                                     any of the above
+                (under an environment or for a glossy object: colors, reflection, the light, the floor color, the
+                environment and the material; it lights the floor itself)
 
 So a light move reruns `floor` and `lighting`; a paint stroke `pool`, `colors`, `reflection` and `lighting`; an
 object move, turn or scale `placement` and the stages after it but `floor`; a camera tilt those and `floor`. The
@@ -30,6 +32,7 @@ from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
 from renderer.grid import pool_voxels, shader_pool_factors
 from renderer.scene import SHADER_GRID_SIZE, Scene
+from renderer.shading.environment_shading import needs_environment_shading, scene_environment, shade_environment
 from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
@@ -88,10 +91,15 @@ class StagedShader:
         reflection = stage("reflection", painted_key, lambda: floor_reflection(where, surface),
                            keep) if self._reflection else None
         light = scene.light.position
-        floor_terms = stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
-            Camera(elevation, width=size, height=size), light, floor), keep)
-        return stage("lighting", (painted_key, light, floor), lambda: shade(
-            where, surface, light, floor, floor_terms, reflection, self.quality), keep)
+        if not needs_environment_shading(scene):
+            floor_terms = stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
+                Camera(elevation, width=size, height=size), light, floor), keep)
+            return stage("lighting", (painted_key, light, floor), lambda: shade(
+                where, surface, light, floor, floor_terms, reflection, self.quality), keep)
+        environment = scene_environment(scene)
+        light = light if scene.light.enabled else None
+        return stage("lighting", (painted_key, light, floor, environment.key, o.material), lambda: shade_environment(
+            where, surface, light, floor, environment, o.material, reflection, self.quality), keep)
 
     def _stage(self, name: str, key: Hashable, compute: Callable, keep: bool = True):
         return self.cache(self._prefix + name, key, compute, keep)

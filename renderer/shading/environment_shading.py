@@ -1,0 +1,439 @@
+"""Stage 3 of the voxel shader under an environment, or for an object that is not diffuse.
+
+The environment (renderer/environment.py) is split in two (prepare_environment, once per map): its concentrated
+bright parts, and the sun, become at most ENVIRONMENT_LIGHTS directional lights, each shadowed through shadow maps
+seen from a point LIGHT_DISTANCE away as the area light's points are; the rest (the residual sky) lights the object
+through an irradiance map times its ambient occlusion, and its glossy reflections through maps prefiltered by GGX
+roughness. The floor takes the residual sky times its occlusion, the lights times their shadows, and mirrors the
+environment in its coat; the background past the floor is the environment itself. The area light, when on, is drawn
+as lighting.py draws it, with a GGX highlight on glossy objects.
+
+The material (renderer.scene.MaterialSpec) follows Disney's principled BSDF as the path tracer draws it: diffuse
+albedo * (1 - metallic), and a GGX lobe of reflectance F0 = 0.08 * specular for the dielectric, the albedo for the
+metal, with Schlick's Fresnel and, for the environment, Karis's fitted split-sum terms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from renderer.camera import Camera
+from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.environment import (
+    EnvironmentLight,
+    environment_light,
+    luminance,
+    map_directions,
+    reduce_map,
+    rotate_y,
+    sample_map,
+    texel_solid_angles,
+    uniform_environment,
+)
+from renderer.floor_light import FloorSky, environment_floor_terms, upsample
+from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, MaterialSpec, Scene
+from renderer.shading.geometry import ObjectGeometry
+from renderer.shading.lighting import (
+    ShadedImage,
+    _floor_visibility,
+    add_reflection_change,
+    build_shadow_maps,
+    composite,
+    light_form_factors,
+    light_points,
+    light_visibility,
+    shadow_receivers,
+)
+from renderer.shading.quality import (
+    FLOOR_BELOW_LIT,
+    FLOOR_BOUNCE,
+    FLOOR_SHADOW_BIAS,
+    FULL_QUALITY,
+    OCCLUDER_RADIUS,
+    SHADOW_BIAS,
+    SHADOW_GRAZING_OFFSET,
+    SHADOW_MAP_SIZE,
+    SHADOW_NORMAL_OFFSET,
+    ShaderQuality,
+)
+from renderer.shading.surface import FloorReflection, VisibleSurface
+
+ENVIRONMENT_LIGHTS = 8  # directional lights drawn from a map's bright parts (the sun is one more)
+CONCENTRATED = 4.0  # a texel brighter than this many times the sky's mean belongs to a light
+LIGHT_DISTANCE = 100.0  # world units: a directional light's shadow maps look from a point this far
+LOWEST_LIGHT_DEG = 2.0  # a light lower than this casts its shadows from this elevation (the maps need height)
+IRRADIANCE_ROWS = 16  # the irradiance map's rows (twice as many columns)
+SPECULAR_ROWS = 32  # the prefiltered maps' rows
+SPECULAR_ROUGHNESS = (0.0, 0.15, 0.3, 0.5, 0.75, 1.0)  # the roughness of each prefiltered map
+MIN_ROUGHNESS = 0.05  # as the path tracer's (renderer/pathtrace/mitsuba_object.py)
+DIELECTRIC_F0 = 0.08  # times `specular`: principled's reflectance head on
+DIFFUSE = MaterialSpec()
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedEnvironment:
+    """An environment map split for the shader, in the map's frame and at strength 1 (rotation-free)."""
+
+    light_directions: np.ndarray  # (K, 3) unit, towards each light
+    light_irradiance: np.ndarray  # (K, 3) facing the light
+    light_spread: np.ndarray  # (K,) radians: the angular radius of the part each light stands for
+    irradiance: np.ndarray  # (IRRADIANCE_ROWS, 2 x, 3): the residual sky's irradiance on a surface facing each texel
+    sky_up: np.ndarray  # (3,) the residual sky's irradiance on the floor
+    specular: np.ndarray  # (len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 x, 3): the residual sky prefiltered by GGX
+
+
+_PREPARED: dict[tuple, PreparedEnvironment] = {}
+
+
+def prepared(environment: EnvironmentLight) -> PreparedEnvironment:
+    """prepare_environment of the environment's lighting map, kept for the few sources last used."""
+    key = environment.source_key
+    if key not in _PREPARED:
+        if len(_PREPARED) >= 8:
+            _PREPARED.pop(next(iter(_PREPARED)))
+        _PREPARED[key] = prepare_environment(environment.lighting)
+    return _PREPARED[key]
+
+
+def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
+    """Split a lighting map (h, 2h, 3) into directional lights, an irradiance map and prefiltered maps."""
+    radiance = np.asarray(lighting, dtype=np.float64)
+    h, w = radiance.shape[:2]
+    directions = map_directions(h, w)
+    solid = np.broadcast_to(texel_solid_angles(h, w), (h, w))
+    sky = directions[..., 1] > 0.0  # the floor hides the rest from the object
+    lum = luminance(radiance)
+    mean = float(np.sum(lum * solid * sky) / max(np.sum(solid * sky), 1e-12))
+    threshold = CONCENTRATED * mean
+    bright = sky & (lum > threshold) & (threshold > 0.0)
+    labels, count = ndimage.label(bright)
+    residual = radiance.copy()
+    lights = []
+    if count:
+        excess_share = np.where(bright, 1.0 - threshold / np.maximum(lum, 1e-30), 0.0)
+        excess = radiance * excess_share[..., None]
+        power = ndimage.sum_labels(luminance(excess) * solid, labels, index=np.arange(1, count + 1))
+        for label in np.argsort(power)[::-1][:ENVIRONMENT_LIGHTS] + 1:
+            part = labels == label
+            weights = (luminance(excess) * solid)[part]
+            direction = np.sum(directions[part] * weights[:, None], axis=0)
+            direction /= max(np.linalg.norm(direction), 1e-12)
+            irradiance = np.sum(excess[part] * solid[part][:, None], axis=0)
+            spread = math.sqrt(float(np.sum(solid[part])) / math.pi)
+            lights.append((direction, irradiance, spread))
+            residual[part] -= excess[part]
+    residual_sky = residual * sky[..., None]
+    flat = (residual_sky * solid[..., None]).reshape(-1, 3)
+    normals = map_directions(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS).reshape(-1, 3)
+    cosines = np.maximum(normals @ directions.reshape(-1, 3).T, 0.0)
+    irradiance = (cosines @ flat).reshape(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS, 3)
+    sky_up = np.maximum(directions.reshape(-1, 3)[:, 1], 0.0) @ flat
+    return PreparedEnvironment(
+        light_directions=np.array([d for d, _, _ in lights]).reshape(-1, 3),
+        light_irradiance=np.array([e for _, e, _ in lights]).reshape(-1, 3),
+        light_spread=np.array([s for _, _, s in lights]),
+        irradiance=irradiance.astype(np.float32), sky_up=sky_up,
+        specular=_prefiltered(residual).astype(np.float32))
+
+
+def _prefiltered(radiance: np.ndarray) -> np.ndarray:
+    """The map convolved with GGX lobes of each SPECULAR_ROUGHNESS (about the reflected direction, as if normal,
+    view and reflection coincided), normalised so that a constant map stays constant."""
+    out = []
+    for roughness in SPECULAR_ROUGHNESS:
+        source = radiance if roughness < 0.3 else reduce_map(radiance.astype(np.float32), radiance.shape[1] // 2)
+        h, w = source.shape[:2]
+        if roughness == 0.0:
+            out.append(reduce_map(source.astype(np.float32), 2 * SPECULAR_ROWS) if w > 2 * SPECULAR_ROWS else source)
+            continue
+        into = map_directions(SPECULAR_ROWS, 2 * SPECULAR_ROWS).reshape(-1, 3)
+        directions = map_directions(h, w).reshape(-1, 3)
+        solid = np.broadcast_to(texel_solid_angles(h, w), (h, w)).reshape(-1)
+        cosine = np.clip(into @ directions.T, -1.0, 1.0)
+        cos_half2 = np.maximum((1.0 + cosine) / 2.0, 0.0)
+        a2 = max(roughness, MIN_ROUGHNESS) ** 4
+        weights = np.where(cosine > 0.0, a2 / (cos_half2 * (a2 - 1.0) + 1.0) ** 2 * cosine, 0.0) * solid
+        weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1e-30)
+        out.append((weights @ source.reshape(-1, 3)).reshape(SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3))
+    return np.stack(out)
+
+
+@dataclass(frozen=True)
+class _Lights:
+    """The environment's directional lights in the world, the sun among them, scaled by the strength."""
+
+    directions: np.ndarray  # (K, 3)
+    irradiance: np.ndarray  # (K, 3)
+    spread: np.ndarray  # (K,)
+
+
+def _world_lights(environment: EnvironmentLight, ready: PreparedEnvironment) -> _Lights:
+    directions = rotate_y(ready.light_directions, environment.rotation_deg).reshape(-1, 3)
+    irradiance = ready.light_irradiance.reshape(-1, 3) * environment.strength
+    spread = ready.light_spread.reshape(-1)
+    if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
+        directions = np.vstack([environment.sun_direction, directions])
+        irradiance = np.vstack([environment.sun_irradiance, irradiance])
+        spread = np.concatenate([[math.radians(0.5358 / 2.0)], spread])
+    keep = irradiance.max(axis=1) > 0.0
+    return _Lights(directions[keep], irradiance[keep], spread[keep])
+
+
+def needs_environment_shading(scene: Scene) -> bool:
+    """Whether the scene needs this module (an environment, the area light off, or an object that is not diffuse);
+    every other scene is shaded by lighting.py alone."""
+    return scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
+
+
+UNCORRECTED_NOTE = "no network is trained for environment light or glossy materials yet: the voxel shader's image"
+
+
+def lighting_key(scene: Scene) -> tuple:
+    """Names everything of the scene that the shader's lighting stage reads besides the object and the floor color."""
+    light = scene.light
+    if not needs_environment_shading(scene):
+        return light.position
+    return (light.position, light.enabled, scene.environment, scene.object.material)
+
+
+def scene_environment(scene: Scene) -> EnvironmentLight:
+    """The scene's environment, or its uniform ambient light as one."""
+    environment = environment_light(scene)
+    return uniform_environment(AMBIENT_RADIANCE) if environment is None else environment
+
+
+def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
+                      environment: EnvironmentLight, material: MaterialSpec = DIFFUSE,
+                      reflection: FloorReflection | None = None,
+                      quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
+    """The shaded image under `environment` and, unless `light_position` is None, the area light; the object of
+    `material`. `reflection`: the floor's mirror image of the object, if drawn."""
+    ready = prepared(environment)
+    lights = _world_lights(environment, ready)
+    size = surface.size
+    camera = Camera(geometry.elevation_deg, width=size, height=size)
+    floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
+    sky = FloorSky(irradiance=ready.sky_up * environment.strength,
+                   mirrored=lambda d: _specular(ready, environment, d, FLOOR_COAT_ROUGHNESS))
+    floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, sky, lights.directions,
+                                                     lights.irradiance)
+    voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
+    block = geometry.occluder_block * voxel
+    area = _ShadowMaps.area(geometry, light_position, quality, block) if light_position is not None else None
+    suns = [_ShadowMaps.directional(geometry, d, s, block) for d, s in zip(lights.directions, lights.spread)]
+
+    floor = floor_terms.floor
+    visibility = np.ones((size, size), dtype=np.float32)
+    if area is not None and not geometry.empty:
+        visibility[floor] = area.floor_visibility(surface, geometry, block)
+    image = np.empty((size, size, 3), dtype=np.float32)
+    radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
+    floor_sky = floor_albedo * (ready.sky_up * environment.strength)  # the floor's albedo times the sky it gets
+    if len(surface.points):
+        radiance, seen = _object_radiance(surface.points, surface.normals, surface.albedo, surface.occlusion,
+                                          camera.position, light_position, area, suns, lights, ready, environment,
+                                          material, block, floor_sky, floor_albedo)
+    r, c = surface.pixels[:, 0], surface.pixels[:, 1]
+    cover = surface.coverage[r, c]
+    composite(floor_terms.from_light, floor_terms.from_ambient, *floor_terms.row_weights, *floor_terms.col_weights,
+              floor, visibility, surface.images.floor_occlusion, np.zeros(3, dtype=np.float32), r, c, radiance, cover,
+              image)
+    shown = 1.0 - surface.coverage
+    rows, cols = np.nonzero(~floor)
+    if len(rows):
+        _, rays = camera.pixel_rays(cols + 0.5, rows + 0.5)
+        image[rows, cols] += environment.radiance(rays, sharp=True) * shown[rows, cols, None]
+    if len(per_light) and not geometry.empty:
+        lit = np.zeros((int(floor.sum()), 3), dtype=np.float32)
+        for term, maps in zip(per_light, suns):
+            lit += upsample(term, floor_terms)[floor] * maps.floor_visibility(surface, geometry, block)[:, None]
+        image[floor] += lit * shown[floor][:, None]
+    elif len(per_light):
+        image[floor] += sum(upsample(term, floor_terms)[floor] for term in per_light) * shown[floor][:, None]
+    if reflection is not None and len(reflection.points):
+        _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
+                        material, block, floor_sky, floor_albedo)
+    visibility[r, c] = seen
+    images = surface.images
+    return ShadedImage(image=linear_to_srgb(np.maximum(image, 0.0)), coverage=surface.coverage, albedo=images.albedo,
+                       albedo_srgb=images.albedo_srgb, normal=images.normal, depth=images.depth,
+                       visibility=visibility, occlusion=images.occlusion)
+
+
+FLOOR_COAT_ROUGHNESS = 0.32  # sqrt of the floor coat's GGX alpha (renderer.scene.FLOOR_ROUGHNESS = 0.1)
+
+
+class _ShadowMaps:
+    """Shadow maps of one light: the area light's points, or one far point standing for a directional light."""
+
+    def __init__(self, geometry: ObjectGeometry, points: np.ndarray, spacing: float, block: float):
+        self.points = points
+        self.spacing = spacing  # the side of the light's square each point stands for (0: a point)
+        self.maps = np.empty((len(points), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
+        self.bounds = np.zeros((len(points), 3))
+        build_shadow_maps(geometry.occluders, OCCLUDER_RADIUS * block, block / math.sqrt(2.0), points,
+                          SHADOW_MAP_SIZE, self.maps, self.bounds)
+        self.nearest = self.maps.reshape(len(points), -1).min(axis=1).astype(np.float64)
+
+    @classmethod
+    def area(cls, geometry: ObjectGeometry, light_position, quality: ShaderQuality, block: float) -> _ShadowMaps:
+        return cls(geometry, light_points(light_position, quality.light_points), LIGHT_SIZE / quality.light_points,
+                   block)
+
+    @classmethod
+    def directional(cls, geometry: ObjectGeometry, direction: np.ndarray, spread: float, block: float) -> _ShadowMaps:
+        lowest = math.sin(math.radians(LOWEST_LIGHT_DEG))
+        d = np.array([direction[0], max(direction[1], lowest), direction[2]])
+        d /= np.linalg.norm(d)
+        centre = np.asarray(geometry.occluder_box, dtype=np.float64).mean(axis=0) * np.array([1.0, 0.0, 1.0])
+        return cls(geometry, (centre + LIGHT_DISTANCE * d)[None], 2.0 * LIGHT_DISTANCE * math.tan(spread), block)
+
+    def visibility(self, receivers: np.ndarray, bias: float) -> np.ndarray:
+        out = np.empty(len(receivers))
+        light_visibility(receivers, bias, self.points, self.maps, self.bounds, self.nearest, self.spacing, out)
+        return out
+
+    def floor_visibility(self, surface: VisibleSurface, geometry: ObjectGeometry, block: float) -> np.ndarray:
+        return _floor_visibility(surface, geometry, self.points, self.maps, self.bounds, self.nearest,
+                                 FLOOR_SHADOW_BIAS * block, self.spacing)
+
+    def object_visibility(self, points: np.ndarray, normals: np.ndarray, toward: np.ndarray, block: float,
+                          facing: np.ndarray) -> np.ndarray:
+        """Share of the light the points facing it see (`toward`: a point on the light, for the receivers' offset)."""
+        seen = np.zeros(len(points))
+        if len(facing):
+            receivers = np.empty((len(facing), 3))
+            shadow_receivers(points, normals, facing, np.asarray(toward, dtype=np.float64),
+                             block * SHADOW_NORMAL_OFFSET, block * SHADOW_GRAZING_OFFSET, receivers)
+            seen[facing] = self.visibility(receivers, SHADOW_BIAS * block)
+        return seen
+
+
+def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray, occlusion: np.ndarray,
+                     eye: np.ndarray, light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps],
+                     lights: _Lights, ready: PreparedEnvironment, environment: EnvironmentLight,
+                     material: MaterialSpec, block: float, floor_sky: np.ndarray,
+                     floor_albedo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Linear radiance (N, 3) of object points and the share of the strongest light each sees."""
+    n = len(points)
+    normals = np.asarray(normals, dtype=np.float64)
+    view = eye[None, :] - points
+    view /= np.maximum(np.linalg.norm(view, axis=1, keepdims=True), 1e-12)
+    diffuse_albedo = albedo * (1.0 - material.metallic)
+    f0 = DIELECTRIC_F0 * material.specular * (1.0 - material.metallic) + albedo * material.metallic
+    roughness = max(material.roughness, MIN_ROUGHNESS)
+    glossy = not material.diffuse_only
+    irradiance = np.zeros((n, 3))
+    specular = np.zeros((n, 3))
+    seen = np.ones(n)
+    strongest = -1.0
+    floor_lit = np.broadcast_to(floor_sky / np.maximum(floor_albedo, 1e-6), (n, 3)).copy()  # the sky's, unshadowed
+    floor_irradiance = floor_lit.copy()  # under the object: its shadow takes a share of the lights
+    if area is not None:
+        form = np.empty(n)
+        form_below = np.empty(n)
+        light_form_factors(points, normals, area.points, LIGHT_SIZE**2 / len(area.points), form, form_below)
+        share = area.object_visibility(points, normals, light_position, block, np.flatnonzero(form > 0.0))
+        irradiance += (LIGHT_RADIANCE * share * form)[:, None]
+        floor_irradiance += (LIGHT_RADIANCE * form_below * FLOOR_BELOW_LIT)[:, None]
+        floor_lit += (LIGHT_RADIANCE * form_below)[:, None]
+        seen, strongest = share, LIGHT_RADIANCE * float(np.max(form, initial=0.0))
+        if glossy:
+            for point in area.points:
+                to_light = point[None, :] - points
+                distance2 = np.maximum(np.sum(to_light**2, axis=1), 1e-8)
+                direction = to_light / np.sqrt(distance2)[:, None]
+                power = LIGHT_RADIANCE * LIGHT_SIZE**2 / len(area.points) * np.maximum(direction[:, 1], 0.0) / distance2
+                widened = min(1.0, roughness + 0.5 * LIGHT_SIZE / len(area.points) ** 0.5 / math.sqrt(float(np.mean(distance2))))
+                specular += (_ggx_reflectance(normals, view, direction, widened, f0)
+                             * (power * share)[:, None])
+    for direction, power, maps in zip(lights.directions, lights.irradiance, suns):
+        cosine = normals @ direction
+        share = maps.object_visibility(points, normals, maps.points[0], block, np.flatnonzero(cosine > 0.0))
+        irradiance += np.maximum(cosine, 0.0)[:, None] * share[:, None] * power[None, :]
+        floor_irradiance += (max(direction[1], 0.0) * FLOOR_BELOW_LIT) * power[None, :]
+        floor_lit += max(direction[1], 0.0) * power[None, :]
+        if glossy:
+            widened = min(1.0, roughness + float(maps.spacing / (2.0 * LIGHT_DISTANCE)))
+            specular += _ggx_reflectance(normals, view, np.broadcast_to(direction, normals.shape), widened,
+                                         f0) * (share[:, None] * power[None, :])
+        if float(np.max(power)) * max(direction[1], 0.0) > strongest:
+            seen, strongest = share, float(np.max(power)) * max(direction[1], 0.0)
+    in_map = rotate_y(normals, -environment.rotation_deg)
+    sky = sample_map(ready.irradiance, in_map) * environment.strength * occlusion[:, None]
+    bounce = FLOOR_BOUNCE * floor_irradiance * floor_albedo[None, :] * 0.5 * (1.0 - normals[:, 1:2])
+    radiance = diffuse_albedo * (irradiance + sky + bounce) / math.pi
+    if glossy:
+        reflected = 2.0 * np.sum(normals * view, axis=1, keepdims=True) * normals - view
+        cos_view = np.clip(np.sum(normals * view, axis=1), 1e-4, 1.0)
+        a, b = _split_sum(cos_view, roughness)
+        above = _above_horizon(reflected, roughness)
+        floor_seen = floor_albedo[None, :] * floor_lit / math.pi  # the lit floor, no shadow
+        seen_around = (_specular(ready, environment, reflected, roughness) * above * occlusion[:, None]
+                       + floor_seen * (1.0 - above))
+        radiance = radiance + seen_around * (f0 * a[:, None] + b[:, None]) + specular
+    return radiance.astype(np.float32), seen.astype(np.float32)
+
+
+def _specular(ready: PreparedEnvironment, environment: EnvironmentLight, directions: np.ndarray,
+              roughness: float) -> np.ndarray:
+    """The residual sky prefiltered at `roughness`, seen along world `directions` (..., 3)."""
+    levels = np.asarray(SPECULAR_ROUGHNESS)
+    upper = int(np.clip(np.searchsorted(levels, roughness), 1, len(levels) - 1))
+    t = (roughness - levels[upper - 1]) / (levels[upper] - levels[upper - 1])
+    in_map = rotate_y(directions, -environment.rotation_deg)
+    found = (1.0 - t) * sample_map(ready.specular[upper - 1], in_map) + t * sample_map(ready.specular[upper], in_map)
+    return found * environment.strength
+
+
+def _above_horizon(directions: np.ndarray, roughness: float) -> np.ndarray:
+    """(N, 1): how much of a glossy lobe about each direction sees the sky rather than the floor (a ramp across the
+    horizon as wide as the lobe)."""
+    y = directions[:, 1] / np.maximum(np.linalg.norm(directions, axis=1), 1e-12)
+    return np.clip(0.5 + y / (2.0 * max(roughness**2, 0.02)), 0.0, 1.0)[:, None]
+
+
+def _ggx_reflectance(normals: np.ndarray, view: np.ndarray, light: np.ndarray, roughness: float,
+                     f0: np.ndarray) -> np.ndarray:
+    """The GGX lobe's BRDF times the cosine at the surface (N, 3), for unit light directions (N, 3)."""
+    half = view + light
+    half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), 1e-12)
+    cos_n_l = np.clip(np.sum(normals * light, axis=1), 0.0, 1.0)
+    cos_n_v = np.clip(np.sum(normals * view, axis=1), 1e-4, 1.0)
+    cos_n_h = np.clip(np.sum(normals * half, axis=1), 0.0, 1.0)
+    cos_v_h = np.clip(np.sum(view * half, axis=1), 0.0, 1.0)
+    a2 = roughness**4
+    d = a2 / (math.pi * (cos_n_h**2 * (a2 - 1.0) + 1.0) ** 2)
+    k = roughness**2 / 2.0
+    g = (cos_n_l / (cos_n_l * (1.0 - k) + k)) * (cos_n_v / (cos_n_v * (1.0 - k) + k))
+    fresnel = f0 + (1.0 - f0) * ((1.0 - cos_v_h) ** 5)[:, None]
+    return fresnel * (d * g / (4.0 * cos_n_v))[:, None]
+
+
+def _split_sum(cos_view: np.ndarray, roughness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Karis's analytic fit of the GGX environment BRDF's scale and bias on F0 (the split-sum approximation)."""
+    c0 = np.array([-1.0, -0.0275, -0.572, 0.022])
+    c1 = np.array([1.0, 0.0425, 1.04, -0.04])
+    r = roughness * c0 + c1
+    a004 = np.minimum(r[0] * r[0], np.exp2(-9.28 * cos_view)) * r[0] + r[1]
+    return a004 * -1.04 + r[2], a004 * 1.04 + r[3]
+
+
+def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection, camera: Camera,
+                    light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps], lights: _Lights,
+                    ready: PreparedEnvironment, environment: EnvironmentLight, material: MaterialSpec, block: float,
+                    floor_sky: np.ndarray, floor_albedo: np.ndarray) -> None:
+    """The floor's reflection of the object, where the coat mirrored the environment: the object's points lit and
+    seen from the camera mirrored below the floor, less the environment the coat showed there."""
+    mirror_camera = Camera(camera.elevation_deg, width=reflection.side, height=reflection.side)
+    below = mirror_camera.position * np.array([1.0, -1.0, 1.0])
+    radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
+                                   below, light_position, area, suns, lights, ready, environment, material, block,
+                                   floor_sky, floor_albedo)
+    _, rays = mirror_camera.pixel_rays(reflection.pixels[:, 1] + 0.5, reflection.pixels[:, 0] + 0.5)
+    replaced = _specular(ready, environment, rays * np.array([1.0, -1.0, 1.0]), FLOOR_COAT_ROUGHNESS)
+    add_reflection_change(image, surface, reflection, radiance - replaced)
