@@ -56,9 +56,8 @@ class TurntableConfig:
 
 def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
     """The scene of each frame: the object turned by 360 / frames degrees a frame, or the light moved as far
-    around the vertical axis through the scene centre, at its height and distance."""
-    from renderer.scene import LightSpec
-
+    around the vertical axis through the scene centre, at its height and distance (the environment turned when it
+    lights the scene alone)."""
     x, y, z = scene.light.position
     radius, start = max(math.hypot(x, z), MIN_LIGHT_RADIUS), math.atan2(z, x)
     for f in range(frames):
@@ -66,8 +65,12 @@ def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
         if sweep == "rotation":
             rotation = (scene.object.rotation_deg + math.degrees(turn) + 180.0) % 360.0 - 180.0
             yield replace(scene, object=replace(scene.object, rotation_deg=rotation))
+        elif not scene.light.enabled and scene.environment is not None:  # the environment alone lights it: turn that
+            env = scene.environment
+            yield replace(scene, environment=replace(env, rotation_deg=env.rotation_deg + math.degrees(turn)))
         else:
-            yield replace(scene, light=LightSpec((radius * math.cos(start + turn), y, radius * math.sin(start + turn))))
+            position = (radius * math.cos(start + turn), y, radius * math.sin(start + turn))
+            yield replace(scene, light=replace(scene.light, position=position))
 
 
 def frame_renderer(scene: Scene, config: TurntableConfig) -> tuple[Callable[[Scene], np.ndarray], str]:

@@ -242,6 +242,14 @@ def sun_direction(sky: SkySpec) -> np.ndarray:
     return np.array([math.sin(az) * math.cos(el), math.sin(el), math.cos(az) * math.cos(el)])
 
 
+def scene_sun_direction(scene: Scene) -> np.ndarray | None:
+    """World unit vector towards the scene's sun (its sky's, turned with the environment), or None without a sky."""
+    env = scene.environment
+    if env is None or env.sky is None:
+        return None
+    return rotate_y(sun_direction(env.sky), env.rotation_deg)
+
+
 @lru_cache(maxsize=16)
 def sky_light(sky: SkySpec) -> tuple[np.ndarray, np.ndarray]:
     """The sky alone as a map (SKY_WIDTH wide, linear, exposed) and the sun's irradiance (3,) facing it."""
@@ -344,7 +352,7 @@ def environment_light(scene: Scene) -> EnvironmentLight | None:
         return None
     if env.sky is not None:
         sky_map, sun = sky_light(env.sky)
-        return _assemble(sky_map, env, rotate_y(sun_direction(env.sky), env.rotation_deg), sun, ("sky", env.sky))
+        return _assemble(sky_map, env, scene_sun_direction(scene), sun, ("sky", env.sky))
     path = scene.environment_path()
     try:
         stat = path.stat()

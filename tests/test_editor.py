@@ -937,3 +937,48 @@ def test_save_as_and_exports_follow_the_open_scene(display, tmp_path, scene_file
     ], cwd=started_in)
     assert (moved.parent / "render.png").is_file()
     assert not (started_in / "render.png").exists() and not (scene_file.parent / "render.png").exists()
+
+
+def test_sky_environment_image_and_material_edits_render_save_and_undo(display, tmp_path, scene_file):
+    """The Light tab's sun and sky, an environment image, the area light switch and the Object tab's material: each
+    one undo step, saved in the scene, and seen in the render panel."""
+    import mitsuba as mi
+
+    from renderer.pathtrace.mitsuba_variant import active_variant
+
+    active_variant()
+    studio = np.full((32, 64, 3), 0.3, dtype=np.float32)
+    studio[4:10, 20:30] = 40.0  # a soft box high on one side
+    mi.Bitmap(studio).write(str(tmp_path / "studio.exr"))
+    (tmp_path / "not_a_map.hdr").write_text("hello")
+    shots = {name: str(tmp_path / f"{name}.png") for name in ("start", "sky", "metal")}
+    saved = {name: str(tmp_path / f"{name}.json") for name in ("start", "edited", "undone", "image")}
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "save", "path": saved["start"]},
+        {"action": "screenshot", "path": shots["start"]},
+        {"action": "area_light", "on": False},  # refused: nothing else lights the scene
+        {"action": "use_sky"},
+        {"action": "set_sky", "elevation": 25, "azimuth": -70, "turbidity": 4},
+        {"action": "area_light", "on": False},
+        {"action": "turn_environment", "deg": 30, "strength": 1.5},
+        {"action": "screenshot", "path": shots["sky"]},
+        {"action": "material", "preset": "metal", "roughness": 0.2},
+        {"action": "screenshot", "path": shots["metal"]},
+        {"action": "save", "path": saved["edited"]},
+        {"action": "undo"}, {"action": "undo"}, {"action": "undo"}, {"action": "undo"}, {"action": "undo"},
+        {"action": "save", "path": saved["undone"]},
+        {"action": "load_environment", "path": str(tmp_path / "not_a_map.hdr")},  # refused, the scene stays
+        {"action": "load_environment", "path": str(tmp_path / "studio.exr")},
+        {"action": "save", "path": saved["image"]},
+    ])
+    edited = load_scene(saved["edited"])
+    assert edited.environment.sky.sun_azimuth_deg == -70.0 and edited.environment.sky.turbidity == 4.0
+    assert edited.environment.rotation_deg == 30.0 and edited.environment.strength == 1.5
+    assert not edited.light.enabled and edited.object.material.metallic == 1.0
+    assert edited.object.material.roughness == 0.2
+    assert Path(saved["undone"]).read_text() == Path(saved["start"]).read_text()
+    image = load_scene(saved["image"])
+    assert image.environment_path().resolve() == (tmp_path / "studio.exr").resolve() and image.environment.sky is None
+    render = PANELS.render_image
+    start, sky, metal = (pixels(Path(shots[n]), render) for n in ("start", "sky", "metal"))
+    assert np.abs(sky - start).mean() > 0.02 and np.abs(metal - sky).mean() > 0.005

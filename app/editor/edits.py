@@ -11,8 +11,18 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
+from renderer.environment import environment_light
 from renderer.errors import InputError
-from renderer.scene import FLOOR_HALF_SIZE, CameraSpec, FloorSpec, LightSpec, PaintOp, Scene
+from renderer.scene import (
+    FLOOR_HALF_SIZE,
+    CameraSpec,
+    EnvironmentSpec,
+    FloorSpec,
+    MaterialSpec,
+    PaintOp,
+    Scene,
+    SkySpec,
+)
 
 MIN_LIGHT_HEIGHT = 0.05
 MAX_LIGHT_HEIGHT = 10.0
@@ -20,6 +30,7 @@ MAX_ELEVATION = 89.0
 MIN_SCALE = 0.05
 MAX_SCALE = 20.0
 MAX_POSITION = FLOOR_HALF_SIZE  # the object and the light stay over the floor's square
+MAX_STRENGTH = 20.0  # an environment's strength the editor offers
 
 
 def clamp(value: float, lo: float, hi: float) -> float:
@@ -38,7 +49,73 @@ def move_light(scene: Scene, position: tuple[float, float, float]) -> Scene:
     """The light centred at `position`: over the floor's square, between MIN_ and MAX_LIGHT_HEIGHT above it."""
     x, z = _check("light x and z", (position[0], position[2]), -MAX_POSITION, MAX_POSITION)
     (y,) = _check("light height", (position[1],), MIN_LIGHT_HEIGHT, MAX_LIGHT_HEIGHT)
-    return scene.with_changes(light=LightSpec((x, y, z)))
+    return scene.with_changes(light=replace(scene.light, position=(x, y, z)))
+
+
+def switch_area_light(scene: Scene, enabled: bool) -> Scene:
+    """The area light on or off (off only while an environment lights the scene)."""
+    if not enabled and scene.environment is None:
+        raise InputError("the area light can be off only when a sky or an environment image lights the scene")
+    return scene.with_changes(light=replace(scene.light, enabled=bool(enabled)))
+
+
+def set_environment(scene: Scene, environment: EnvironmentSpec | None) -> Scene:
+    """Another environment (None: the uniform ambient light, with the area light back on)."""
+    light = scene.light if environment is not None else replace(scene.light, enabled=True)
+    return scene.with_changes(environment=environment, light=light)
+
+
+def use_sky(scene: Scene) -> Scene:
+    """A sky (the default sun) in place of the ambient light or an image, keeping the turn and strength."""
+    env = scene.environment or EnvironmentSpec()
+    return set_environment(scene, replace(env, image=None, sky=env.sky or SkySpec()))
+
+
+def use_environment_image(scene: Scene, path: Path) -> Scene:
+    """An environment image (absolute path) in place of the ambient light or the sky; read now, so that a file that
+    is not a map is refused here, in one line, and the render finds it read."""
+    env = scene.environment or EnvironmentSpec()
+    edited = set_environment(scene, replace(env, image=str(Path(path).resolve()), sky=None))
+    environment_light(edited)
+    return edited
+
+
+def set_sky(scene: Scene, elevation_deg: float, azimuth_deg: float, turbidity: float) -> Scene:
+    (elevation,) = _check("sun elevation", (elevation_deg,), 0.0, 90.0)
+    (turbidity,) = _check("turbidity", (turbidity,), 1.0, 10.0)
+    (azimuth,) = _check("sun azimuth", (azimuth_deg,), -1e6, 1e6)
+    sky = SkySpec(elevation, (azimuth + 180.0) % 360.0 - 180.0, turbidity)
+    return set_environment(scene, replace(scene.environment or EnvironmentSpec(), sky=sky, image=None))
+
+
+def turn_environment(scene: Scene, rotation_deg: float | None = None, strength: float | None = None) -> Scene:
+    """The environment turned about the vertical axis and/or made stronger or weaker."""
+    env = scene.environment
+    if env is None:
+        raise InputError("there is no environment to turn: choose a sky or an image first")
+    if rotation_deg is not None:
+        (rotation,) = _check("environment rotation", (rotation_deg,), -1e6, 1e6)
+        env = replace(env, rotation_deg=(rotation + 180.0) % 360.0 - 180.0)
+    if strength is not None:
+        (strength,) = _check("environment strength", (strength,), 0.0, MAX_STRENGTH)
+        env = replace(env, strength=strength)
+    return set_environment(scene, env)
+
+
+def set_material(scene: Scene, material: MaterialSpec) -> Scene:
+    values = _check("material roughness, specular and metallic",
+                    (material.roughness, material.specular, material.metallic), 0.0, 1.0)
+    return scene.with_changes(object=replace(scene.object, material=MaterialSpec(*values)))
+
+
+# What a user picks before tuning the sliders: (roughness, specular, metallic).
+MATERIAL_PRESETS = {
+    "matte": MaterialSpec(),
+    "plastic": MaterialSpec(0.35, 0.5, 0.0),
+    "ceramic": MaterialSpec(0.12, 0.6, 0.0),
+    "rubber": MaterialSpec(0.8, 0.25, 0.0),
+    "metal": MaterialSpec(0.25, 0.5, 1.0),
+}
 
 
 def set_elevation(scene: Scene, elevation_deg: float) -> Scene:

@@ -19,8 +19,9 @@ from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_
 from app.editor.files import shipped
 from app.editor.frame_damage import Box
 from app.editor.layout import Rect, layout_for
+from app.editor.light_panel import draw_lighting, draw_material
 from app.editor.orbit_view import viewport_camera
-from app.editor.photo_panel import PhotoPanel
+from app.editor.photo_panel import GRAY, PhotoPanel
 from app.editor.viewport_input import ViewportInput
 from models.renderers import INTERACTIVE, RENDERERS
 from renderer.errors import InputError
@@ -32,7 +33,6 @@ FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.Windo
 RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
 AMBER = imgui.ImVec4(1.0, 0.75, 0.3, 1.0)
 GREEN = imgui.ImVec4(0.5, 0.85, 0.5, 1.0)
-GRAY = imgui.ImVec4(0.65, 0.65, 0.68, 1.0)
 MESH_FILES = FileKind("Open a mesh", "Meshes", ("*.obj", "*.ply", "*.stl", "*.off", "*.glb", "*.gltf"))
 SCENE_FILES = FileKind("Open a scene", "Scenes", ("*.json",))
 NEW_SCENE_FILE = FileKind("Save the scene as", "Scenes", ("*.json",), save=True)
@@ -62,6 +62,8 @@ class Fields:
     mesh_up: int = 0  # 0: y up, 1: z up
     photo_path: str = ""
     camera_path: str = ""
+    environment_path: str = ""
+    show_environment_field: bool = False  # the environment image's path field, before an image is loaded
 
 
 OUTPUT_FIELDS = ("export_path", "side_by_side_path", "turntable_path", "vox_out_path")  # written beside the scene
@@ -287,7 +289,12 @@ class Interface:
             else:
                 imgui.text_colored(GREEN, "UP TO DATE")
             imgui.same_line()
-            imgui.text_colored(GRAY, f"last render {frame.seconds * 1000:.0f} ms")
+            if frame.note:  # the renderer drew something else than usual (a scene no network is trained for)
+                imgui.text_colored(AMBER, f"shader only, {frame.seconds * 1000:.0f} ms")
+                if imgui.is_item_hovered():
+                    imgui.set_tooltip(frame.note)
+            else:
+                imgui.text_colored(GRAY, f"last render {frame.seconds * 1000:.0f} ms")
         if not app.live.neural:
             imgui.same_line()
             imgui.text_colored(AMBER, app.live.label)
@@ -358,12 +365,13 @@ class Interface:
         _, f.mesh_up = imgui.combo("up axis", f.mesh_up, ["y up", "z up"])
         if imgui.button("Load and voxelise") and f.mesh_path:
             self.app.files.load_mesh(f.mesh_path, up="yz"[f.mesh_up])
+        imgui.separator()
+        draw_material(self)
 
     def _light_tab(self) -> None:
         scene = self.app.scene
-        changed, p = imgui.drag_float3("light x, y, z", list(scene.light.position), 0.01, -edits.MAX_POSITION,
-                                       edits.MAX_POSITION, "%.2f")
-        self._field("light", changed, lambda s: edits.move_light(s, tuple(p)))
+        draw_lighting(self)
+        imgui.separator()
         changed, e = imgui.slider_float("camera elevation", scene.camera.elevation_deg, 0.0, edits.MAX_ELEVATION, "%.1f deg")
         self._field("elevation", changed, lambda s: edits.set_elevation(s, e))
         changed, c = imgui.color_edit3("floor color", list(scene.floor.color))

@@ -49,6 +49,7 @@ class RenderedFrame:
     preview: bool  # a quick render while an edit is in progress
     seconds: float  # how long it took
     detail: bool = False  # the settled image drawn again at the panel's size (LiveRender.refine)
+    note: str = ""  # what the image is when the renderer drew something else than usual (RenderReport.note)
 
 
 class LowPriority:
@@ -179,7 +180,8 @@ class LiveRender:
         if not frame.preview and not detail and not self._scenes and self._redraw_larger(frame.image):
             self._settled = (scene, time.monotonic())
         seconds = frame.report.total_ms / 1000.0 if frame.report is not None else 0.0
-        return RenderedFrame(frame.image, scene, frame.preview, seconds, detail)
+        note = getattr(frame.report, "note", "")
+        return RenderedFrame(frame.image, scene, frame.preview, seconds, detail, note)
 
     def refine(self) -> None:
         """Once the last final image has stood detail_delay seconds with nothing else asked, render it again at the

@@ -4,6 +4,11 @@ High-level actions call the same commands as the interface:
     {"action": "drag_light", "to": [x, y, z], "steps": 8}     preview on the way, one undo step
     {"action": "move_object", "translation": [x, z]}          also "rotate_object" {"deg"}, "scale_object" {"scale"}
     {"action": "set_elevation", "deg": 20}                    {"action": "set_floor_color", "color": [r, g, b]}
+    {"action": "use_sky"} {"action": "set_sky", "elevation": 35, "azimuth": 120, "turbidity": 3}
+    {"action": "load_environment", "path": "studio.hdr"}     {"action": "no_environment"} (the ambient light again)
+    {"action": "turn_environment", "deg": 90, "strength": 1.5} either      {"action": "area_light", "on": false}
+    {"action": "material", "preset": "metal", "roughness": 0.2}   a preset (matte, plastic, ceramic, rubber, metal)
+                                                              and/or roughness, specular, metallic
     {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1}
     {"action": "fill_object", "color": [...]}                 {"action": "fill_floor", "color": [...]}
     {"action": "undo"} {"action": "redo"}
@@ -115,6 +120,12 @@ def _run(app, action: dict[str, Any]) -> Iterator[None]:
 def _color(action: dict[str, Any]) -> tuple[float, float, float]:
     r, g, b = (float(c) for c in action["color"])
     return r, g, b
+
+
+def _material(scene, action: dict[str, Any]):
+    """A preset by "preset", or the scene's material with the given "roughness", "specular", "metallic"."""
+    material = edits.MATERIAL_PRESETS[action["preset"]] if "preset" in action else scene.object.material
+    return replace(material, **{k: float(action[k]) for k in ("roughness", "specular", "metallic") if k in action})
 
 
 def _drag_light(app, action) -> Iterator[None]:
@@ -260,6 +271,15 @@ ACTIONS = {
     "scale_object": lambda app, a: app.edit(lambda s: edits.place_object(s, scale=tuple(a["scale"]))),
     "set_elevation": lambda app, a: app.edit(lambda s: edits.set_elevation(s, float(a["deg"]))),
     "set_floor_color": lambda app, a: app.edit(lambda s: edits.set_floor_color(s, _color(a))),
+    "use_sky": lambda app, a: app.edit(edits.use_sky),
+    "set_sky": lambda app, a: app.edit(lambda s: edits.set_sky(s, float(a["elevation"]), float(a["azimuth"]),
+                                                               float(a.get("turbidity", 3.0)))),
+    "load_environment": lambda app, a: app.edit(lambda s: edits.use_environment_image(s, a["path"])),
+    "no_environment": lambda app, a: app.edit(lambda s: edits.set_environment(s, None)),
+    "turn_environment": lambda app, a: app.edit(lambda s: edits.turn_environment(
+        s, rotation_deg=a.get("deg"), strength=a.get("strength"))),
+    "area_light": lambda app, a: app.edit(lambda s: edits.switch_area_light(s, bool(a["on"]))),
+    "material": lambda app, a: app.edit(lambda s: edits.set_material(s, _material(s, a))),
     "paint": _paint,
     "fill_object": _fill("object"),
     "fill_floor": _fill("floor"),

@@ -19,14 +19,17 @@ import numpy as np
 
 from app.editor.orbit_view import frustum_corners, view_projection
 from renderer.camera import Camera
+from renderer.environment import scene_sun_direction
 from renderer.grid import pool_voxels
-from renderer.scene import FLOOR_HALF_SIZE, LIGHT_SIZE, OBJECT_SIZE, Scene
+from renderer.scene import FLOOR_HALF_SIZE, LIGHT_SIZE, LOOK_AT, OBJECT_SIZE, Scene
 from renderer.surface import grid_from_world
 from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
 from renderer.voxel_faces import exposed_faces
 
 BACKGROUND = (0.16, 0.17, 0.19)
 LIGHT_COLOR = (1.0, 0.93, 0.55)
+SUN_COLOR = (1.0, 0.75, 0.2)
+SUN_DISTANCE = 20.0  # the viewport lights its voxels from this far along the sun
 LIGHT_ACTIVE_COLOR = (1.0, 0.6, 0.2)
 FRUSTUM_COLOR = (0.95, 0.55, 0.25)
 BOX_COLOR = (0.9, 0.9, 0.95)
@@ -227,7 +230,7 @@ class ViewportRenderer:
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
         vp = _gl_matrix(view_projection(view))
-        light = tuple(float(c) for c in scene.light.position)
+        light = tuple(float(c) for c in _shading_light(scene))
 
         self._ground_program["view_projection"].write(vp)
         self._ground_program["floor_color"].value = tuple(float(c) for c in floor_color)
@@ -250,14 +253,19 @@ class ViewportRenderer:
                     group.vao.render(moderngl.TRIANGLES)
 
         light_color = LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR
-        shapes = [(moderngl.LINES, _light_lines(scene), light_color),
-                  (moderngl.LINES, _frustum_lines(Camera.from_scene(scene)), FRUSTUM_COLOR),
+        shapes = [(moderngl.LINES, _frustum_lines(Camera.from_scene(scene)), FRUSTUM_COLOR),
                   (moderngl.LINES, _box_lines(object_to_world(scene.object), OBJECT_BOX_MIN, OBJECT_BOX_MAX), BOX_COLOR)]
         if picked_voxel is not None:
             n = self._resolution
             lo = OBJECT_BOX_MIN + np.asarray(picked_voxel) * (OBJECT_SIZE / n)
             shapes.append((moderngl.LINES, _box_lines(object_to_world(scene.object), lo, lo + OBJECT_SIZE / n), PICK_COLOR))
-        shapes.append((moderngl.TRIANGLES, _light_corners(scene)[[0, 1, 2, 0, 2, 3]], tuple(0.5 * c + 0.5 for c in light_color)))
+        if scene.light.enabled:
+            shapes.append((moderngl.LINES, _light_lines(scene), light_color))
+            shapes.append((moderngl.TRIANGLES, _light_corners(scene)[[0, 1, 2, 0, 2, 3]],
+                           tuple(0.5 * c + 0.5 for c in light_color)))
+        sun = scene_sun_direction(scene)
+        if sun is not None:
+            shapes.append((moderngl.LINES, _sun_lines(sun), SUN_COLOR))
         self._flat_program["view_projection"].write(vp)
         self._draw_flat(shapes)
         ctx.disable(moderngl.DEPTH_TEST)
@@ -360,6 +368,28 @@ class _FaceGroup:
 def _gl_matrix(m: np.ndarray) -> bytes:
     """A 4x4 numpy matrix as the column-major float32 bytes GLSL expects."""
     return np.asarray(m, dtype="f4").tobytes(order="F")
+
+
+def _shading_light(scene: Scene) -> np.ndarray:
+    """Where the viewport's voxels are lit from: the area light, or far along the sun when only a sky lights them."""
+    sun = scene_sun_direction(scene)
+    if scene.light.enabled or sun is None:
+        return np.asarray(scene.light.position, dtype=np.float64)
+    return np.asarray(LOOK_AT) + SUN_DISTANCE * sun
+
+
+def _sun_lines(sun: np.ndarray) -> np.ndarray:
+    """An arrow from the sun's side of the scene towards its centre, and a cross (the sun) at its tail."""
+    centre = np.asarray(LOOK_AT, dtype=np.float64)
+    tail, head = centre + 2.2 * sun, centre + 1.0 * sun
+    side = np.cross(sun, [0.0, 1.0, 0.0])
+    side = side / np.linalg.norm(side) if np.linalg.norm(side) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    up = np.cross(side, sun)
+    back = head + 0.15 * sun
+    lines = [tail, head, head, back + 0.06 * side, head, back - 0.06 * side, head, back + 0.06 * up, head, back - 0.06 * up]
+    for a, b in ((side, up), (up, -side), (-side, -up), (-up, side)):
+        lines += [tail + 0.12 * a, tail + 0.12 * b]
+    return np.array(lines)
 
 
 def _light_corners(scene: Scene) -> np.ndarray:

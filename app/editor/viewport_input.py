@@ -89,7 +89,7 @@ class ViewportInput:
         if self.light_drag is not None:
             self._update_light_drag(app, mouse)
             return
-        self.light_hovered = hovered and hits_light(*ray, app.scene.light.position)
+        self.light_hovered = hovered and app.scene.light.enabled and hits_light(*ray, app.scene.light.position)
         self.hovered_voxel = self._voxel_under(app, ray) if hovered and app.bucket_active else None
         if not hovered:
             return

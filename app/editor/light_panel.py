@@ -1,0 +1,110 @@
+"""The lighting of the Light & camera tab (area light, sun and sky, environment image) and the Object tab's material.
+
+GUI functions over the Interface (app/editor/panels.py): each change previews while a slider is held and is one undo
+step when it is let go, as every field of the tools.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from imgui_bundle import imgui
+
+from app.editor import edits
+from app.editor.file_dialog import FileKind
+from app.editor.photo_panel import GRAY
+from renderer.scene import MaterialSpec
+
+if TYPE_CHECKING:
+    from app.editor.panels import Interface
+
+ENVIRONMENT_FILES = FileKind("Load an environment", "Environment maps", ("*.hdr", "*.exr", "*.png", "*.jpg", "*.jpeg"))
+LIGHTING = ("area light and ambient", "sun and sky", "environment image")
+
+
+def draw_lighting(ui: Interface) -> None:
+    """Which light, and its settings."""
+    app, scene = ui.app, ui.app.scene
+    env = scene.environment
+    kind = 0 if env is None else (1 if env.sky is not None else 2)
+    changed, chosen = imgui.combo("lighting", kind, list(LIGHTING))
+    if changed and chosen != kind:
+        if chosen == 0:
+            app.edit(lambda s: edits.set_environment(s, None))
+        elif chosen == 1:
+            app.edit(edits.use_sky)
+        elif ui.fields.environment_path:
+            load_environment(ui)
+        else:
+            app.say("type or browse to an environment image below, then press Load")
+            ui.fields.show_environment_field = True
+    if env is None:
+        _area_light_position(ui)
+        if not ui.fields.show_environment_field:
+            return
+    else:
+        changed, on = imgui.checkbox("area light too", scene.light.enabled)
+        if changed:
+            app.edit(lambda s: edits.switch_area_light(s, on))
+        if scene.light.enabled:
+            _area_light_position(ui)
+    if env is not None and env.sky is not None:
+        sky = env.sky
+        changed, elevation = imgui.slider_float("sun elevation", sky.sun_elevation_deg, 0.0, 90.0, "%.1f deg")
+        ui._field("sun elevation", changed, lambda s: edits.set_sky(s, elevation, sky.sun_azimuth_deg, sky.turbidity))
+        changed, azimuth = imgui.slider_float("sun azimuth", sky.sun_azimuth_deg, -180.0, 180.0, "%.1f deg")
+        ui._field("sun azimuth", changed, lambda s: edits.set_sky(s, sky.sun_elevation_deg, azimuth, sky.turbidity))
+        changed, turbidity = imgui.slider_float("haze (turbidity)", sky.turbidity, 1.0, 10.0, "%.1f")
+        ui._field("turbidity", changed, lambda s: edits.set_sky(s, sky.sun_elevation_deg, sky.sun_azimuth_deg,
+                                                                turbidity))
+    if env is None or env.image is not None:
+        imgui.set_next_item_width(200)
+        _, ui.fields.environment_path = imgui.input_text("##environment", ui.fields.environment_path)
+        ui._browse("environment", ENVIRONMENT_FILES, "environment_path")
+        imgui.same_line()
+        if imgui.button("Load environment") and ui.fields.environment_path:
+            load_environment(ui)
+        imgui.text_colored(GRAY, ".hdr and .exr are linear light; .png and .jpg are read as sRGB (no highlights).")
+    if env is not None:
+        changed, rotation = imgui.slider_float("turn environment", env.rotation_deg, -180.0, 180.0, "%.1f deg")
+        ui._field("environment turn", changed, lambda s: edits.turn_environment(s, rotation_deg=rotation))
+        changed, strength = imgui.slider_float("strength", env.strength, 0.0, edits.MAX_STRENGTH, "%.2f",
+                                               imgui.SliderFlags_.logarithmic)
+        ui._field("environment strength", changed, lambda s: edits.turn_environment(s, strength=strength))
+
+
+def load_environment(ui: Interface) -> None:
+    if ui.app.edit(lambda s: edits.use_environment_image(s, ui.fields.environment_path)):
+        ui.fields.show_environment_field = False
+        ui.app.say(f"lit by {ui.app.scene.environment_path()}")
+
+
+def _area_light_position(ui: Interface) -> None:
+    scene = ui.app.scene
+    changed, p = imgui.drag_float3("light x, y, z", list(scene.light.position), 0.01, -edits.MAX_POSITION,
+                                   edits.MAX_POSITION, "%.2f")
+    ui._field("light", changed, lambda s: edits.move_light(s, tuple(p)))
+
+
+def draw_material(ui: Interface) -> None:
+    """The object's material: a preset, then roughness, specular and metallic."""
+    material = ui.app.scene.object.material
+    names = list(edits.MATERIAL_PRESETS)
+    current = next((i for i, n in enumerate(names) if edits.MATERIAL_PRESETS[n] == material), -1)
+    imgui.set_next_item_width(150)
+    changed, chosen = imgui.combo("material", current, names) if current >= 0 else imgui.combo(
+        "material", 0, ["custom", *names])
+    if changed:
+        name = names[chosen] if current >= 0 else (None if chosen == 0 else names[chosen - 1])
+        if name is not None:
+            ui.app.edit(lambda s: edits.set_material(s, edits.MATERIAL_PRESETS[name]))
+    for key, label in (("roughness", "roughness"), ("specular", "specular"), ("metallic", "metallic")):
+        changed, value = imgui.slider_float(label, getattr(material, key), 0.0, 1.0, "%.2f")
+        ui._field(f"material {key}", changed,
+                  lambda s, k=key, v=value: edits.set_material(s, _with(material, k, v)))
+
+
+def _with(material: MaterialSpec, key: str, value: float) -> MaterialSpec:
+    from dataclasses import replace
+
+    return replace(material, **{key: value})
