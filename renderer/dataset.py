@@ -27,7 +27,7 @@ import json
 import os
 import shutil
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,10 +53,13 @@ from renderer.scene import (
     SCALE_RANGE,
     TRANSLATION_RANGE,
     CameraSpec,
+    EnvironmentSpec,
     FloorSpec,
     LightSpec,
+    MaterialSpec,
     ObjectSpec,
     Scene,
+    SkySpec,
     scene_from_dict,
 )
 
@@ -141,17 +144,85 @@ def sample_source_view(rng: np.random.Generator) -> View:
     )
 
 
-def view_scene(view: View, voxels: str, floor_color: tuple, size: int, color: tuple | None = None) -> Scene:
+def view_scene(view: View, voxels: str, floor_color: tuple, size: int, color: tuple | None = None,
+               lighting: Lighting | None = None, material: MaterialSpec | None = None) -> Scene:
     """The scene of one sample, its object given by a voxel file relative to the data folder."""
+    lighting = lighting or Lighting()
     return Scene(
-        object=ObjectSpec(
-            voxels=voxels, color=color, translation=view.translation, rotation_deg=view.rotation_deg, scale=view.scale
-        ),
+        object=ObjectSpec(voxels=voxels, color=color, translation=view.translation, rotation_deg=view.rotation_deg,
+                          scale=view.scale, material=material or MaterialSpec()),
         floor=FloorSpec(tuple(float(c) for c in floor_color)),
-        light=LightSpec(view.light),
+        light=LightSpec(view.light, enabled=lighting.area_light),
         camera=CameraSpec(view.elevation_deg),
         image_size=size,
+        environment=lighting.environment,
     )
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """How one view is lit: the area light (or not) and an environment (or the uniform ambient light)."""
+
+    area_light: bool = True
+    environment: EnvironmentSpec | None = None
+
+
+MAPS_PER_SPLIT = {"train": 300, "test": 60}  # made maps per kind a split draws from (disjoint seeds: map_seed)
+SKY_ELEVATION_RANGE = (5.0, 70.0)
+SKY_TURBIDITY_RANGE = (2.0, 8.0)
+
+
+def sample_lighting(rng: np.random.Generator, lighting: str, split: str) -> tuple[Lighting, tuple[str, int] | None]:
+    """A view's lighting for the set's `lighting` (DataConfig.lighting), and the made map it uses ((kind, seed) or
+    None): an environment is a sky (random sun and haze) or one of the split's made maps, turned at random."""
+    from renderer.environment_maps import KINDS, map_seed
+
+    if lighting == "area":
+        return Lighting(), None
+    mode = "environment" if lighting == "environment" else ("area", "environment", "both")[int(rng.integers(3))]
+    if mode == "area":
+        return Lighting(), None
+    kind = ("sky", *KINDS)[int(rng.integers(len(KINDS) + 1))]
+    rotation = float(rng.uniform(-180.0, 180.0))
+    if kind == "sky":
+        sky = SkySpec(float(rng.uniform(*SKY_ELEVATION_RANGE)), float(rng.uniform(-180.0, 180.0)),
+                      float(rng.uniform(*SKY_TURBIDITY_RANGE)))
+        return Lighting(mode == "both", EnvironmentSpec(sky=sky, rotation_deg=rotation)), None
+    seed = map_seed(split, int(rng.integers(MAPS_PER_SPLIT[split])))
+    environment = EnvironmentSpec(image=environment_file(kind, seed), rotation_deg=rotation)
+    return Lighting(mode == "both", environment), (kind, seed)
+
+
+def sample_material(rng: np.random.Generator) -> MaterialSpec:
+    """An object's material: matte (a third), plastic or ceramic of any gloss, or metal (a fifth)."""
+    pick = rng.random()
+    if pick < 1.0 / 3.0:
+        return MaterialSpec()
+    roughness = float(rng.uniform(0.05, 0.9))
+    if pick < 0.8:
+        return MaterialSpec(roughness, float(rng.uniform(0.2, 0.9)), 0.0)
+    return MaterialSpec(roughness, 0.5, float(rng.uniform(0.8, 1.0)))
+
+
+def environment_file(kind: str, seed: int) -> str:
+    """Where a made map lies in a data folder (relative)."""
+    return f"environments/{kind}_{seed:07d}.hdr"
+
+
+def write_environment_map(out: Path, kind: str, seed: int) -> None:
+    """Make the map once per data folder (atomically: workers may race to it)."""
+    from renderer.environment_maps import make_map
+
+    path = out / environment_file(kind, seed)
+    if path.exists():
+        return
+    import mitsuba as mi
+
+    from renderer.pathtrace.mitsuba_variant import active_variant
+
+    active_variant()
+    with atomic_path(path) as tmp:
+        mi.Bitmap(make_map(kind, seed)).write(str(tmp))
 
 
 def object_rng(config: DataConfig, index: int, purpose: int) -> np.random.Generator:
@@ -182,7 +253,7 @@ def prepare_folder(out: Path, config: DataConfig) -> None:
     if out.exists() and not out.is_dir():
         raise InputError("not a folder", out)
     try:
-        for sub in ("objects", "images", "splats", "records"):
+        for sub in ("objects", "images", "splats", "records", "environments"):
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
@@ -250,14 +321,20 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     save_json(out / f"objects/{name}_source_camera.json", {**source_pose.to_dict(), "light": list(source_view.light)})
 
     sampler = sample_train_views if config.split == "train" else sample_test_sequence
+    material = sample_material(object_rng(config, index, 3)) if config.materials else MaterialSpec()
+    light_rng = object_rng(config, index, 4)
     samples = []
     for v, view in enumerate(sampler(object_rng(config, index, 2), config.views)):
         sample_id = f"{name}_v{v:02d}"
-        scene = view_scene(view, voxel_file, floor_color, config.size, single_color)
+        lighting, made_map = sample_lighting(light_rng, config.lighting, config.split)
+        if made_map is not None:
+            write_environment_map(out, *made_map)
+        scene = replace(view_scene(view, voxel_file, floor_color, config.size, single_color, lighting, material),
+                        base_dir=out)
         target = render_pathtraced(scene, mesh, spp=config.spp, seed=index * 1000 + v, denoise=config.denoise)
         save_png(out / f"images/{sample_id}.png", target.image)
         save_png(out / f"splats/{sample_id}.png", splat_scene(scene, rgba, floor_color))
-        samples.append({"id": sample_id, "object": name, "scene": scene.to_dict(),
+        samples.append({"id": sample_id, "object": name, "scene": replace(scene, base_dir=Path(".")).to_dict(),
                         "target": f"images/{sample_id}.png", "splat": f"splats/{sample_id}.png"})
     return {
         "object": {"id": name, "index": index, "category": category, "seed": object_seed,

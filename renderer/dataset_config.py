@@ -20,6 +20,9 @@ MAX_VIEWS = 1000
 MAX_SPP = 65536
 MAX_WORKERS = 256
 SETTINGS = ("single", "default", "textured")
+# How the target views are lit: the paper's area light; an environment alone; or each view one of area light,
+# environment, or both (renderer/dataset.py, sample_lighting).
+LIGHTINGS = ("area", "environment", "mixed")
 SPLITS = ("train", "test")
 DELIGHT_SHADERS = ("path traced", "object voxels", "camera grid")  # DataConfig.delight_shader: today's first
 MADE_DELIGHT_SHADERS = DELIGHT_SHADERS[:2]  # those a set can still be made with
@@ -47,6 +50,8 @@ class DataConfig:
     # shader before it drew the object's own voxels (no longer made).
     delight_shader: str = field(default="path traced", metadata={"help": "how the source photo's light is divided out: two path-traced renders of the mesh (default), or the voxel shader's light (the shipped models' training sets)", "choices": MADE_DELIGHT_SHADERS})
     photo_size: int = field(default=0, metadata={"help": "side in pixels of the source photo that colors the voxels (0: --size)"})
+    lighting: str = field(default="area", metadata={"help": "how target views are lit: the area light, an environment (sky or a made map), or mixed (area, environment or both per view)", "choices": LIGHTINGS})
+    materials: bool = field(default=False, metadata={"help": "give each object a random material (matte to mirror-like, plastic or metal)"})
 
     def __post_init__(self) -> None:
         if self.photo_size == self.size:  # one config per set: a photo of the images' size is written 0
@@ -73,6 +78,8 @@ class DataConfig:
         if isinstance(size, bool) or not isinstance(size, int) or not (size == 0 or MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE):
             raise InputError(f"--photo-size must be 0 (the images' size) or a whole number from {MIN_IMAGE_SIZE} to "
                              f"{MAX_IMAGE_SIZE}, got {self.photo_size!r}")
+        if self.lighting not in LIGHTINGS:
+            raise InputError(f"unknown lighting {self.lighting!r} (choose from {', '.join(LIGHTINGS)})")
         if not self.categories:
             raise InputError("at least one object category is needed")
         check_hidden_rule(self.hidden_rule)
@@ -93,6 +100,8 @@ class DataConfig:
         data.setdefault("hidden_rule", "ray")  # and before hidden voxels took a blend of the colors around them
         data.setdefault("delight_shader", "camera grid")  # and before the shader drew the object's own voxels
         data.setdefault("photo_size", 0)  # and before the source photo had a size of its own
+        data.setdefault("lighting", "area")  # and before environments and materials
+        data.setdefault("materials", False)
         return cls(**data)
 
 

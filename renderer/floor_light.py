@@ -90,11 +90,12 @@ class FloorSky:
     mirrored: Callable[[np.ndarray], np.ndarray]
 
 
-def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky,
-                            directions: np.ndarray, irradiance: np.ndarray) -> tuple[FloorTerms, list[np.ndarray]]:
+def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky, directions: np.ndarray,
+                            irradiance: np.ndarray, glossy: np.ndarray) -> tuple[FloorTerms, list[np.ndarray]]:
     """The empty floor under an environment: FloorTerms whose `from_light` is the area light's (zero when
     `light_position` is None) and whose `from_ambient` is the sky's, and per directional light (unit world
-    `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its coarse (h, w, 3) radiance, unshadowed."""
+    `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its coarse (h, w, 3) radiance, unshadowed,
+    with the coat's highlight where `glossy` says (a light the mirrored sky does not hold already)."""
     geometry = _coarse_geometry(camera)
     albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64)).astype(np.float32)
     through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
@@ -107,7 +108,8 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
     from_sky = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
                 + ENVIRONMENT_SCALE * geometry.view_fresnel[..., None] * sky.mirrored(mirror))
     per_light = []
-    for direction, power in zip(np.asarray(directions, dtype=np.float64), np.asarray(irradiance, dtype=np.float64)):
+    for direction, power, gloss in zip(np.asarray(directions, dtype=np.float64),
+                                       np.asarray(irradiance, dtype=np.float64), glossy):
         cos_in = max(float(direction[1]), 0.0)
         half = view + direction.astype(np.float32)
         half /= np.maximum(np.linalg.norm(half, axis=-1, keepdims=True), 1e-12)
@@ -115,7 +117,7 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
         cos_in_half = np.clip(np.sum(half * direction.astype(np.float32), axis=-1), 0.0, 1.0)
         glossy = (coat_reflectance(cos_in_half) * _ggx(cos_half) * _smith_g1(max(cos_in, 1e-4))
                   * geometry.view_masking / (4.0 * geometry.cos_view))
-        term = cos_in * through_coat[..., None] * albedo + glossy[..., None]
+        term = cos_in * through_coat[..., None] * albedo + (glossy[..., None] if gloss else 0.0)
         per_light.append((term * power.astype(np.float32)).astype(np.float32))
     terms = FloorTerms(from_light, from_sky.astype(np.float32), geometry.floor, geometry.row_weights,
                        geometry.col_weights)

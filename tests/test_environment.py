@@ -387,3 +387,64 @@ def test_the_environment_is_read_once_per_file_and_reread_when_it_changes(ball_d
     write_map(path, np.full((16, 32, 3), 2.0))
     os.utime(path, ns=(first.source_key[2] + 10**9, first.source_key[2] + 10**9))
     assert environment_light(scene).background.max() == pytest.approx(2.0)
+
+
+# --- made maps and data sets lit by them ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["studio", "indoor", "outdoor"])
+def test_made_maps_are_repeatable_finite_and_light_the_floor_as_said(kind):
+    from renderer.environment_maps import IRRADIANCE_RANGE, make_map
+
+    first = make_map(kind, 7)
+    np.testing.assert_array_equal(first, make_map(kind, 7))
+    assert np.all(np.isfinite(first)) and first.min() >= 0.0 and not np.array_equal(first, make_map(kind, 8))
+    # The floor's irradiance by Monte Carlo over the upper hemisphere (cosine-weighted: E = pi * mean L).
+    rng = np.random.default_rng(3)
+    u, v = rng.random(200_000), rng.random(200_000)
+    r, phi = np.sqrt(u), 2.0 * np.pi * v
+    directions = np.stack([r * np.cos(phi), np.sqrt(1.0 - u), r * np.sin(phi)], axis=1)
+    seen = sample_map(first, directions)
+    irradiance = math.pi * float(np.mean(seen @ np.array([0.2126, 0.7152, 0.0722])))
+    assert IRRADIANCE_RANGE[0] * 0.9 <= irradiance <= IRRADIANCE_RANGE[1] * 1.1
+
+
+def test_training_and_test_maps_never_share_a_seed():
+    from renderer.dataset import MAPS_PER_SPLIT
+    from renderer.environment_maps import map_seed
+
+    train = {map_seed("train", i) for i in range(MAPS_PER_SPLIT["train"])}
+    test = {map_seed("test", i) for i in range(MAPS_PER_SPLIT["test"])}
+    assert len(train) == MAPS_PER_SPLIT["train"] and len(test) == MAPS_PER_SPLIT["test"] and not train & test
+
+
+def test_mixed_lighting_draws_the_area_light_an_environment_and_both():
+    from renderer.dataset import sample_lighting
+
+    rng = np.random.default_rng(0)
+    draws = [sample_lighting(rng, "mixed", "train")[0] for _ in range(90)]
+    kinds = {(d.area_light, d.environment is not None) for d in draws}
+    assert kinds == {(True, False), (False, True), (True, True)}
+    alone = [sample_lighting(rng, "environment", "test")[0] for _ in range(20)]
+    assert all(d.environment is not None and not d.area_light for d in alone)
+    assert sample_lighting(rng, "area", "train") == (sample_lighting(rng, "area", "test")[0], None)
+
+
+def test_a_data_set_lit_by_environments_writes_its_maps_and_scenes_that_load(tmp_path):
+    from renderer.dataset import DataConfig, generate_dataset
+
+    config = DataConfig(setting="single", split="test", objects=1, views=4, size=32, spp=2, denoise=False,
+                        resolution=32, lighting="environment", materials=True, seed=5)
+    generate_dataset(tmp_path / "set", config, progress=False)
+    manifest = json.loads((tmp_path / "set" / "manifest.json").read_text())
+    for sample in manifest["samples"]:
+        scene = scene_from_dict(sample["scene"], tmp_path / "set" / "manifest.json")
+        assert scene.environment is not None and not scene.light.enabled
+        if scene.environment.image is not None:
+            assert scene.environment_path().is_file()
+            assert environment_light(scene).lighting.shape == (64, 128, 3)
+    assert manifest["config"]["lighting"] == "environment" and manifest["config"]["materials"] is True
+    from models.training.data import VoxelRenderSet
+
+    with pytest.raises(InputError, match="no network reads those yet"):
+        VoxelRenderSet([tmp_path / "set"]).check_samples(32)

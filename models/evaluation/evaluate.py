@@ -26,6 +26,7 @@ from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
 from renderer.shading import quality_named
+from renderer.shading.environment_shading import needs_environment_shading
 
 METRICS = ("mse", "dssim", "perceptual")
 
@@ -120,7 +121,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
     def predict(sample: dict, index: int) -> torch.Tensor:
-        if shader:
+        # No network reads an environment or a material yet: they render those scenes as the shader does (the engine).
+        if shader or (model is not None and needs_environment_shading(dataset.scene(index))):
             image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1],
                                    reflection=True).image
             return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
@@ -143,6 +145,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
             values["sample"] = f"{folder.name}/{item.get('id', index)}"
             values["index"] = index
             values["ground_share"] = _ground_share(prediction[0], sample["target"], sample["splat"], dataset.scene(index))
+            values["lighting"], values["material"] = lighting_label(dataset.scene(index)), material_label(dataset.scene(index))
             scores[dataset.settings[index]].append(values)
         # The figure: each setting's typical view (median MSE) and its worst, drawn again (a few samples, not all kept).
         rows, captions = [], []
@@ -155,6 +158,21 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                 rows.append(torch.cat([*inputs, predict(sample, index)[0], sample["target"]], dim=2))
                 captions.append(f"{setting}, {label}: {chosen['sample']} (MSE {chosen['mse']:.1f})")
     return scores, (rows, captions), count
+
+
+def lighting_label(scene) -> str:
+    """What lights a test scene: the area light, a sky, or a made map's kind (its file's prefix), and whether the
+    area light is on beside the environment."""
+    env = scene.environment
+    if env is None:
+        return "area light"
+    kind = "sky" if env.sky is not None else Path(env.image).name.split("_")[0]
+    return f"{kind} + area light" if scene.light.enabled else kind
+
+
+def material_label(scene) -> str:
+    material = scene.object.material
+    return "matte" if material.diffuse_only else ("metal" if material.metallic >= 0.5 else "glossy")
 
 
 def _figure_samples(values: list[dict]) -> list[tuple[str, dict]]:
@@ -200,6 +218,17 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
         ground = sum(v["ground_share"] * v["mse"] for v in values) / max(sum(v["mse"] for v in values), 1e-12)
         lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} "
                      f"| {100 * ground:.0f} % |")
+    every = [v for values in scores.values() for v in values]
+    if any(v["lighting"] != "area light" or v["material"] != "matte" for v in every):
+        for key in ("lighting", "material"):
+            lines += ["", f"| {key} | samples | MSE (0-255) | DSSIM | perceptual |", "|---|---:|---:|---:|---:|"]
+            for label in sorted({v[key] for v in every}):
+                values = [v for v in every if v[key] == label]
+                mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
+                lines.append(f"| {label} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} "
+                             f"| {mean['perceptual']:.3f} |")
+        lines += ["", "Networks are not trained for environments or glossy materials yet: for those samples the network "
+                      "renderers show the voxel shader's image, as the editor does."]
     lines += ["", f"![{columns}]({figure.name})", "", f"Figure rows ({columns}), top to bottom:", ""]
     lines += [f"{number}. {caption}" for number, caption in enumerate(captions, 1)]
     lines += [""] + _object_table(scores)

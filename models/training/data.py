@@ -18,6 +18,7 @@ from torch.utils.data import Dataset
 from renderer.errors import InputError
 from renderer.io import load_image, load_json
 from renderer.scene import Scene, scene_from_dict
+from renderer.shading.environment_shading import needs_environment_shading
 
 
 def read_manifest(folder: str | Path) -> dict:
@@ -122,6 +123,10 @@ class VoxelRenderSet(Dataset):
         voxel_files = set()
         for index, (folder, sample) in enumerate(self.items):
             scene = self.scene(index)
+            if needs_environment_shading(scene):
+                raise InputError(f"sample {sample.get('id', index)} is lit by an environment or has a glossy "
+                                 "material; no network reads those yet (evaluate it, do not train on it)",
+                                 folder / "manifest.json")
             voxel_files.add(scene.voxels_path())
             for key in ("target", "splat"):
                 path = folder / str(sample.get(key))

@@ -177,7 +177,7 @@ def _environment(environment: EnvironmentLight | None) -> dict:
 
     if environment is None:
         return {"ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [AMBIENT_RADIANCE] * 3}}}
-    parts = {"ambient": {"type": "envmap", "bitmap": mi.Bitmap(np.ascontiguousarray(environment.background)),
+    parts = {"ambient": {"type": "envmap", "bitmap": mi.Bitmap(np.array(environment.background, dtype=np.float32)),
                          "scale": environment.strength,
                          "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], environment.rotation_deg)}}
     if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:

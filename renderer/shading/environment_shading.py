@@ -69,6 +69,7 @@ LOWEST_LIGHT_DEG = 2.0  # a light lower than this casts its shadows from this el
 IRRADIANCE_ROWS = 16  # the irradiance map's rows (twice as many columns)
 SPECULAR_ROWS = 32  # the prefiltered maps' rows
 SPECULAR_ROUGHNESS = (0.0, 0.15, 0.3, 0.5, 0.75, 1.0)  # the roughness of each prefiltered map
+MAX_SHADOW_SPREAD = 0.15  # radians: a wider light's shadows are drawn as this wide (the maps' taps grow sparse)
 MIN_ROUGHNESS = 0.05  # as the path tracer's (renderer/pathtrace/mitsuba_object.py)
 DIELECTRIC_F0 = 0.08  # times `specular`: principled's reflectance head on
 DIFFUSE = MaterialSpec()
@@ -83,7 +84,7 @@ class PreparedEnvironment:
     light_spread: np.ndarray  # (K,) radians: the angular radius of the part each light stands for
     irradiance: np.ndarray  # (IRRADIANCE_ROWS, 2 x, 3): the residual sky's irradiance on a surface facing each texel
     sky_up: np.ndarray  # (3,) the residual sky's irradiance on the floor
-    specular: np.ndarray  # (len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 x, 3): the residual sky prefiltered by GGX
+    specular: np.ndarray  # (len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 x, 3): the whole map prefiltered by GGX
 
 
 _PREPARED: dict[tuple, PreparedEnvironment] = {}
@@ -137,7 +138,7 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
         light_irradiance=np.array([e for _, e, _ in lights]).reshape(-1, 3),
         light_spread=np.array([s for _, _, s in lights]),
         irradiance=irradiance.astype(np.float32), sky_up=sky_up,
-        specular=_prefiltered(residual).astype(np.float32))
+        specular=_prefiltered(radiance).astype(np.float32))
 
 
 def _prefiltered(radiance: np.ndarray) -> np.ndarray:
@@ -169,18 +170,21 @@ class _Lights:
     directions: np.ndarray  # (K, 3)
     irradiance: np.ndarray  # (K, 3)
     spread: np.ndarray  # (K,)
+    delta: np.ndarray  # (K,) bool: the sun, which no map holds (its gloss is drawn from it; the others' from the map)
 
 
 def _world_lights(environment: EnvironmentLight, ready: PreparedEnvironment) -> _Lights:
     directions = rotate_y(ready.light_directions, environment.rotation_deg).reshape(-1, 3)
     irradiance = ready.light_irradiance.reshape(-1, 3) * environment.strength
-    spread = ready.light_spread.reshape(-1)
+    spread = np.minimum(ready.light_spread.reshape(-1), MAX_SHADOW_SPREAD)
+    delta = np.zeros(len(directions), dtype=bool)
     if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
         directions = np.vstack([environment.sun_direction, directions])
         irradiance = np.vstack([environment.sun_irradiance, irradiance])
         spread = np.concatenate([[math.radians(0.5358 / 2.0)], spread])
+        delta = np.concatenate([[True], delta])
     keep = irradiance.max(axis=1) > 0.0
-    return _Lights(directions[keep], irradiance[keep], spread[keep])
+    return _Lights(directions[keep], irradiance[keep], spread[keep], delta[keep])
 
 
 def needs_environment_shading(scene: Scene) -> bool:
@@ -220,7 +224,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     sky = FloorSky(irradiance=ready.sky_up * environment.strength,
                    mirrored=lambda d: _specular(ready, environment, d, FLOOR_COAT_ROUGHNESS))
     floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, sky, lights.directions,
-                                                     lights.irradiance)
+                                                     lights.irradiance, lights.delta)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
     block = geometry.occluder_block * voxel
     area = _ShadowMaps.area(geometry, light_position, quality, block) if light_position is not None else None
@@ -351,13 +355,13 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
                 widened = min(1.0, roughness + 0.5 * LIGHT_SIZE / len(area.points) ** 0.5 / math.sqrt(float(np.mean(distance2))))
                 specular += (_ggx_reflectance(normals, view, direction, widened, f0)
                              * (power * share)[:, None])
-    for direction, power, maps in zip(lights.directions, lights.irradiance, suns):
+    for direction, power, maps, delta in zip(lights.directions, lights.irradiance, suns, lights.delta):
         cosine = normals @ direction
         share = maps.object_visibility(points, normals, maps.points[0], block, np.flatnonzero(cosine > 0.0))
         irradiance += np.maximum(cosine, 0.0)[:, None] * share[:, None] * power[None, :]
         floor_irradiance += (max(direction[1], 0.0) * FLOOR_BELOW_LIT) * power[None, :]
         floor_lit += max(direction[1], 0.0) * power[None, :]
-        if glossy:
+        if glossy and delta:  # the other lights' gloss is in the prefiltered map
             widened = min(1.0, roughness + float(maps.spacing / (2.0 * LIGHT_DISTANCE)))
             specular += _ggx_reflectance(normals, view, np.broadcast_to(direction, normals.shape), widened,
                                          f0) * (share[:, None] * power[None, :])
