@@ -84,10 +84,37 @@ def lit_floor_terms(camera: Camera, light_position, floor_color) -> FloorTerms:
 @dataclass(frozen=True)
 class FloorSky:
     """An environment as the floor receives it: the diffuse irradiance from the sky above it (rgb) and the radiance
-    its coat mirrors, a function of world directions (h, w, 3) -> (h, w, 3), blurred by the coat's roughness."""
+    arriving from world directions, a function (..., 3) -> (..., 3) (what the coat reflects: coat_reflection)."""
 
     irradiance: np.ndarray
-    mirrored: Callable[[np.ndarray], np.ndarray]
+    radiance: Callable[[np.ndarray], np.ndarray]
+
+
+COAT_SAMPLES = 12  # per side: GGX half vectors the coat's reflection of an environment is averaged over
+
+
+def coat_reflection(view: np.ndarray, radiance: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """The radiance (h, w, 3) the floor's coat reflects towards unit `view` directions (h, w, 3) from an environment
+    `radiance(directions)`: GGX half vectors drawn from the coat's distribution on a fixed stratified grid (the same
+    for every point, so the result is smooth), each reflection weighted by Fresnel and masking over the distribution's
+    own share (the usual importance-sampling estimator). Only directions above the floor reflect."""
+    n = COAT_SAMPLES
+    u1, u2 = ((np.arange(n) + 0.5) / n for _ in range(2))
+    u1, u2 = (g.ravel() for g in np.meshgrid(u1, u2, indexing="ij"))
+    alpha = FLOOR_ROUGHNESS
+    theta = np.arctan(alpha * np.sqrt(u1 / (1.0 - u1)))
+    phi = 2.0 * math.pi * u2
+    half = np.stack([np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)], axis=1)  # (S, 3)
+    v = np.asarray(view, dtype=np.float64)[..., None, :]  # (h, w, 1, 3)
+    cos_vh = np.sum(v * half, axis=-1, keepdims=True)  # (h, w, S, 1)
+    light = 2.0 * cos_vh * half - v  # the view mirrored about each half vector
+    cos_l = np.clip(light[..., 1], 1e-4, 1.0)
+    cos_v = np.clip(v[..., 1], 1e-4, 1.0)
+    above = (light[..., 1] > 0.0) & (cos_vh[..., 0] > 0.0)
+    weight = (coat_reflectance(np.clip(cos_vh[..., 0], 0.0, 1.0)) * _smith_g1(cos_l) * _smith_g1(cos_v)
+              * np.clip(cos_vh[..., 0], 0.0, 1.0) / (half[:, 1] * cos_v))
+    seen = radiance(light)  # (h, w, S, 3)
+    return np.mean(seen * (weight * above)[..., None], axis=-2).astype(np.float32)
 
 
 def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky, directions: np.ndarray,
@@ -104,9 +131,8 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
     else:
         from_light, _ = _coarse_radiance(geometry, light_position, floor_color)
     view = geometry.view
-    mirror = np.stack([-view[..., 0], view[..., 1], -view[..., 2]], axis=-1)
     from_sky = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
-                + ENVIRONMENT_SCALE * geometry.view_fresnel[..., None] * sky.mirrored(mirror))
+                + coat_reflection(view, sky.radiance))
     per_light = []
     for direction, power, gloss in zip(np.asarray(directions, dtype=np.float64),
                                        np.asarray(irradiance, dtype=np.float64), glossy):

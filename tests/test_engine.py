@@ -30,7 +30,18 @@ from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
 from renderer.grid import occupied_spans, scene_grid
 from renderer.objects.demo import DEMO_DIR
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, PaintOp, Scene, load_scene
+from renderer.scene import (
+    CameraSpec,
+    EnvironmentSpec,
+    FloorSpec,
+    LightSpec,
+    MaterialSpec,
+    ObjectSpec,
+    PaintOp,
+    Scene,
+    SkySpec,
+    load_scene,
+)
 from renderer.shading import FAST_QUALITY, FULL_QUALITY, ShaderQuality, shade_scene
 from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
@@ -641,3 +652,31 @@ def test_on_a_cuda_gpu_every_edit_renders_what_a_fresh_engine_and_the_cpu_render
         fresh = RenderEngine(network_model, threads=1, precision="fp32", device="cuda").render(edited)
         np.testing.assert_allclose(image, fresh, rtol=0, atol=1e-5, err_msg=name)
         np.testing.assert_allclose(image, engine(network_model).render(edited), rtol=0, atol=1e-3, err_msg=name)
+
+
+ENVIRONMENT_EDITS = {
+    "turn": lambda s: replace(s, environment=replace(s.environment, rotation_deg=75.0)),
+    "strength": lambda s: replace(s, environment=replace(s.environment, strength=1.6)),
+    "sun": lambda s: replace(s, environment=replace(s.environment, sky=SkySpec(22.0, -60.0, 3.0))),
+    "material": lambda s: replace(s, object=replace(s.object, material=MaterialSpec(0.2, 0.5, 1.0))),
+    "area light on": lambda s: replace(s, light=replace(s.light, enabled=True)),
+}
+
+
+@pytest.mark.parametrize("edit", ENVIRONMENT_EDITS)
+def test_environment_edits_show_the_shaders_image_rerun_only_the_lighting_and_equal_uncached(scene, edit):
+    """No network reads an environment yet: the engine shows the shader's image and says so. An environment or
+    material edit reruns the lighting alone, and its image equals a fresh engine's."""
+    model = refiner()
+    lit = replace(scene, environment=EnvironmentSpec(sky=SkySpec(40.0, 30.0)), light=replace(scene.light, enabled=False))
+    edited = ENVIRONMENT_EDITS[edit](lit)
+    live = engine(model)
+    before = live.render(lit)
+    image = live.render(edited)
+    stages = set(live.last_report.stages_run)
+    assert "shade_lighting" in stages and not {"shade_geometry", "shade_surface", "shade_colors"} & stages
+    assert "no network is trained" in live.last_report.note
+    np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
+    np.testing.assert_allclose(image, np.clip(_shaded_image(edited, 128), 0.0, 1.0), rtol=0, atol=1e-5)
+    assert np.abs(image - before).max() > 1e-3
+    assert live.render(scene).shape == (64, 64, 3) and live.last_report.note == ""  # back to the area light: the network

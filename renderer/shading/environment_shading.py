@@ -34,7 +34,15 @@ from renderer.environment import (
     texel_solid_angles,
     uniform_environment,
 )
-from renderer.floor_light import FloorSky, environment_floor_terms, upsample
+from renderer.floor_light import (
+    DIFFUSE_FRESNEL_LOSS,
+    DIFFUSE_SCALE,
+    ENVIRONMENT_SCALE,
+    FloorSky,
+    coat_reflectance,
+    environment_floor_terms,
+    upsample,
+)
 from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, MaterialSpec, Scene
 from renderer.shading.geometry import ObjectGeometry
 from renderer.shading.lighting import (
@@ -63,7 +71,7 @@ from renderer.shading.quality import (
 from renderer.shading.surface import FloorReflection, VisibleSurface
 
 ENVIRONMENT_LIGHTS = 8  # directional lights drawn from a map's bright parts (the sun is one more)
-CONCENTRATED = 4.0  # a texel brighter than this many times the sky's mean belongs to a light
+CONCENTRATED = 2.0  # a texel brighter than this many times the sky's mean belongs to a light
 LIGHT_DISTANCE = 100.0  # world units: a directional light's shadow maps look from a point this far
 LOWEST_LIGHT_DEG = 2.0  # a light lower than this casts its shadows from this elevation (the maps need height)
 IRRADIANCE_ROWS = 16  # the irradiance map's rows (twice as many columns)
@@ -85,6 +93,7 @@ class PreparedEnvironment:
     irradiance: np.ndarray  # (IRRADIANCE_ROWS, 2 x, 3): the residual sky's irradiance on a surface facing each texel
     sky_up: np.ndarray  # (3,) the residual sky's irradiance on the floor
     specular: np.ndarray  # (len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 x, 3): the whole map prefiltered by GGX
+    blurred: np.ndarray  # the whole map blurred by COAT_SAMPLE_BLUR texels
 
 
 _PREPARED: dict[tuple, PreparedEnvironment] = {}
@@ -138,7 +147,9 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
         light_irradiance=np.array([e for _, e, _ in lights]).reshape(-1, 3),
         light_spread=np.array([s for _, _, s in lights]),
         irradiance=irradiance.astype(np.float32), sky_up=sky_up,
-        specular=_prefiltered(radiance).astype(np.float32))
+        specular=_prefiltered(radiance).astype(np.float32),
+        blurred=ndimage.gaussian_filter(radiance, (COAT_SAMPLE_BLUR, COAT_SAMPLE_BLUR, 0),
+                                        mode=("nearest", "wrap", "nearest")).astype(np.float32))
 
 
 def _prefiltered(radiance: np.ndarray) -> np.ndarray:
@@ -221,8 +232,10 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     size = surface.size
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
+    # The coat's reflection averages the map over a fixed set of directions a few degrees apart: it reads the map
+    # blurred by about as much, so that a small bright source shows as a highlight, not as streaks of samples.
     sky = FloorSky(irradiance=ready.sky_up * environment.strength,
-                   mirrored=lambda d: _specular(ready, environment, d, FLOOR_COAT_ROUGHNESS))
+                   radiance=lambda d: sample_map(ready.blurred, environment.to_map(d)) * environment.strength)
     floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, sky, lights.directions,
                                                      lights.irradiance, lights.delta)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
@@ -269,6 +282,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
 
 
 FLOOR_COAT_ROUGHNESS = 0.32  # sqrt of the floor coat's GGX alpha (renderer.scene.FLOOR_ROUGHNESS = 0.1)
+COAT_SAMPLE_BLUR = 0.6  # texels of the lighting map: the blur of the map the floor's coat reflection samples
 
 
 class _ShadowMaps:
@@ -376,7 +390,7 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
         cos_view = np.clip(np.sum(normals * view, axis=1), 1e-4, 1.0)
         a, b = _split_sum(cos_view, roughness)
         above = _above_horizon(reflected, roughness)
-        floor_seen = floor_albedo[None, :] * floor_lit / math.pi  # the lit floor, no shadow
+        floor_seen = _floor_seen(reflected, floor_albedo, floor_lit, ready, environment, roughness)
         seen_around = (_specular(ready, environment, reflected, roughness) * above * occlusion[:, None]
                        + floor_seen * (1.0 - above))
         radiance = radiance + seen_around * (f0 * a[:, None] + b[:, None]) + specular
@@ -392,6 +406,16 @@ def _specular(ready: PreparedEnvironment, environment: EnvironmentLight, directi
     in_map = rotate_y(directions, -environment.rotation_deg)
     found = (1.0 - t) * sample_map(ready.specular[upper - 1], in_map) + t * sample_map(ready.specular[upper], in_map)
     return found * environment.strength
+
+
+def _floor_seen(directions: np.ndarray, floor_albedo: np.ndarray, floor_lit: np.ndarray, ready: PreparedEnvironment,
+                environment: EnvironmentLight, roughness: float) -> np.ndarray:
+    """The lit floor (no shadow) as a glossy object sees it along `directions` that point below the horizon: its base
+    through the coat, and the coat mirroring the sky, strongest at grazing angles (renderer/floor_light.py's fit)."""
+    grazing = coat_reflectance(np.clip(np.abs(directions[:, 1]), 0.0, 1.0))[:, None]
+    base = floor_albedo[None, :] * floor_lit / math.pi * (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * grazing)
+    mirrored = directions * np.array([1.0, -1.0, 1.0])
+    return base + ENVIRONMENT_SCALE * grazing * _specular(ready, environment, mirrored, max(roughness, FLOOR_COAT_ROUGHNESS))
 
 
 def _above_horizon(directions: np.ndarray, roughness: float) -> np.ndarray:
