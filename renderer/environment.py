@@ -20,6 +20,7 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+from numba import njit, prange
 
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
@@ -43,7 +44,7 @@ REFERENCE_IRRADIANCE = 2.37  # on the floor, from REFERENCE_SKY: what the area l
 @dataclass(frozen=True, eq=False)
 class EnvironmentLight:
     """An environment as renderers take it. The maps are in the map's own frame and at strength 1 (so that work
-    done on them outlives a turn or a change of strength); `to_map` turns world directions into that frame."""
+    done on them outlives a turn or a change of strength); sample_map turns them into the world."""
 
     background: np.ndarray  # (h, 2h, 3) float32 linear radiance, at most BACKGROUND_WIDTH wide
     lighting: np.ndarray  # (64, 128, 3) the same, area-averaged, for lighting
@@ -59,13 +60,9 @@ class EnvironmentLight:
         sun = None if self.sun_direction is None else tuple(self.sun_direction)
         return (*self.source_key, self.rotation_deg, self.strength, sun)
 
-    def to_map(self, directions: np.ndarray) -> np.ndarray:
-        """World directions (..., 3) in the map's frame (the rotation undone)."""
-        return rotate_y(directions, -self.rotation_deg)
-
     def radiance(self, directions: np.ndarray, sharp: bool = False) -> np.ndarray:
         """Linear radiance (..., 3) arriving from world directions (..., 3): from the background map when `sharp`."""
-        found = sample_map(self.background if sharp else self.lighting, self.to_map(directions))
+        found = sample_map(self.background if sharp else self.lighting, directions, self.rotation_deg)
         return found * np.float32(self.strength)
 
 
@@ -98,25 +95,92 @@ def texel_solid_angles(height: int, width: int) -> np.ndarray:
     return ((np.cos(edges[:-1]) - np.cos(edges[1:])) * (2.0 * np.pi / width))[:, None]
 
 
-def sample_map(radiance: np.ndarray, directions: np.ndarray) -> np.ndarray:
-    """The map bilinearly interpolated (wrapping around in phi, clamped at the poles) at map-frame directions."""
-    h, w = radiance.shape[:2]
+def direction_angles(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The polar angle from +y and the azimuth phi (as the maps count it) of directions (..., 3), in radians."""
     d = np.asarray(directions, dtype=np.float64)
     norm = np.maximum(np.linalg.norm(d, axis=-1), 1e-12)
-    theta = np.arccos(np.clip(d[..., 1] / norm, -1.0, 1.0))
-    phi = np.mod(np.arctan2(d[..., 0], -d[..., 2]), 2.0 * np.pi)
-    y = np.clip(theta / np.pi * h - 0.5, 0.0, h - 1.0)
-    x = phi / (2.0 * np.pi) * w - 0.5
-    y0 = np.minimum(np.floor(y).astype(np.int64), h - 1)
-    y1 = np.minimum(y0 + 1, h - 1)
-    fy = (y - y0)[..., None]
-    x0f = np.floor(x)
-    fx = (x - x0f)[..., None]
-    x0 = np.mod(x0f.astype(np.int64), w)
-    x1 = np.mod(x0 + 1, w)
-    top = radiance[y0, x0] * (1.0 - fx) + radiance[y0, x1] * fx
-    bottom = radiance[y1, x0] * (1.0 - fx) + radiance[y1, x1] * fx
-    return (top * (1.0 - fy) + bottom * fy).astype(np.float32)
+    return np.arccos(np.clip(d[..., 1] / norm, -1.0, 1.0)), np.arctan2(d[..., 0], -d[..., 2])
+
+
+def sample_map(radiance: np.ndarray, directions: np.ndarray, turn_deg: float = 0.0) -> np.ndarray:
+    """The map bilinearly interpolated (wrapping around in phi, clamped at the poles) along `directions` (..., 3) of
+    the world in which the map is turned by `turn_deg` about +y (0: the map's own frame)."""
+    theta, phi = direction_angles(directions)
+    return sample_angles(radiance, theta, phi, turn_deg)
+
+
+def sample_angles(radiance: np.ndarray, theta: np.ndarray, phi: np.ndarray, turn_deg: float = 0.0) -> np.ndarray:
+    """sample_map along directions given by their angles (direction_angles), which a caller may keep."""
+    shape = np.shape(theta)
+    out = np.empty((int(np.prod(shape, dtype=np.int64)), 3), dtype=np.float32)
+    _bilinear_angles(np.ascontiguousarray(radiance, dtype=np.float32), np.ravel(theta).astype(np.float64),
+                     np.ravel(phi).astype(np.float64), math.radians(turn_deg), out)
+    return out.reshape(*shape, 3)
+
+
+def weighted_mean_angles(radiance: np.ndarray, theta: np.ndarray, phi: np.ndarray, weights: np.ndarray,
+                        turn_deg: float = 0.0) -> np.ndarray:
+    """(..., 3): per point, the mean over the last axis of `weights` times the map along those angles (..., S)."""
+    shape = np.shape(theta)
+    points, count = int(np.prod(shape[:-1], dtype=np.int64)), shape[-1]
+    out = np.empty((points, 3), dtype=np.float32)
+    _weighted_angles(np.ascontiguousarray(radiance, dtype=np.float32), np.reshape(theta, (points, count)),
+                     np.reshape(phi, (points, count)), np.reshape(weights, (points, count)).astype(np.float64),
+                     math.radians(turn_deg), out)
+    return out.reshape(*shape[:-1], 3)
+
+
+@njit(cache=True, parallel=True)
+def _weighted_angles(radiance, theta, phi, weights, turn, out):
+    h, w = radiance.shape[0], radiance.shape[1]
+    two_pi = 2.0 * math.pi
+    count = theta.shape[1]
+    for i in prange(theta.shape[0]):
+        r, g, b = 0.0, 0.0, 0.0
+        for j in range(count):
+            weight = weights[i, j]
+            if weight == 0.0:
+                continue
+            y = min(max(theta[i, j] / math.pi * h - 0.5, 0.0), h - 1.0)
+            x = ((phi[i, j] + turn) % two_pi) / two_pi * w - 0.5
+            y0 = min(int(math.floor(y)), h - 1)
+            y1 = min(y0 + 1, h - 1)
+            fy = y - y0
+            xf = math.floor(x)
+            fx = x - xf
+            x0 = int(xf) % w
+            x1 = (x0 + 1) % w
+            w00, w01 = (1.0 - fy) * (1.0 - fx), (1.0 - fy) * fx
+            w10, w11 = fy * (1.0 - fx), fy * fx
+            r += weight * (w00 * radiance[y0, x0, 0] + w01 * radiance[y0, x1, 0] + w10 * radiance[y1, x0, 0]
+                           + w11 * radiance[y1, x1, 0])
+            g += weight * (w00 * radiance[y0, x0, 1] + w01 * radiance[y0, x1, 1] + w10 * radiance[y1, x0, 1]
+                           + w11 * radiance[y1, x1, 1])
+            b += weight * (w00 * radiance[y0, x0, 2] + w01 * radiance[y0, x1, 2] + w10 * radiance[y1, x0, 2]
+                           + w11 * radiance[y1, x1, 2])
+        out[i, 0], out[i, 1], out[i, 2] = r / count, g / count, b / count
+
+
+@njit(cache=True, parallel=True)
+def _bilinear_angles(radiance, theta, phi, turn, out):
+    """out[i] = the map at (theta[i], phi[i] + turn) (a world turned by `turn` sees the map's phi + turn there),
+    bilinear between texel centres, wrapping in phi, clamped at the poles: one compiled pass, no temporaries."""
+    h, w = radiance.shape[0], radiance.shape[1]
+    two_pi = 2.0 * math.pi
+    for i in prange(theta.shape[0]):
+        y = min(max(theta[i] / math.pi * h - 0.5, 0.0), h - 1.0)
+        x = ((phi[i] + turn) % two_pi) / two_pi * w - 0.5
+        y0 = min(int(math.floor(y)), h - 1)
+        y1 = min(y0 + 1, h - 1)
+        fy = y - y0
+        xf = math.floor(x)
+        fx = x - xf
+        x0 = int(xf) % w
+        x1 = (x0 + 1) % w
+        for k in range(3):
+            top = radiance[y0, x0, k] * (1.0 - fx) + radiance[y0, x1, k] * fx
+            bottom = radiance[y1, x0, k] * (1.0 - fx) + radiance[y1, x1, k] * fx
+            out[i, k] = top * (1.0 - fy) + bottom * fy
 
 
 def reduce_map(radiance: np.ndarray, width: int) -> np.ndarray:

@@ -20,7 +20,6 @@ copies on every light edit (docs/results.md, "Measurements behind the code").
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -29,6 +28,7 @@ from numba import njit, prange
 
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
+from renderer.environment import direction_angles, weighted_mean_angles
 from renderer.errors import InputError
 from renderer.resample import bilinear_at, linear_weights
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_IOR, FLOOR_ROUGHNESS, LIGHT_RADIANCE, LIGHT_SIZE
@@ -83,21 +83,31 @@ def lit_floor_terms(camera: Camera, light_position, floor_color) -> FloorTerms:
 
 @dataclass(frozen=True)
 class FloorSky:
-    """An environment as the floor receives it: the diffuse irradiance from the sky above it (rgb) and the radiance
-    arriving from world directions, a function (..., 3) -> (..., 3) (what the coat reflects: coat_reflection)."""
+    """An environment as the floor receives it: the diffuse irradiance from the sky above it (rgb), and the map whose
+    radiance the coat reflects (renderer/environment.py's convention), turned by `turn_deg` and scaled by
+    `strength`."""
 
     irradiance: np.ndarray
-    radiance: Callable[[np.ndarray], np.ndarray]
+    radiance_map: np.ndarray
+    turn_deg: float = 0.0
+    strength: float = 1.0
 
 
 COAT_SAMPLES = 12  # per side: GGX half vectors the coat's reflection of an environment is averaged over
 
 
-def coat_reflection(view: np.ndarray, radiance: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
-    """The radiance (h, w, 3) the floor's coat reflects towards unit `view` directions (h, w, 3) from an environment
-    `radiance(directions)`: GGX half vectors drawn from the coat's distribution on a fixed stratified grid (the same
-    for every point, so the result is smooth), each reflection weighted by Fresnel and masking over the distribution's
-    own share (the usual importance-sampling estimator). Only directions above the floor reflect."""
+def coat_reflection(geometry: _Geometry, sky: FloorSky) -> np.ndarray:
+    """The radiance (h, w, 3) the floor's coat reflects towards the camera at the coarse floor points from an
+    environment: GGX half vectors drawn from the coat's distribution on a fixed stratified grid (the same for every
+    point, so the result is smooth), each reflection weighted by Fresnel and masking over the distribution's own
+    share (the usual importance-sampling estimator). The directions and weights depend on the camera alone and are
+    kept with the geometry; a turn of the environment only shifts where they read the map."""
+    theta, phi, weights = geometry.coat_samples()
+    return weighted_mean_angles(sky.radiance_map, theta, phi, weights, sky.turn_deg) * np.float32(sky.strength)
+
+
+def _coat_samples(view: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """coat_reflection's directions (as angles) and weights, (h, w, S) each, for unit `view` directions (h, w, 3)."""
     n = COAT_SAMPLES
     u1, u2 = ((np.arange(n) + 0.5) / n for _ in range(2))
     u1, u2 = (g.ravel() for g in np.meshgrid(u1, u2, indexing="ij"))
@@ -113,8 +123,8 @@ def coat_reflection(view: np.ndarray, radiance: Callable[[np.ndarray], np.ndarra
     above = (light[..., 1] > 0.0) & (cos_vh[..., 0] > 0.0)
     weight = (coat_reflectance(np.clip(cos_vh[..., 0], 0.0, 1.0)) * _smith_g1(cos_l) * _smith_g1(cos_v)
               * np.clip(cos_vh[..., 0], 0.0, 1.0) / (half[:, 1] * cos_v))
-    seen = radiance(light)  # (h, w, S, 3)
-    return np.mean(seen * (weight * above)[..., None], axis=-2).astype(np.float32)
+    polar, azimuth = direction_angles(light)
+    return polar, azimuth, np.where(above, weight, 0.0)
 
 
 def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky, directions: np.ndarray,
@@ -132,7 +142,7 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
         from_light, _ = _coarse_radiance(geometry, light_position, floor_color)
     view = geometry.view
     from_sky = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
-                + coat_reflection(view, sky.radiance))
+                + coat_reflection(geometry, sky))
     per_light = []
     for direction, power, gloss in zip(np.asarray(directions, dtype=np.float64),
                                        np.asarray(irradiance, dtype=np.float64), glossy):
@@ -201,6 +211,13 @@ class _Geometry:
         self.col_weights = linear_weights(cols, camera.width)
         for array in (self.floor, self.points, self.view):
             array.flags.writeable = False
+        self._coat = None
+
+    def coat_samples(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """_coat_samples of these points' view directions, made on first use (only environments read them)."""
+        if self._coat is None:
+            self._coat = _coat_samples(self.view)
+        return self._coat
 
 
 @lru_cache(maxsize=8)

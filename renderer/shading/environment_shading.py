@@ -17,19 +17,23 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
+from numba import njit, prange
 from scipy import ndimage
 
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.environment import (
     EnvironmentLight,
+    direction_angles,
     environment_light,
     luminance,
     map_directions,
     reduce_map,
     rotate_y,
+    sample_angles,
     sample_map,
     texel_solid_angles,
     uniform_environment,
@@ -69,6 +73,7 @@ from renderer.shading.quality import (
     ShaderQuality,
 )
 from renderer.shading.surface import FloorReflection, VisibleSurface
+from renderer.splat import cached_floor_mask
 
 ENVIRONMENT_LIGHTS = 8  # directional lights drawn from a map's bright parts (the sun is one more)
 CONCENTRATED = 2.0  # a texel brighter than this many times the sky's mean belongs to a light
@@ -137,11 +142,10 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
             lights.append((direction, irradiance, spread))
             residual[part] -= excess[part]
     residual_sky = residual * sky[..., None]
-    flat = (residual_sky * solid[..., None]).reshape(-1, 3)
-    normals = map_directions(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS).reshape(-1, 3)
-    cosines = np.maximum(normals @ directions.reshape(-1, 3).T, 0.0)
-    irradiance = (cosines @ flat).reshape(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS, 3)
-    sky_up = np.maximum(directions.reshape(-1, 3)[:, 1], 0.0) @ flat
+    sky_up = np.maximum(directions.reshape(-1, 3)[:, 1], 0.0) @ (residual_sky * solid[..., None]).reshape(-1, 3)
+    # The irradiance map from the residual sky reduced as the specular maps are (the cosine lobe is broad).
+    reduced = reduce_map(residual_sky.astype(np.float32), 2 * SPECULAR_ROWS).reshape(-1, 3)
+    irradiance = (_irradiance_cosines() @ reduced).reshape(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS, 3)
     return PreparedEnvironment(
         light_directions=np.array([d for d, _, _ in lights]).reshape(-1, 3),
         light_irradiance=np.array([e for _, e, _ in lights]).reshape(-1, 3),
@@ -153,25 +157,62 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
 
 
 def _prefiltered(radiance: np.ndarray) -> np.ndarray:
-    """The map convolved with GGX lobes of each SPECULAR_ROUGHNESS (about the reflected direction, as if normal,
-    view and reflection coincided), normalised so that a constant map stays constant."""
-    out = []
-    for roughness in SPECULAR_ROUGHNESS:
-        source = radiance if roughness < 0.3 else reduce_map(radiance.astype(np.float32), radiance.shape[1] // 2)
-        h, w = source.shape[:2]
+    """The map, reduced to SPECULAR_ROWS rows, convolved with GGX lobes of each SPECULAR_ROUGHNESS (about the
+    reflected direction, as if normal, view and reflection coincided), normalised so that a constant map stays
+    constant. The cosines between the reduced map's texels are computed once (_specular_cosines)."""
+    radiance = np.asarray(radiance, dtype=np.float32)
+    sources = {rows: np.ascontiguousarray(reduce_map(radiance, 2 * rows).reshape(-1, 3))
+               for rows in (SPECULAR_ROWS, SPECULAR_ROWS // 2)}
+    out = np.empty((len(SPECULAR_ROUGHNESS), 2 * SPECULAR_ROWS**2, 3), dtype=np.float32)
+    for level, roughness in enumerate(SPECULAR_ROUGHNESS):
         if roughness == 0.0:
-            out.append(reduce_map(source.astype(np.float32), 2 * SPECULAR_ROWS) if w > 2 * SPECULAR_ROWS else source)
+            out[level] = sources[SPECULAR_ROWS]
             continue
-        into = map_directions(SPECULAR_ROWS, 2 * SPECULAR_ROWS).reshape(-1, 3)
-        directions = map_directions(h, w).reshape(-1, 3)
-        solid = np.broadcast_to(texel_solid_angles(h, w), (h, w)).reshape(-1)
-        cosine = np.clip(into @ directions.T, -1.0, 1.0)
-        cos_half2 = np.maximum((1.0 + cosine) / 2.0, 0.0)
-        a2 = max(roughness, MIN_ROUGHNESS) ** 4
-        weights = np.where(cosine > 0.0, a2 / (cos_half2 * (a2 - 1.0) + 1.0) ** 2 * cosine, 0.0) * solid
-        weights /= np.maximum(weights.sum(axis=1, keepdims=True), 1e-30)
-        out.append((weights @ source.reshape(-1, 3)).reshape(SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3))
-    return np.stack(out)
+        rows = SPECULAR_ROWS if roughness < 0.5 else SPECULAR_ROWS // 2  # a broad lobe reads a coarser map
+        cosine, solid = _specular_cosines(rows)
+        _ggx_convolve(cosine, solid[0], sources[rows], max(roughness, MIN_ROUGHNESS) ** 4, out[level])
+    return out.reshape(len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3)
+
+
+@njit(cache=True, parallel=True)
+def _ggx_convolve(cosine, solid, source, a2, out):
+    """out[i] = the mean of `source` weighted by GGX's D at the half angle times the cosine, over the texels within
+    90 degrees of texel i (cosine: between texels; solid: their solid angles), in one compiled pass."""
+    for i in prange(cosine.shape[0]):
+        total, r, g, b = 0.0, 0.0, 0.0, 0.0
+        for j in range(cosine.shape[1]):
+            c = cosine[i, j]
+            if c <= 0.0:
+                continue
+            denominator = (1.0 + c) * 0.5 * (a2 - 1.0) + 1.0
+            weight = c * solid[j] / (denominator * denominator)
+            total += weight
+            r += weight * source[j, 0]
+            g += weight * source[j, 1]
+            b += weight * source[j, 2]
+        total = max(total, 1e-30)
+        out[i, 0], out[i, 1], out[i, 2] = r / total, g / total, b / total
+
+
+@lru_cache(maxsize=2)
+def _specular_cosines(rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cosines (float32) between the texel directions of a SPECULAR_ROWS-row map and those of a `rows`-row map,
+    and the latter's solid angles."""
+    into = map_directions(SPECULAR_ROWS, 2 * SPECULAR_ROWS).reshape(-1, 3)
+    directions = map_directions(rows, 2 * rows).reshape(-1, 3)
+    solid = np.broadcast_to(texel_solid_angles(rows, 2 * rows), (rows, 2 * rows))
+    return (np.clip(into @ directions.T, -1.0, 1.0).astype(np.float32), solid.reshape(1, -1).astype(np.float32))
+
+
+@lru_cache(maxsize=1)
+def _irradiance_cosines() -> np.ndarray:
+    """max(0, cos) (float32) between the irradiance map's normals and a SPECULAR_ROWS-row map's texels, times the
+    texels' solid angles: the irradiance map is this times the reduced map."""
+    normals = map_directions(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS).reshape(-1, 3)
+    directions = map_directions(SPECULAR_ROWS, 2 * SPECULAR_ROWS).reshape(-1, 3)
+    solid = texel_solid_angles(SPECULAR_ROWS, 2 * SPECULAR_ROWS)
+    solid = np.broadcast_to(solid, (SPECULAR_ROWS, 2 * SPECULAR_ROWS)).reshape(1, -1)
+    return (np.maximum(normals @ directions.T, 0.0) * solid).astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -234,8 +275,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
     # The coat's reflection averages the map over a fixed set of directions a few degrees apart: it reads the map
     # blurred by about as much, so that a small bright source shows as a highlight, not as streaks of samples.
-    sky = FloorSky(irradiance=ready.sky_up * environment.strength,
-                   radiance=lambda d: sample_map(ready.blurred, environment.to_map(d)) * environment.strength)
+    sky = FloorSky(ready.sky_up * environment.strength, ready.blurred, environment.rotation_deg, environment.strength)
     floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, sky, lights.directions,
                                                      lights.irradiance, lights.delta)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
@@ -260,10 +300,10 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
               floor, visibility, surface.images.floor_occlusion, np.zeros(3, dtype=np.float32), r, c, radiance, cover,
               image)
     shown = 1.0 - surface.coverage
-    rows, cols = np.nonzero(~floor)
+    rows, cols, theta, phi = _background_rays(geometry.elevation_deg, size)
     if len(rows):
-        _, rays = camera.pixel_rays(cols + 0.5, rows + 0.5)
-        image[rows, cols] += environment.radiance(rays, sharp=True) * shown[rows, cols, None]
+        sky = sample_angles(environment.background, theta, phi, environment.rotation_deg)
+        image[rows, cols] += sky * np.float32(environment.strength) * shown[rows, cols, None]
     if len(per_light) and not geometry.empty:
         lit = np.zeros((int(floor.sum()), 3), dtype=np.float32)
         for term, maps in zip(per_light, suns):
@@ -283,6 +323,18 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
 
 FLOOR_COAT_ROUGHNESS = 0.32  # sqrt of the floor coat's GGX alpha (renderer.scene.FLOOR_ROUGHNESS = 0.1)
 COAT_SAMPLE_BLUR = 0.6  # texels of the lighting map: the blur of the map the floor's coat reflection samples
+
+
+@lru_cache(maxsize=8)
+def _background_rays(elevation_deg: float, size: int) -> tuple[np.ndarray, ...]:
+    """The pixels that show no floor and the angles of their rays (direction_angles), per camera (read-only)."""
+    camera = Camera(elevation_deg, width=size, height=size)
+    rows, cols = np.nonzero(~cached_floor_mask(camera))
+    _, rays = camera.pixel_rays(cols + 0.5, rows + 0.5)
+    out = (rows, cols, *direction_angles(rays))
+    for array in out:
+        array.flags.writeable = False
+    return out
 
 
 class _ShadowMaps:
@@ -381,8 +433,7 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
                                          f0) * (share[:, None] * power[None, :])
         if float(np.max(power)) * max(direction[1], 0.0) > strongest:
             seen, strongest = share, float(np.max(power)) * max(direction[1], 0.0)
-    in_map = rotate_y(normals, -environment.rotation_deg)
-    sky = sample_map(ready.irradiance, in_map) * environment.strength * occlusion[:, None]
+    sky = sample_map(ready.irradiance, normals, environment.rotation_deg) * environment.strength * occlusion[:, None]
     bounce = FLOOR_BOUNCE * floor_irradiance * floor_albedo[None, :] * 0.5 * (1.0 - normals[:, 1:2])
     radiance = diffuse_albedo * (irradiance + sky + bounce) / math.pi
     if glossy:
@@ -403,8 +454,10 @@ def _specular(ready: PreparedEnvironment, environment: EnvironmentLight, directi
     levels = np.asarray(SPECULAR_ROUGHNESS)
     upper = int(np.clip(np.searchsorted(levels, roughness), 1, len(levels) - 1))
     t = (roughness - levels[upper - 1]) / (levels[upper] - levels[upper - 1])
-    in_map = rotate_y(directions, -environment.rotation_deg)
-    found = (1.0 - t) * sample_map(ready.specular[upper - 1], in_map) + t * sample_map(ready.specular[upper], in_map)
+    theta, phi = direction_angles(directions)
+    turn = environment.rotation_deg
+    found = ((1.0 - t) * sample_angles(ready.specular[upper - 1], theta, phi, turn)
+             + t * sample_angles(ready.specular[upper], theta, phi, turn))
     return found * environment.strength
 
 
