@@ -82,6 +82,11 @@ class DataConfig:
             raise InputError(f"unknown lighting {self.lighting!r} (choose from {', '.join(LIGHTINGS)})")
         if not self.categories:
             raise InputError("at least one object category is needed")
+        from renderer.objects.generate import CATEGORIES  # the generators: imported only when a set is to be made
+
+        for name in self.categories:
+            if name not in CATEGORIES:
+                raise InputError(f"--categories: unknown category {name!r} (choose from {', '.join(CATEGORIES)})")
         check_hidden_rule(self.hidden_rule)
         if self.delight_shader not in MADE_DELIGHT_SHADERS:
             raise InputError(f"delight shader {self.delight_shader!r} is unknown or no longer made "

@@ -25,11 +25,11 @@ from numba import njit, prange
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
 from renderer.io import load_image
+from renderer.limits import MAX_MAP_SIDE
 from renderer.scene import EnvironmentSpec, Scene, SkySpec
 
 HDR_SUFFIXES = (".hdr", ".exr")  # linear radiance
 LDR_SUFFIXES = (".png", ".jpg", ".jpeg")  # sRGB, read as 0-1 radiance
-MAX_MAP_SIDE = 8192  # widest map read (a 8192 x 4096 float map is 400 MB while it is reduced)
 BACKGROUND_WIDTH = 2048  # the map kept for the background the camera sees past the floor
 LIGHTING_WIDTH = 128  # the map the shader lights with (64 rows: about 3 degrees a texel)
 ASPECT_RANGE = (1.8, 2.2)  # width / height of an equirectangular map
@@ -130,10 +130,22 @@ def weighted_mean_angles(radiance: np.ndarray, theta: np.ndarray, phi: np.ndarra
     return out.reshape(*shape[:-1], 3)
 
 
+@njit(cache=True, inline="always")
+def _texels(theta, phi, h, w):
+    """The rows and columns around map angles (theta, phi) and the weights of the second of each, for bilinear
+    interpolation between texel centres: wrapping around in phi, clamped at the poles."""
+    two_pi = 2.0 * math.pi
+    y = min(max(theta / math.pi * h - 0.5, 0.0), h - 1.0)
+    x = (phi % two_pi) / two_pi * w - 0.5
+    y0 = min(int(math.floor(y)), h - 1)
+    xf = math.floor(x)
+    x0 = int(xf) % w
+    return y0, min(y0 + 1, h - 1), y - y0, x0, (x0 + 1) % w, x - xf
+
+
 @njit(cache=True, parallel=True)
 def _weighted_angles(radiance, theta, phi, weights, turn, out):
     h, w = radiance.shape[0], radiance.shape[1]
-    two_pi = 2.0 * math.pi
     count = theta.shape[1]
     for i in prange(theta.shape[0]):
         r, g, b = 0.0, 0.0, 0.0
@@ -141,15 +153,7 @@ def _weighted_angles(radiance, theta, phi, weights, turn, out):
             weight = weights[i, j]
             if weight == 0.0:
                 continue
-            y = min(max(theta[i, j] / math.pi * h - 0.5, 0.0), h - 1.0)
-            x = ((phi[i, j] + turn) % two_pi) / two_pi * w - 0.5
-            y0 = min(int(math.floor(y)), h - 1)
-            y1 = min(y0 + 1, h - 1)
-            fy = y - y0
-            xf = math.floor(x)
-            fx = x - xf
-            x0 = int(xf) % w
-            x1 = (x0 + 1) % w
+            y0, y1, fy, x0, x1, fx = _texels(theta[i, j], phi[i, j] + turn, h, w)
             w00, w01 = (1.0 - fy) * (1.0 - fx), (1.0 - fy) * fx
             w10, w11 = fy * (1.0 - fx), fy * fx
             r += weight * (w00 * radiance[y0, x0, 0] + w01 * radiance[y0, x1, 0] + w10 * radiance[y1, x0, 0]
@@ -166,17 +170,8 @@ def _bilinear_angles(radiance, theta, phi, turn, out):
     """out[i] = the map at (theta[i], phi[i] + turn) (a world turned by `turn` sees the map's phi + turn there),
     bilinear between texel centres, wrapping in phi, clamped at the poles: one compiled pass, no temporaries."""
     h, w = radiance.shape[0], radiance.shape[1]
-    two_pi = 2.0 * math.pi
     for i in prange(theta.shape[0]):
-        y = min(max(theta[i] / math.pi * h - 0.5, 0.0), h - 1.0)
-        x = ((phi[i] + turn) % two_pi) / two_pi * w - 0.5
-        y0 = min(int(math.floor(y)), h - 1)
-        y1 = min(y0 + 1, h - 1)
-        fy = y - y0
-        xf = math.floor(x)
-        fx = x - xf
-        x0 = int(xf) % w
-        x1 = (x0 + 1) % w
+        y0, y1, fy, x0, x1, fx = _texels(theta[i], phi[i] + turn, h, w)
         for k in range(3):
             top = radiance[y0, x0, k] * (1.0 - fx) + radiance[y0, x1, k] * fx
             bottom = radiance[y1, x0, k] * (1.0 - fx) + radiance[y1, x1, k] * fx

@@ -40,4 +40,6 @@ MAX_NAME_BYTES = 255
 # Photos larger than this are downscaled while they are decoded; beyond MAX_PHOTO_PIXELS a file is
 # refused as a decompression bomb (PIL checks the header before decoding).
 MAX_PHOTO_SIDE = 4096
+MAX_MAP_SIDE = 8192  # widest environment map read: 8192 x 4096 floats are 400 MB while the map is reduced
 MAX_PHOTO_PIXELS = 400_000_000
+MAX_PAINT_STROKES = 10_000  # paint operations a scene holds: far beyond an editing session, and a file of them parses in moments

@@ -8,7 +8,7 @@ paints one object many times (the live engine) computes the occupied voxels once
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from numba import njit
@@ -89,16 +89,24 @@ def apply_paint(rgba: np.ndarray, floor_color: Color, ops: Iterable[PaintOp],
                 occupied: np.ndarray | None = None, out: np.ndarray | None = None) -> tuple[np.ndarray, Color]:
     """Replay paint strokes in order: region and object fills on the voxels, floor fills on the floor color.
 
-    `occupied`: the voxels' `occupied_voxels`, if the caller keeps them (else found at the first fill). `out`: an
-    array of the voxels' shape the fills may write into instead of a new one (see `paint_voxels`).
+    Only what the last state shows is replayed: the last floor fill, and the object's strokes from its last
+    whole-object fill on (which paints over every stroke before it). `occupied`: the voxels' `occupied_voxels`, if
+    the caller keeps them (else found at the first fill). `out`: an array of the voxels' shape the fills may write
+    into instead of a new one (see `paint_voxels`).
     """
-    for op in ops:
-        if op.target == "floor":
-            floor_color = tuple(op.color)
-            continue
+    floor = [op for op in ops if op.target == "floor"]
+    if floor:
+        floor_color = tuple(floor[-1].color)
+    for op in needed_strokes([op for op in ops if op.target != "floor"]):
         occupied = occupied_voxels(rgba) if occupied is None else occupied
         rgba = paint_voxels(rgba, stroke_voxels(rgba, op, occupied), op.color, out)
     return rgba, floor_color
+
+
+def needed_strokes(strokes: Sequence[PaintOp]) -> Sequence[PaintOp]:
+    """The object's strokes from its last whole-object fill on: those before it leave no trace."""
+    last = max((i for i, op in enumerate(strokes) if op.target == "object"), default=0)
+    return strokes[last:]
 
 
 def stroke_voxels(rgba: np.ndarray, op: PaintOp, occupied: np.ndarray | None = None) -> np.ndarray:

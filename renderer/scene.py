@@ -21,7 +21,14 @@ from typing import Any
 
 from renderer.errors import InputError
 from renderer.io import check_path_text, load_json, save_json
-from renderer.limits import DEFAULT_RESOLUTION, MAX_IMAGE_SIZE, MAX_RESOLUTION, MIN_IMAGE_SIZE, MIN_RESOLUTION
+from renderer.limits import (
+    DEFAULT_RESOLUTION,
+    MAX_IMAGE_SIZE,
+    MAX_PAINT_STROKES,
+    MAX_RESOLUTION,
+    MIN_IMAGE_SIZE,
+    MIN_RESOLUTION,
+)
 
 SCENE_VERSION = 1
 
@@ -331,6 +338,8 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     paint_data = data.get("paint", [])
     if not isinstance(paint_data, list):
         raise r.fail("paint", "must be a list of fill operations")
+    if len(paint_data) > MAX_PAINT_STROKES:
+        raise r.fail("paint", f"{len(paint_data)} operations; a scene holds at most {MAX_PAINT_STROKES}")
     paint = []
     for i, p in enumerate(paint_data):
         name = f"paint[{i}]"
@@ -432,6 +441,8 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
         raise fail("light.enabled", "the area light can be off only when an environment lights the scene")
     if not MIN_IMAGE_SIZE <= scene.image_size <= MAX_IMAGE_SIZE:
         raise fail("image_size", f"must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {scene.image_size}")
+    if len(scene.paint) > MAX_PAINT_STROKES:
+        raise fail("paint", f"{len(scene.paint)} operations; a scene holds at most {MAX_PAINT_STROKES}")
     for i, op in enumerate(scene.paint):
         if op.target not in ("region", "object", "floor"):
             raise fail(f"paint[{i}].target", f'must be "region", "object" or "floor", got {op.target!r}')

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer.paint import Color, apply_paint
+from renderer.paint import Color, apply_paint, needed_strokes
 from renderer.pipeline import object_voxels
 from renderer.scene import PaintOp, Scene
 from renderer.voxels import ProgressCallback
@@ -82,7 +82,7 @@ class VoxelCache:
     def painted(self, scene: Scene) -> tuple[np.ndarray, Color]:
         """The object voxels after the scene's paint strokes (read-only array), and the floor color."""
         key = source_key(scene)
-        strokes = tuple(op for op in scene.paint if op.target != "floor")
+        strokes = tuple(needed_strokes([op for op in scene.paint if op.target != "floor"]))
         base = self.object_rgba(scene)
         with self._lock:
             done, rgba = self._longest_cached_prefix(key, strokes, base)
@@ -101,13 +101,18 @@ class VoxelCache:
 
     def _longest_cached_prefix(self, key: SourceKey, strokes: tuple[PaintOp, ...],
                                base: np.ndarray) -> tuple[int, np.ndarray]:
-        """(number of strokes already applied, voxels after them); (0, base) when nothing fits."""
-        for done in range(len(strokes), 0, -1):
-            entry = self._painted.get((key, strokes[:done]))
-            if entry is not None:
-                self._painted.move_to_end((key, strokes[:done]))
-                return done, entry
-        return 0, base
+        """(number of strokes already applied, voxels after them); (0, base) when nothing fits. Looks through the few
+        kept paintings of this object (not every prefix: a scene may hold thousands of strokes)."""
+        best = None
+        for cached_key in self._painted:
+            found, done = cached_key[1], len(cached_key[1])
+            if cached_key[0] == key and done <= len(strokes) and (best is None or done > len(best[1])) \
+                    and strokes[:done] == found:
+                best = cached_key
+        if best is None:
+            return 0, base
+        self._painted.move_to_end(best)
+        return len(best[1]), self._painted[best]
 
     def _forget_beyond_budget(self) -> None:
         """Drop the least recently used painted states beyond PAINTINGS_KEPT and PAINTED_BYTES_KEPT (the newest always

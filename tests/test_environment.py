@@ -44,6 +44,7 @@ from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import shade
 from renderer.shading.shader import shade_scene
 from renderer.shading.surface import visible_surface
+from tests.test_shading import ball, cube
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZE = 96
@@ -59,21 +60,6 @@ def write_map(path: Path, radiance: np.ndarray) -> Path:
     active_variant()
     mi.Bitmap(np.ascontiguousarray(radiance, dtype=np.float32)).write(str(path))
     return path
-
-
-def ball(n: int = 40, color=(0.8, 0.8, 0.8)) -> np.ndarray:
-    centre = (np.arange(n) + 0.5) / n - 0.5
-    x, y, z = np.meshgrid(centre, centre, centre, indexing="ij")
-    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
-    inside = x**2 + y**2 + z**2 <= 0.25
-    rgba[inside, :3], rgba[inside, 3] = color, 1.0
-    return rgba
-
-
-def cube(n: int = 16) -> np.ndarray:
-    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
-    rgba[..., :3], rgba[..., 3] = 0.8, 1.0
-    return rgba
 
 
 def env_scene(environment: EnvironmentSpec | None, material: MaterialSpec | None = None, light_on: bool = False,

@@ -232,3 +232,21 @@ def test_with_the_squared_term_the_best_constant_moves_from_the_median_towards_t
     assert best(0.0) == pytest.approx(0.0)
     # L1's slope is 1/3 above the median; 2 gamma (c - 0.3) / 1 balances it at c = 0.3 - 1 / (6 gamma).
     assert best(10.0) == pytest.approx(0.3 - 1.0 / 60.0, abs=0.006)
+
+
+def test_vgg_weights_with_pickled_code_are_refused_in_one_line_and_run_nothing(tmp_path, recwarn) -> None:
+    """A .pth that smuggles code is refused by the weights-only unpickler, with one message and no warning."""
+    import pickle
+
+    from models.training.perceptual import load_torchvision_kernels
+    from renderer.errors import InputError
+
+    class Boom:
+        def __reduce__(self):
+            return (print, ("PWNED",))
+
+    path = tmp_path / "vgg.pth"
+    path.write_bytes(pickle.dumps({"features.0.weight": Boom()}, protocol=4))
+    with pytest.raises(InputError, match="pickled objects besides tensors"):
+        load_torchvision_kernels(path)
+    assert len(recwarn) == 0

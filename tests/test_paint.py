@@ -116,3 +116,56 @@ def test_fill_equals_a_flood_fill_on_random_grids_with_and_without_kept_occupanc
     assert painted(rgba, fill_region(rgba, seed, GRAY, tolerance)) == expected  # gray is none of the grid's colors
     kept = occupied_voxels(rgba)
     np.testing.assert_array_equal(fill_region(rgba, seed, RED, tolerance, kept), fill_region(rgba, seed, RED, tolerance))
+
+
+@pytest.mark.parametrize("trial", range(10))
+def test_replaying_from_the_last_object_fill_equals_replaying_every_stroke(trial):
+    """apply_paint skips the strokes a later whole-object fill paints over; the result is the full replay's."""
+    from renderer.paint import paint_voxels, stroke_voxels
+
+    rng = np.random.default_rng(trial)
+    rgba = np.zeros((6, 6, 6, 4), dtype=np.float32)
+    rgba[..., 3] = rng.random((6, 6, 6)) < 0.6
+    rgba[..., :3] = rng.random((6, 6, 6, 3)).round(1) * rgba[..., 3:]
+    occupied = np.argwhere(rgba[..., 3] > 0.5)
+    ops = []
+    for _ in range(12):
+        color = tuple(float(c) for c in rng.random(3).round(2))
+        kind = rng.choice(["region", "object", "floor"], p=[0.6, 0.2, 0.2])
+        seed = tuple(int(i) for i in occupied[rng.integers(len(occupied))]) if kind == "region" else None
+        ops.append(PaintOp(str(kind), color, seed=seed, tolerance=0.3))
+    expected, floor = rgba.copy(), (0.5, 0.5, 0.5)
+    for op in ops:  # every stroke, in order
+        if op.target == "floor":
+            floor = op.color
+        else:
+            expected = paint_voxels(expected, stroke_voxels(expected, op), op.color)
+    painted, floor_color = apply_paint(rgba, (0.5, 0.5, 0.5), ops)
+    np.testing.assert_array_equal(painted, expected)
+    assert floor_color == tuple(floor)
+
+
+def test_a_scene_of_many_whole_object_fills_replays_one_and_too_many_strokes_are_refused(tmp_path, monkeypatch):
+    import json
+
+    import renderer.paint
+    from renderer.limits import MAX_PAINT_STROKES
+    from renderer.pipeline import painted_voxels
+    from renderer.scene import scene_from_dict
+    from renderer.voxels import save_voxels
+
+    rgba = np.zeros((32, 32, 32, 4), dtype=np.float32)
+    rgba[8:24, 0:20, 8:24] = (0.5, 0.5, 0.5, 1.0)
+    save_voxels(tmp_path / "box.npz", rgba)
+    fills = [{"target": "object", "color": [i % 2 * 1.0, 0.2, 0.3]} for i in range(MAX_PAINT_STROKES - 1)]
+    data = {"version": 1, "object": {"voxels": "box.npz"}, "paint": fills + [{"target": "floor", "color": [1, 1, 0]}]}
+    scene = scene_from_dict(data, tmp_path / "scene.json")
+    replayed = []
+    stroke_voxels = renderer.paint.stroke_voxels
+    monkeypatch.setattr(renderer.paint, "stroke_voxels", lambda *a: replayed.append(a[1]) or stroke_voxels(*a))
+    painted, floor = painted_voxels(scene, rgba)
+    assert replayed == [scene.paint[-2]]  # the last whole-object fill alone, not ten thousand
+    assert tuple(painted[10, 5, 10, :3]) == pytest.approx((0.0, 0.2, 0.3)) and floor == (1.0, 1.0, 0.0)
+    data["paint"].append({"target": "floor", "color": [0, 0, 0]})
+    with pytest.raises(InputError, match=f"at most {MAX_PAINT_STROKES}"):
+        scene_from_dict(json.loads(json.dumps(data)), tmp_path / "scene.json")

@@ -6,17 +6,26 @@ step when it is let go, as every field of the tools.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from imgui_bundle import imgui
 
 from app.editor import edits
 from app.editor.file_dialog import FileKind
 from app.editor.photo_panel import GRAY
-from renderer.scene import MaterialSpec
+from renderer.scene import MaterialSpec, Scene
 
-if TYPE_CHECKING:
-    from app.editor.panels import Interface
+
+class Interface(Protocol):
+    """What these functions use of the tools' Interface (app/editor/panels.py)."""
+
+    app: Any  # the EditorApp
+    fields: Any  # the path fields (panels.Fields)
+
+    def edit_field(self, key: str, changed: bool, make_scene: Callable[[Scene], Scene]) -> None: ...
+
+    def browse_button(self, key: str, kind: FileKind, field_name: str) -> None: ...
 
 ENVIRONMENT_FILES = FileKind("Load an environment", "Environment maps", ("*.hdr", "*.exr", "*.png", "*.jpg", "*.jpeg"))
 LIGHTING = ("area light and ambient", "sun and sky", "environment image")
@@ -51,26 +60,26 @@ def draw_lighting(ui: Interface) -> None:
     if env is not None and env.sky is not None:
         sky = env.sky
         changed, elevation = imgui.slider_float("sun elevation", sky.sun_elevation_deg, 0.0, 90.0, "%.1f deg")
-        ui._field("sun elevation", changed, lambda s: edits.set_sky(s, elevation, sky.sun_azimuth_deg, sky.turbidity))
+        ui.edit_field("sun elevation", changed, lambda s: edits.set_sky(s, elevation, sky.sun_azimuth_deg, sky.turbidity))
         changed, azimuth = imgui.slider_float("sun azimuth", sky.sun_azimuth_deg, -180.0, 180.0, "%.1f deg")
-        ui._field("sun azimuth", changed, lambda s: edits.set_sky(s, sky.sun_elevation_deg, azimuth, sky.turbidity))
+        ui.edit_field("sun azimuth", changed, lambda s: edits.set_sky(s, sky.sun_elevation_deg, azimuth, sky.turbidity))
         changed, turbidity = imgui.slider_float("haze (turbidity)", sky.turbidity, 1.0, 10.0, "%.1f")
-        ui._field("turbidity", changed, lambda s: edits.set_sky(s, sky.sun_elevation_deg, sky.sun_azimuth_deg,
+        ui.edit_field("turbidity", changed, lambda s: edits.set_sky(s, sky.sun_elevation_deg, sky.sun_azimuth_deg,
                                                                 turbidity))
     if env is None or env.image is not None:
         imgui.set_next_item_width(200)
         _, ui.fields.environment_path = imgui.input_text("##environment", ui.fields.environment_path)
-        ui._browse("environment", ENVIRONMENT_FILES, "environment_path")
+        ui.browse_button("environment", ENVIRONMENT_FILES, "environment_path")
         imgui.same_line()
         if imgui.button("Load environment") and ui.fields.environment_path:
             load_environment(ui)
         imgui.text_colored(GRAY, ".hdr and .exr are linear light; .png and .jpg are read as sRGB (no highlights).")
     if env is not None:
         changed, rotation = imgui.slider_float("turn environment", env.rotation_deg, -180.0, 180.0, "%.1f deg")
-        ui._field("environment turn", changed, lambda s: edits.turn_environment(s, rotation_deg=rotation))
+        ui.edit_field("environment turn", changed, lambda s: edits.turn_environment(s, rotation_deg=rotation))
         changed, strength = imgui.slider_float("strength", env.strength, 0.0, edits.MAX_STRENGTH, "%.2f",
                                                imgui.SliderFlags_.logarithmic)
-        ui._field("environment strength", changed, lambda s: edits.turn_environment(s, strength=strength))
+        ui.edit_field("environment strength", changed, lambda s: edits.turn_environment(s, strength=strength))
 
 
 def load_environment(ui: Interface) -> None:
@@ -83,7 +92,7 @@ def _area_light_position(ui: Interface) -> None:
     scene = ui.app.scene
     changed, p = imgui.drag_float3("light x, y, z", list(scene.light.position), 0.01, -edits.MAX_POSITION,
                                    edits.MAX_POSITION, "%.2f")
-    ui._field("light", changed, lambda s: edits.move_light(s, tuple(p)))
+    ui.edit_field("light", changed, lambda s: edits.move_light(s, tuple(p)))
 
 
 def draw_material(ui: Interface) -> None:
@@ -100,7 +109,7 @@ def draw_material(ui: Interface) -> None:
             ui.app.edit(lambda s: edits.set_material(s, edits.MATERIAL_PRESETS[name]))
     for key, label in (("roughness", "roughness"), ("specular", "specular"), ("metallic", "metallic")):
         changed, value = imgui.slider_float(label, getattr(material, key), 0.0, 1.0, "%.2f")
-        ui._field(f"material {key}", changed,
+        ui.edit_field(f"material {key}", changed,
                   lambda s, k=key, v=value: edits.set_material(s, _with(material, k, v)))
 
 

@@ -332,7 +332,7 @@ class Interface:
         app.requested_tab = None
         imgui.end()
 
-    def _field(self, key: str, changed: bool, make_scene) -> None:
+    def edit_field(self, key: str, changed: bool, make_scene) -> None:
         """Preview an edited numeric field; commit one undo step when the field is released. A value the
         scene cannot take is refused: the message shows under the field and the previous value stays."""
         if changed:
@@ -350,18 +350,18 @@ class Interface:
     def _object_tab(self) -> None:
         o = self.app.scene.object
         changed, t = imgui.drag_float2("position x, z", list(o.translation), 0.01, -edits.MAX_POSITION, edits.MAX_POSITION, "%.3f")
-        self._field("position", changed, lambda s: edits.place_object(s, translation=tuple(t)))
+        self.edit_field("position", changed, lambda s: edits.place_object(s, translation=tuple(t)))
         changed, r = imgui.drag_float("rotation (deg)", o.rotation_deg, 0.5, -180.0, 180.0, "%.1f")
-        self._field("rotation", changed, lambda s: edits.place_object(s, rotation_deg=r))
+        self.edit_field("rotation", changed, lambda s: edits.place_object(s, rotation_deg=r))
         changed, sc = imgui.drag_float3("scale x, y, z", list(o.scale), 0.01, edits.MIN_SCALE, edits.MAX_SCALE, "%.3f")
-        self._field("scale", changed, lambda s: edits.place_object(s, scale=tuple(sc)))
+        self.edit_field("scale", changed, lambda s: edits.place_object(s, scale=tuple(sc)))
         imgui.separator()
         f = self.fields
         mesh = self.app.scene.mesh_path()
         if mesh != self._mesh_shown:  # the field shows the object's mesh (after loading, opening, undo)
             f.mesh_path, self._mesh_shown = str(mesh.resolve()) if mesh else "", mesh
         _, f.mesh_path = imgui.input_text("mesh file", f.mesh_path)
-        self._browse("mesh", MESH_FILES, "mesh_path")
+        self.browse_button("mesh", MESH_FILES, "mesh_path")
         _, f.mesh_up = imgui.combo("up axis", f.mesh_up, ["y up", "z up"])
         if imgui.button("Load and voxelise") and f.mesh_path:
             self.app.files.load_mesh(f.mesh_path, up="yz"[f.mesh_up])
@@ -373,9 +373,9 @@ class Interface:
         draw_lighting(self)
         imgui.separator()
         changed, e = imgui.slider_float("camera elevation", scene.camera.elevation_deg, 0.0, edits.MAX_ELEVATION, "%.1f deg")
-        self._field("elevation", changed, lambda s: edits.set_elevation(s, e))
+        self.edit_field("elevation", changed, lambda s: edits.set_elevation(s, e))
         changed, c = imgui.color_edit3("floor color", list(scene.floor.color))
-        self._field("floor color", changed, lambda s: edits.set_floor_color(s, tuple(c)))
+        self.edit_field("floor color", changed, lambda s: edits.set_floor_color(s, tuple(c)))
         imgui.text_colored(GRAY, "Drag the light square in the viewport; Shift+drag sets its height.")
 
     def _paint_tab(self) -> None:
@@ -401,7 +401,7 @@ class Interface:
             app.fill_floor()
 
     def _photo_tab(self) -> None:
-        self.photo_panel.draw(self.fields, self._browse)
+        self.photo_panel.draw(self.fields, self.browse_button)
 
     def _file_tab(self) -> None:
         f, app = self.fields, self.app
@@ -417,7 +417,7 @@ class Interface:
             imgui.set_next_item_width(200)
             _, path = imgui.input_text(f"##{key}", getattr(f, field_name))
             setattr(f, field_name, path)
-            self._browse(key, kind, field_name)
+            self.browse_button(key, kind, field_name)
             imgui.same_line()
             if imgui.button(label) and path:
                 act(path)
@@ -429,7 +429,7 @@ class Interface:
                                                [scene_size] + [f"{s} px" + ("" if any_size else " (upscaled)")
                                                                for s in EXPORT_SIZES[1:]])
 
-    def _browse(self, key: str, kind: FileKind, field_name: str) -> None:
+    def browse_button(self, key: str, kind: FileKind, field_name: str) -> None:
         """A Browse button after a path field, when the system has a file dialog: the chosen file fills the field."""
         if self.dialog_program is None:
             return

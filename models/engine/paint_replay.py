@@ -20,7 +20,7 @@ import numpy as np
 
 from renderer.errors import InputError
 from renderer.grid import occupied_spans
-from renderer.paint import Color, fill_object, occupied_voxels, paint_voxels, stroke_voxels
+from renderer.paint import Color, fill_object, needed_strokes, occupied_voxels, paint_voxels, stroke_voxels
 from renderer.scene import PaintOp
 
 
@@ -46,6 +46,7 @@ class PaintReplay:
 
     def painted(self, color: Color | None, strokes: tuple[PaintOp, ...]) -> np.ndarray:
         """The voxels filled with `color` (None: their own colors) and then painted by `strokes` (no floor strokes)."""
+        strokes = tuple(needed_strokes(strokes))
         if color is None and not strokes:
             return self.rgba
         before = (self._color, tuple(p.stroke for p in self._strokes))

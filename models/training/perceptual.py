@@ -20,6 +20,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import pickle
+import warnings
 from pathlib import Path
 
 import h5py
@@ -81,8 +82,13 @@ def load_torchvision_kernels(path: str | Path) -> dict[str, tuple[np.ndarray, np
         if Path(path).suffix == ".safetensors":
             state = load_safetensors(str(path))
         else:
-            state = torch.load(path, map_location="cpu", weights_only=True)
-    except (OSError, RuntimeError, ValueError, EOFError, pickle.UnpicklingError, SafetensorError) as exc:
+            with warnings.catch_warnings():  # torch's own notes on pickle protocols would make a second line
+                warnings.simplefilter("ignore")
+                state = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError:
+        raise InputError("holds pickled objects besides tensors, which are never loaded (save a plain state dict or "
+                         ".safetensors)", path) from None
+    except (OSError, RuntimeError, ValueError, EOFError, SafetensorError) as exc:
         raise InputError(f"not a readable state dict ({' '.join(str(exc).split())[:200]})", path) from None
     if not isinstance(state, dict):
         raise InputError("not a state dict", path)
