@@ -42,4 +42,4 @@ MAX_NAME_BYTES = 255
 MAX_PHOTO_SIDE = 4096
 MAX_MAP_SIDE = 8192  # widest environment map read: 8192 x 4096 floats are 400 MB while the map is reduced
 MAX_PHOTO_PIXELS = 400_000_000
-MAX_PAINT_STROKES = 10_000  # paint operations a scene holds: far beyond an editing session, and a file of them parses in moments
+MAX_PAINT_STROKES = 10_000  # paint operations a scene holds: far more than anyone paints by hand, and few enough to parse at once
