@@ -690,6 +690,12 @@ def test_what_a_user_meets_first_dragging_far_leaving_paint_typing_a_bad_value(d
         {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": str(tmp_path / "typed.png")},
         {"action": "save", "path": str(tmp_path / "typed.json")},
+        {"action": "key", "key": "n", "mods": ["ctrl"]},  # a new scene: the old field's message goes with it
+        {"action": "mouse_move", "pos": OBJECT_TAB},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_up", "button": 0},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "new.png")},
     ], "--model", str(model_file))
     assert result.returncode == 0, result.stderr[-2000:]
     far = load_scene(tmp_path / "far.json").light.position
@@ -703,6 +709,22 @@ def test_what_a_user_meets_first_dragging_far_leaving_paint_typing_a_bad_value(d
     assert "scale must be from 0.05 to 20, got -1" in result.stderr
     below_field = pixels(tmp_path / "typed.png", replace(PANELS.tools, y=int(SCALE_X_FIELD[1]) + 10, height=22))
     assert share_of(below_field, (1.0, 0.42, 0.38)) > 0.01  # the message in red under the field
+    below_field = pixels(tmp_path / "new.png", replace(PANELS.tools, y=int(SCALE_X_FIELD[1]) + 10, height=22))
+    assert share_of(below_field, (1.0, 0.42, 0.38)) < 0.001  # gone with its scene
+
+
+def test_ctrl_s_saves_a_new_scene_under_the_name_the_file_tab_shows(display, tmp_path, scene_file):
+    """A new scene is not unsaved work until edited; Ctrl+S on it (no file dialog installed) writes the Save-as
+    field's file, beside where the editor runs, and asks before replacing it."""
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "key", "key": "n", "mods": ["ctrl"]},
+        {"action": "set_elevation", "deg": 22},
+        {"action": "key", "key": "s", "mods": ["ctrl"]},
+        {"action": "wait", "frames": 3},
+    ], cwd=tmp_path)
+    assert result.returncode == 0, result.stderr[-2000:]
+    saved = load_scene(tmp_path / "scene.json")
+    assert saved.camera.elevation_deg == 22 and saved.mesh_path().name == "chair.obj"
 
 
 def test_ctrl_s_on_the_shipped_demo_scene_leaves_it_alone_and_asks_for_a_name(display, tmp_path):

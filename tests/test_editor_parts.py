@@ -518,3 +518,42 @@ def test_a_settled_nvr_plus_image_is_drawn_again_at_the_panels_size(box_scene, r
         np.testing.assert_array_equal(detail.image, shade_scene(small, *VoxelCache().painted(small), 96).image)
     finally:
         live.close()
+
+
+def test_a_new_scene_is_not_unsaved_until_edited_and_a_restored_one_is(box_scene):
+    from app.editor.document import Document
+
+    fresh = Document(box_scene, None)
+    assert not fresh.dirty
+    fresh.commit(replace(box_scene, image_size=128))
+    assert fresh.dirty
+    assert Document(box_scene, None, changed=True).dirty
+
+
+def test_voxelising_the_same_mesh_again_keeps_the_scenes_color_and_another_mesh_shows_its_own(tmp_path):
+    from app.editor import edits
+    from renderer.scene import ObjectSpec, Scene
+
+    for name in ("a.obj", "b.obj"):
+        (tmp_path / name).write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    scene = Scene(object=ObjectSpec(mesh="a.obj", color=(0.9, 0.1, 0.1)), base_dir=tmp_path)
+    again = edits.replace_object_source(scene, mesh=tmp_path / "a.obj", up="z")
+    assert again.object.color == (0.9, 0.1, 0.1) and again.object.up == "z"
+    other = edits.replace_object_source(scene, mesh=tmp_path / "b.obj")
+    assert other.object.color is None
+
+
+def test_a_render_that_reuses_every_stage_shows_the_time_of_the_one_that_made_its_image(box_scene):
+    """After a light drag the final render reuses the drag's last frame: the panel names that frame's time, not 0 ms."""
+    from app.editor.render_panel import LiveRender
+
+    live = LiveRender(VoxelCache(), None, "shaded", detail_delay=60.0)
+    try:
+        live.submit(box_scene, preview=True)
+        made = _next_frame(live)
+        live.submit(box_scene)  # the same scene, final: every stage is kept
+        again = _next_frame(live)
+        assert live.engine.last_report.stages_run == ()
+        assert made.seconds > 0.0 and again.seconds == made.seconds
+    finally:
+        live.close()

@@ -288,9 +288,11 @@ class EditorApp:
         self.warn_missing_materials(self.scene.mesh_path())
 
     def warn_missing_materials(self, mesh: Path | None) -> None:
+        """Say that the mesh's material file is missing, unless the scene colors the object itself (then it does not
+        matter)."""
         from renderer.mesh import missing_material_files
 
-        missing = missing_material_files(mesh) if mesh else []
+        missing = missing_material_files(mesh) if mesh and self.scene.object.color is None else []
         if missing:
             self.say(f"{mesh.name}: material file {', '.join(missing)} not found: the mesh is grey", error=True)
 

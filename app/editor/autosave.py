@@ -32,7 +32,7 @@ class Autosave:
 
         def choose(choice: str) -> None:
             if choice == "Restore":
-                self.app.replace_document(Document(recovery.scene, None))
+                self.app.replace_document(Document(recovery.scene, None, changed=True))
                 self.app.doc.path = recovery.origin
                 self.app.say(f"restored the autosaved changes to {origin}")
             else:

@@ -16,11 +16,12 @@ from renderer.scene import Scene, load_scene
 class Document:
     """One open scene with its history; `revision` grows whenever the shown scene changes."""
 
-    def __init__(self, scene: Scene, path: Path | None = None):
+    def __init__(self, scene: Scene, path: Path | None = None, changed: bool = False):
+        """`changed`: the scene holds work no file has (a restored autosave); a new scene does not until edited."""
         self.history = History(scene)
         self.scene = scene
         self.path = path
-        self.saved = scene if path is not None else None
+        self.saved = None if changed else scene
         self.revision = 0
 
     @classmethod
@@ -30,7 +31,7 @@ class Document:
 
     @property
     def dirty(self) -> bool:
-        """True when the shown scene differs from the saved file (or there is no file yet)."""
+        """True when the shown scene differs from the saved file (or from the new scene it started as)."""
         return self.scene != self.saved
 
     @property

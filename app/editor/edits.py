@@ -148,9 +148,13 @@ def paint(scene: Scene, op: PaintOp) -> Scene:
 
 def replace_object_source(scene: Scene, mesh: Path | None = None, voxels: Path | None = None, up: str = "y",
                           resolution: int | None = None) -> Scene:
-    """The object made from another mesh or voxel file (absolute path); placement kept, color and paint reset."""
+    """The object made from another mesh or voxel file (absolute path); placement and material kept, paint reset.
+    The scene's color stays when the mesh is the one it had (voxelised again, another up axis); another object
+    shows its own colors."""
+    same = mesh is not None and scene.mesh_path() is not None and Path(mesh).resolve() == scene.mesh_path().resolve()
     o = replace(scene.object, mesh=None if mesh is None else str(Path(mesh).resolve()),
-                voxels=None if voxels is None else str(Path(voxels).resolve()), up=up, color=None,
+                voxels=None if voxels is None else str(Path(voxels).resolve()), up=up,
+                color=scene.object.color if same else None,
                 resolution=scene.object.resolution if resolution is None else resolution)
     floor_strokes = tuple(op for op in scene.paint if op.target == "floor")
     return scene.with_changes(object=o, paint=floor_strokes)

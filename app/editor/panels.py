@@ -83,6 +83,7 @@ class Interface:
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
         self._popup_title: str | None = None
         self.field_error: tuple[str, str] | None = None  # (field, why its typed value was refused)
+        self._document = app.doc  # the document the field error belongs to
         self.dialog_program = dialog_program()  # None: no Browse buttons, the path fields only
         self._file_dialog = None  # an open dialog, the field its answer goes to, and what to do with it (or None)
         self._recent: list[Path] = []  # the File menu's recent scenes
@@ -90,6 +91,11 @@ class Interface:
         self._hover: tuple = (None, 0.0)  # the bucket's voxel (with tolerance, color, voxels) and since when
         self._preview_key = None  # what the viewport's tinted region shows, None when it shows the voxels as they are
         self._rate_text, self._rate_time = "", 0.0
+
+    def _forget_old_document(self) -> None:
+        """A field's refused value belongs to the scene it was typed for: Open, New or a restore forgets it."""
+        if self._document is not self.app.doc:
+            self._document, self.field_error = self.app.doc, None
 
     def _follow_scene_file(self) -> None:
         """Save as and the exports default to the open scene's folder: when the scene file changes (Open, New, Save
@@ -105,6 +111,7 @@ class Interface:
     def draw(self) -> None:
         app = self.app
         self._follow_scene_file()
+        self._forget_old_document()
         width, height = app.window.size
         panels = layout_for(width, height)
         escape_is_free = not self.viewport_input.interacting  # else Esc cancels the drag or the G/R/S in progress
@@ -189,7 +196,14 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.y, False):
             app.redo()
         elif imgui.is_key_pressed(imgui.Key.s, False):
-            self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save) if io.key_shift else app.files.save()
+            if io.key_shift:
+                self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
+            elif app.doc.path is None and self.dialog_program is None and self.fields.save_path:
+                app.files.save(self.fields.save_path)  # an untitled scene: the name the File tab shows (asks to replace)
+            elif app.doc.path is None:
+                self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
+            else:
+                app.files.save()
         elif imgui.is_key_pressed(imgui.Key.n, False):
             app.files.new_scene()
         elif imgui.is_key_pressed(imgui.Key.o, False):

@@ -108,6 +108,7 @@ class LiveRender:
         self.panel_size: int | None = None  # the render panel's image side in pixels (the panel sets it as it draws)
         self.detail_delay = detail_delay
         self._settled: tuple[Scene, float] | None = None  # the last final image to draw at the panel's size, and when
+        self._last_seconds = 0.0  # the time of the last render that computed anything (one that reuses all shows it)
 
     def select(self, renderer: str) -> None:
         """Render with `renderer` (one of models.renderers.INTERACTIVE) from the next submitted scene on."""
@@ -180,6 +181,9 @@ class LiveRender:
         if not frame.preview and not detail and not self._scenes and self._redraw_larger(frame.image):
             self._settled = (scene, time.monotonic())
         seconds = frame.report.total_ms / 1000.0 if frame.report is not None else 0.0
+        if frame.report is not None and not frame.report.stages_run:  # all kept from the render before (a drag's end)
+            seconds = self._last_seconds
+        self._last_seconds = seconds
         note = getattr(frame.report, "note", "")
         return RenderedFrame(frame.image, scene, frame.preview, seconds, detail, note)
 
