@@ -1004,3 +1004,30 @@ def test_sky_environment_image_and_material_edits_render_save_and_undo(display, 
     render = PANELS.render_image
     start, sky, metal = (pixels(Path(shots[n]), render) for n in ("start", "sky", "metal"))
     assert np.abs(sky - start).mean() > 0.02 and np.abs(metal - sky).mean() > 0.005
+
+
+def test_numpad_views_f_frames_the_object_f1_lists_every_key_and_delete_says_why(display, tmp_path, scene_file):
+    shots = {name: str(tmp_path / f"{name}.png") for name in ("start", "top", "framed", "help", "closed")}
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "mouse_move", "pos": [PANELS.viewport.x + 300, PANELS.viewport.y + 300]},
+        {"action": "screenshot", "path": shots["start"]},
+        {"action": "key", "key": "kp_7"},
+        {"action": "screenshot", "path": shots["top"]},
+        {"action": "key", "key": "f"},
+        {"action": "screenshot", "path": shots["framed"]},
+        {"action": "key", "key": "delete"},
+        {"action": "key", "key": "f1"},
+        {"action": "wait", "frames": 2},
+        {"action": "screenshot", "path": shots["help"]},
+        {"action": "key", "key": "escape"},
+        {"action": "wait", "frames": 2},
+        {"action": "screenshot", "path": shots["closed"]},
+        {"action": "save", "path": str(tmp_path / "after.json")},
+    ])
+    start, top, framed, help_, closed = (pixels(Path(shots[n]), PANELS.viewport) for n in shots)
+    assert np.abs(top - start).mean() > 0.03 and np.abs(framed - top).mean() > 0.01
+    assert np.abs(help_ - framed).mean() > 0.01 and np.abs(closed - framed).mean() < 0.002
+    assert "nothing deleted: a scene holds one object" in result.stderr
+    after, before = load_scene(tmp_path / "after.json"), load_scene(scene_file)  # the keys changed the view alone
+    assert (after.object.translation, after.object.rotation_deg, after.light, after.camera, after.paint) == (
+        before.object.translation, before.object.rotation_deg, before.light, before.camera, before.paint)

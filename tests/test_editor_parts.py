@@ -557,3 +557,23 @@ def test_a_render_that_reuses_every_stage_shows_the_time_of_the_one_that_made_it
         assert made.seconds > 0.0 and again.seconds == made.seconds
     finally:
         live.close()
+
+
+def test_panning_moves_the_target_by_the_viewports_own_pixels_and_views_and_framing_aim_right():
+    from app.editor.orbit_view import framed, looking_from, pan_in_viewport
+
+    view = HOME  # the view as the app keeps it: its own 256 px size, not the viewport's
+    moved = pan_in_viewport(view, 40, 0, 800, 600)
+    shift = np.linalg.norm(np.asarray(moved.target) - np.asarray(view.target))
+    # The point under the mouse follows it: 40 viewport pixels at the target's depth.
+    assert shift == pytest.approx(40 * view.distance / viewport_camera(view, 800, 600).focal_px)
+    assert moved.width == view.width
+    front = looking_from(view, "front")
+    assert front.position[2] > 0 and abs(front.position[0]) < 1e-9  # on the render camera's side
+    assert looking_from(view, "right").position[0] > 0 and looking_from(view, "top").position[1] > 4.0
+    aimed = framed(view, (0.3, 0.5, -0.2), 0.8)
+    camera = viewport_camera(aimed, 400, 400)
+    assert aimed.target == (0.3, 0.5, -0.2)
+    # The sphere fits: its silhouette's half width, seen from the camera, stays inside the half field of view.
+    half_fov = np.arctan(0.5 * camera.sensor_mm / camera.focal_mm)
+    assert np.arcsin(0.8 / aimed.distance) < half_fov

@@ -14,13 +14,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from app.editor import edits, state
 from app.editor.autosave import Autosave
 from app.editor.document import Document
 from app.editor.files import FileCommands
 from app.editor.frame_stats import FrameStats
 from app.editor.jobs import JobRunner
-from app.editor.orbit_view import HOME
+from app.editor.orbit_view import HOME, framed, looking_from
 from app.editor.photo_tool import PhotoTool
 from app.editor.reference import ReferenceRender
 from app.editor.render_panel import DETAIL_DELAY_S, LiveRender, RenderedFrame
@@ -30,6 +32,7 @@ from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.scene import PaintOp, Scene
 from renderer.surface import occupancy
+from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
 from renderer.voxel_cache import VoxelCache, source_key
 
 FRAME_SECONDS = 1.0 / 60.0  # the loop sleeps to this pace so the render thread gets the CPU it needs
@@ -157,6 +160,18 @@ class EditorApp:
 
     def reset_view(self) -> None:
         self.view = HOME
+
+    def look_from(self, side: str) -> None:
+        """The viewport looks from the front, back, right, left, top or bottom (orbit_view.VIEWS), as numpad keys do."""
+        self.view = looking_from(self.view, side)
+
+    def frame_object(self) -> None:
+        """The viewport aims at the object and comes as close as shows all of it (F)."""
+        corners = np.array([[x, y, z] for x in (OBJECT_BOX_MIN[0], OBJECT_BOX_MAX[0])
+                            for y in (OBJECT_BOX_MIN[1], OBJECT_BOX_MAX[1]) for z in (OBJECT_BOX_MIN[2], OBJECT_BOX_MAX[2])])
+        world = apply_transform(object_to_world(self.scene.object), corners)
+        centre = world.mean(axis=0)
+        self.view = framed(self.view, centre, float(np.linalg.norm(world - centre, axis=1).max()))
 
     def undo(self) -> None:
         if not self.doc.undo():

@@ -41,6 +41,30 @@ def pan(view: Camera, dx: float, dy: float) -> Camera:
     return replace(view, target=tuple((np.asarray(view.target) + shift).tolist()))
 
 
+def pan_in_viewport(view: Camera, dx: float, dy: float, width: int, height: int) -> Camera:
+    """`pan` as the viewport of `width` x `height` pixels shows the view (its focal length in pixels is the
+    viewport's: at the view's own size a pixel would move the target several times too far)."""
+    return replace(view, target=pan(viewport_camera(view, width, height), dx, dy).target)
+
+
+# Blender's numpad views: from the front (the render camera's side, +z), the right (+x) and above; Ctrl: opposite.
+VIEWS = {"front": (0.0, 0.0), "back": (180.0, 0.0), "right": (90.0, 0.0), "left": (270.0, 0.0),
+         "top": (0.0, MAX_PITCH), "bottom": (0.0, -MAX_PITCH)}
+
+
+def looking_from(view: Camera, side: str) -> Camera:
+    """The view turned to look from `side` (a key of VIEWS), its target and distance kept."""
+    azimuth, elevation = VIEWS[side]
+    return replace(view, azimuth_deg=azimuth, elevation_deg=elevation)
+
+
+def framed(view: Camera, centre, radius: float) -> Camera:
+    """The view aimed at `centre` from as far as shows a sphere of `radius` with a margin (the F key)."""
+    half_fov = np.arctan(0.5 * view.sensor_mm / view.focal_mm)
+    distance = min(max(1.3 * radius / np.sin(half_fov), MIN_DISTANCE), MAX_DISTANCE)
+    return replace(view, target=tuple(float(c) for c in centre), distance=float(distance))
+
+
 def zoom(view: Camera, steps: float) -> Camera:
     """Move towards the target (positive steps) or away from it."""
     distance = min(max(view.distance * ZOOM_PER_STEP**steps, MIN_DISTANCE), MAX_DISTANCE)

@@ -18,6 +18,7 @@ from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.files import shipped
 from app.editor.frame_damage import Box
+from app.editor.keys import HelpWindow, view_keys
 from app.editor.layout import Rect, layout_for
 from app.editor.light_panel import draw_lighting, draw_material
 from app.editor.orbit_view import viewport_camera
@@ -78,6 +79,7 @@ class Interface:
         self._outputs_for: Path | None | bool = False  # the scene file the output fields follow (False: none yet)
         self._follow_scene_file()
         self.viewport_input = ViewportInput()
+        self.help = HelpWindow()
         self.photo_panel = PhotoPanel(app)
         self.underlay = None
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
@@ -122,8 +124,11 @@ class Interface:
         self._tools(panels.tools)
         self._status(panels.status)
         self._reference_window(panels.viewport, escape_is_free)
+        self.help.toggle_on_f1()
+        self.help.draw(escape_is_free)
         self._prompt()
         self._shortcuts()
+        view_keys(app, self.viewport_input.interacting)
         self._poll_file_dialog()
         framebuffer, x, y = self.underlay
         self.images = ((_box(Rect(x, y, *framebuffer.size)), app.viewport.version),
@@ -174,12 +179,23 @@ class Interface:
                 app.view_through_render_camera()
             if imgui.menu_item_simple("Reset view"):
                 app.reset_view()
+            imgui.separator()
+            for label, side, key in (("Front", "front", "Numpad 1"), ("Right", "right", "Numpad 3"),
+                                     ("Top", "top", "Numpad 7")):
+                if imgui.menu_item_simple(label, key):
+                    app.look_from(side)
+            if imgui.menu_item_simple("Frame the object", "F"):
+                app.frame_object()
             imgui.end_menu()
         if imgui.begin_menu("Edit"):
             if imgui.menu_item_simple("Undo", "Ctrl+Z", enabled=app.doc.history.can_undo):
                 app.undo()
             if imgui.menu_item_simple("Redo", "Ctrl+Shift+Z", enabled=app.doc.history.can_redo):
                 app.redo()
+            imgui.end_menu()
+        if imgui.begin_menu("Help"):
+            if imgui.menu_item_simple("Keyboard shortcuts", "F1"):
+                self.help.shown = True
             imgui.end_menu()
         title = app.doc.path.name if app.doc.path else "untitled"
         imgui.text_colored(GRAY, f"   {title}{' *' if app.doc.dirty else ''}")

@@ -17,7 +17,7 @@ import numpy as np
 from imgui_bundle import imgui
 
 from app.editor import edits
-from app.editor.orbit_view import orbit, pan, viewport_camera, zoom
+from app.editor.orbit_view import orbit, pan_in_viewport, viewport_camera, zoom
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
 from renderer.camera import Camera
 from renderer.scene import Scene
@@ -79,7 +79,7 @@ class ViewportInput:
 
     def update(self, app, mouse: tuple[float, float], size: tuple[int, int], hovered: bool) -> None:
         """One frame of input; `mouse` is in viewport pixels, `hovered` whether the mouse is over the viewport."""
-        app.view = self._navigate(app.view, hovered)
+        app.view = self._navigate(app.view, hovered, size)
         self.camera = viewport_camera(app.view, *size)
         origin, direction = self.camera.pixel_rays(np.array(mouse[0]), np.array(mouse[1]))
         ray = (origin, np.asarray(direction))
@@ -106,7 +106,7 @@ class ViewportInput:
 
     # --- navigation -----------------------------------------------------------------------
 
-    def _navigate(self, view: Camera, hovered: bool) -> Camera:
+    def _navigate(self, view: Camera, hovered: bool, size: tuple[int, int]) -> Camera:
         io = imgui.get_io()
         if self.navigating is None and hovered:
             for button in (imgui.MouseButton_.middle, imgui.MouseButton_.right):
@@ -117,7 +117,7 @@ class ViewportInput:
                 self.navigating = None
             else:
                 dx, dy = io.mouse_delta.x, io.mouse_delta.y
-                view = pan(view, dx, dy) if io.key_shift else orbit(view, dx, dy)
+                view = pan_in_viewport(view, dx, dy, *size) if io.key_shift else orbit(view, dx, dy)
         if hovered and io.mouse_wheel:
             view = zoom(view, io.mouse_wheel)
         return view
