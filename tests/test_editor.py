@@ -11,6 +11,7 @@ import json
 import math
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -539,8 +540,8 @@ def _click(pos) -> list[dict]:
             {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0}]
 
 
-def test_browse_fills_the_mesh_field_from_zenity_and_typing_does_without_it(display, tmp_path, scene_file, model_file,
-                                                                            monkeypatch):
+def test_browse_fills_the_mesh_field_from_zenity_and_from_the_editors_own_browser_without_it(
+        display, tmp_path, scene_file, model_file, monkeypatch):
     import trimesh
 
     from app.editor.file_dialog import dialog_command
@@ -554,8 +555,10 @@ def test_browse_fills_the_mesh_field_from_zenity_and_typing_does_without_it(disp
     zenity = with_dialog / "zenity"
     zenity.write_text(f'#!/bin/sh\nprintf "%s\\n" "$@" > "{with_dialog}/args.txt"\necho "{mesh}"\n')
     zenity.chmod(0o755)
+    own_browser = [{"action": "wait", "frames": 3}, {"action": "type", "text": str(mesh)},
+                   {"action": "key", "key": "enter"}, {"action": "wait", "frames": 3}]  # its name field has the keys
     for path_dir, pick in ((with_dialog, _click(MESH_BROWSE) + [{"action": "wait", "frames": 60}]),
-                           (without, _click(MESH_FIELD) + [{"action": "type", "text": str(mesh)}])):
+                           (without, _click(MESH_BROWSE) + own_browser)):
         monkeypatch.setenv("PATH", str(path_dir))  # run_editor passes the environment on
         run_editor(display, path_dir, scene_file, [
             {"action": "screenshot", "path": str(path_dir / "tools.png")},
@@ -566,7 +569,7 @@ def test_browse_fills_the_mesh_field_from_zenity_and_typing_does_without_it(disp
     assert (with_dialog / "args.txt").read_text().splitlines() == dialog_command("zenity", MESH_FILES)[1:]
     browse = [MESH_BROWSE[0] - 15, MESH_BROWSE[1] - 6, MESH_BROWSE[0] + 15, MESH_BROWSE[1] + 6]
     shown, absent = (np.asarray(Image.open(d / "tools.png").crop(browse), dtype=np.float64) / 255.0 for d in (with_dialog, without))
-    assert np.abs(shown - absent).mean() > 0.1  # the Browse button is drawn only when zenity is there
+    assert np.abs(shown - absent).mean() < 0.02  # the Browse button is there either way
 
 
 # --- rotate and scale with R and S ------------------------------------------------------------------
@@ -714,12 +717,14 @@ def test_what_a_user_meets_first_dragging_far_leaving_paint_typing_a_bad_value(d
 
 
 def test_ctrl_s_saves_a_new_scene_under_the_name_the_file_tab_shows(display, tmp_path, scene_file):
-    """A new scene is not unsaved work until edited; Ctrl+S on it (no file dialog installed) writes the Save-as
-    field's file, beside where the editor runs, and asks before replacing it."""
+    """Ctrl+S on a new scene asks for a name (here in the editor's own browser: no dialog program is installed),
+    offering the File tab's Save-as name; Enter takes it."""
     result = run_editor(display, tmp_path, scene_file, [
         {"action": "key", "key": "n", "mods": ["ctrl"]},
         {"action": "set_elevation", "deg": 22},
-        {"action": "key", "key": "s", "mods": ["ctrl"]},
+        {"action": "key", "key": "s", "mods": ["ctrl"]},  # Save as: the editor's browser, the File tab's name filled in
+        {"action": "wait", "frames": 3},
+        {"action": "key", "key": "enter"},
         {"action": "wait", "frames": 3},
     ], cwd=tmp_path)
     assert result.returncode == 0, result.stderr[-2000:]
@@ -1031,3 +1036,16 @@ def test_numpad_views_f_frames_the_object_f1_lists_every_key_and_delete_says_why
     after, before = load_scene(tmp_path / "after.json"), load_scene(scene_file)  # the keys changed the view alone
     assert (after.object.translation, after.object.rotation_deg, after.light, after.camera, after.paint) == (
         before.object.translation, before.object.rotation_deg, before.light, before.camera, before.paint)
+
+
+def test_open_takes_a_mesh_as_a_new_scene_and_names_what_it_cannot_open(display, tmp_path, scene_file):
+    shutil.copy(REPOSITORY / "assets" / "demo" / "chair.obj", tmp_path / "stool.obj")
+    (tmp_path / "notes.txt").write_text("not a scene")
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "open", "path": str(tmp_path / "notes.txt")},
+        {"action": "open", "path": str(tmp_path / "stool.obj")},
+        {"action": "save", "path": str(tmp_path / "from_mesh.json")},
+    ])
+    assert "Open takes scenes (.json), meshes" in result.stderr and "not .txt" in result.stderr
+    opened = load_scene(tmp_path / "from_mesh.json")
+    assert opened.mesh_path().resolve() == (tmp_path / "stool.obj").resolve() and opened.paint == ()

@@ -577,3 +577,15 @@ def test_panning_moves_the_target_by_the_viewports_own_pixels_and_views_and_fram
     # The sphere fits: its silhouette's half width, seen from the camera, stays inside the half field of view.
     half_fov = np.arctan(0.5 * camera.sensor_mm / camera.focal_mm)
     assert np.arcsin(0.8 / aimed.distance) < half_fov
+
+
+def test_the_file_browser_lists_folders_first_then_the_kinds_files_without_hidden_ones(tmp_path):
+    from app.editor.file_browser import entries
+
+    for name in ("b.obj", "A.OBJ", "notes.txt", ".hidden.obj", "c.ply"):
+        (tmp_path / name).write_text("x")
+    for name in ("zeta", "Alpha", ".git"):
+        (tmp_path / name).mkdir()
+    assert entries(tmp_path, ("*.obj", "*.ply")) == (["Alpha", "zeta"], ["A.OBJ", "b.obj", "c.ply"])
+    with pytest.raises(OSError):
+        entries(tmp_path / "missing", ("*.obj",))

@@ -18,6 +18,7 @@ from app.editor.render_panel import export_render, final_render
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
+from renderer.mesh import MESH_EXTENSIONS
 from renderer.scene import ObjectSpec, Scene, save_scene
 
 SHIPPED_ASSETS = Path(__file__).resolve().parents[2] / "assets"  # the demo scene and models: Save writes elsewhere
@@ -51,6 +52,26 @@ class FileCommands:
                 return
             state.remember_scene(path)
             self.app.say(f"opened {path}")
+
+        self.replace_after_asking("Save the current scene before opening another?", go)
+
+    def open(self, path: str | Path) -> None:
+        """File > Open: a scene file opens as it is; a mesh or a MagicaVoxel model starts a new scene holding it (after
+        asking about unsaved changes), and the status line says which it opened."""
+        suffix = Path(path).suffix.lower()
+        if suffix in (".json", ""):
+            self.open_scene(path)
+            return
+        if suffix not in (*MESH_EXTENSIONS, ".vox"):
+            self.app.say(f"{path}: Open takes scenes (.json), meshes ({', '.join(MESH_EXTENSIONS)}) and MagicaVoxel "
+                         f"models (.vox), not {suffix}", error=True)
+            return
+
+        def go() -> None:
+            self.app.replace_document(Document(new_scene(), None))
+            kind = "MagicaVoxel model" if suffix == ".vox" else "mesh"
+            self.app.say(f"new scene from the {kind} {Path(path).resolve()}")
+            self.import_vox(path) if suffix == ".vox" else self.load_mesh(path)
 
         self.replace_after_asking("Save the current scene before opening another?", go)
 

@@ -15,6 +15,7 @@ from imgui_bundle import imgui
 
 from app.editor import edits, state
 from app.editor.app import MESSAGE_SECONDS, PALETTE, EditorApp
+from app.editor.file_browser import FileBrowser
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.files import shipped
 from app.editor.frame_damage import Box
@@ -26,6 +27,7 @@ from app.editor.photo_panel import GRAY, PhotoPanel
 from app.editor.viewport_input import ViewportInput
 from models.renderers import INTERACTIVE, RENDERERS
 from renderer.errors import InputError
+from renderer.mesh import MESH_EXTENSIONS
 from renderer.paint import fill_region_voxels
 from renderer.scene import range_warnings
 
@@ -35,7 +37,8 @@ RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
 AMBER = imgui.ImVec4(1.0, 0.75, 0.3, 1.0)
 GREEN = imgui.ImVec4(0.5, 0.85, 0.5, 1.0)
 MESH_FILES = FileKind("Open a mesh", "Meshes", ("*.obj", "*.ply", "*.stl", "*.off", "*.glb", "*.gltf"))
-SCENE_FILES = FileKind("Open a scene", "Scenes", ("*.json",))
+SCENE_FILES = FileKind("Open a scene, a mesh or a MagicaVoxel model", "Scenes, meshes, .vox models",
+                       ("*.json", *(f"*{suffix}" for suffix in MESH_EXTENSIONS), "*.vox"))
 NEW_SCENE_FILE = FileKind("Save the scene as", "Scenes", ("*.json",), save=True)
 NEW_PNG_FILE = FileKind("Export as", "PNG images", ("*.png",), save=True)
 NEW_GIF_FILE = FileKind("Export the turntable as", "GIF animations", ("*.gif",), save=True)
@@ -86,7 +89,7 @@ class Interface:
         self._popup_title: str | None = None
         self.field_error: tuple[str, str] | None = None  # (field, why its typed value was refused)
         self._document = app.doc  # the document the field error belongs to
-        self.dialog_program = dialog_program()  # None: no Browse buttons, the path fields only
+        self.dialog_program = dialog_program()  # None: the editor's own file browser (app/editor/file_browser.py)
         self._file_dialog = None  # an open dialog, the field its answer goes to, and what to do with it (or None)
         self._recent: list[Path] = []  # the File menu's recent scenes
         self._mesh_shown: Path | None = None  # the object mesh the mesh field was last set to
@@ -146,7 +149,7 @@ class Interface:
             if imgui.menu_item_simple("New", "Ctrl+N"):
                 app.files.new_scene()
             if imgui.menu_item_simple("Open...", "Ctrl+O"):
-                self._ask_path(SCENE_FILES, "scene_path", app.files.open_scene)
+                self._ask_path(SCENE_FILES, "scene_path", app.files.open)
             if imgui.begin_menu("Open recent", enabled=bool(self._recent)):
                 for path in self._recent:
                     if imgui.menu_item_simple(str(path)):
@@ -214,8 +217,6 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.s, False):
             if io.key_shift:
                 self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
-            elif app.doc.path is None and self.dialog_program is None and self.fields.save_path:
-                app.files.save(self.fields.save_path)  # an untitled scene: the name the File tab shows (asks to replace)
             elif app.doc.path is None:
                 self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
             else:
@@ -223,7 +224,7 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.n, False):
             app.files.new_scene()
         elif imgui.is_key_pressed(imgui.Key.o, False):
-            self._ask_path(SCENE_FILES, "scene_path", app.files.open_scene)
+            self._ask_path(SCENE_FILES, "scene_path", app.files.open)
         elif imgui.is_key_pressed(imgui.Key.e, False):
             app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
         elif imgui.is_key_pressed(imgui.Key.q, False):
@@ -436,7 +437,7 @@ class Interface:
     def _file_tab(self) -> None:
         f, app = self.fields, self.app
         for key, kind, field_name, label, act in (
-                ("open", SCENE_FILES, "scene_path", "Open scene", app.files.open_scene),
+                ("open", SCENE_FILES, "scene_path", "Open", app.files.open),
                 ("save", NEW_SCENE_FILE, "save_path", "Save as", app.files.save),
                 ("export", NEW_PNG_FILE, "export_path", "Export PNG",
                  lambda p: app.files.export(p, size=EXPORT_SIZES[f.export_size])),
@@ -460,23 +461,21 @@ class Interface:
                                                                for s in EXPORT_SIZES[1:]])
 
     def browse_button(self, key: str, kind: FileKind, field_name: str) -> None:
-        """A Browse button after a path field, when the system has a file dialog: the chosen file fills the field."""
-        if self.dialog_program is None:
-            return
+        """A Browse button after a path field: the chosen file fills the field."""
         imgui.same_line()
         if imgui.button(f"Browse##{key}") and self._file_dialog is None:
-            command = dialog_command(self.dialog_program, kind, getattr(self.fields, field_name))
-            self._file_dialog = (FileDialog(command), field_name, None)
+            self._file_dialog = (self._dialog(kind, getattr(self.fields, field_name)), field_name, None)
 
     def _ask_path(self, kind: FileKind, field_name: str, then) -> None:
-        """A file for a menu command: from the system's file dialog when there is one (`then` gets it), else
-        from the File tab's typed path field, which is opened for it."""
-        if self.dialog_program is not None and self._file_dialog is None:
-            command = dialog_command(self.dialog_program, kind, getattr(self.fields, field_name))
-            self._file_dialog = (FileDialog(command), field_name, then)
-        elif self.dialog_program is None:
-            self.app.requested_tab = "File"
-            self.app.say(f"{kind.title}: type the path in the File tab (no file dialog program is installed)")
+        """A file for a menu command, from a file dialog (`then` gets it)."""
+        if self._file_dialog is None:
+            self._file_dialog = (self._dialog(kind, getattr(self.fields, field_name)), field_name, then)
+
+    def _dialog(self, kind: FileKind, start: str) -> FileDialog | FileBrowser:
+        """The system's file dialog when one is installed, else the editor's own browser."""
+        if self.dialog_program is None:
+            return FileBrowser(kind, start)
+        return FileDialog(dialog_command(self.dialog_program, kind, start))
 
     def _poll_file_dialog(self) -> None:
         if self._file_dialog is None:
