@@ -1049,3 +1049,28 @@ def test_open_takes_a_mesh_as_a_new_scene_and_names_what_it_cannot_open(display,
     assert "Open takes scenes (.json), meshes" in result.stderr and "not .txt" in result.stderr
     opened = load_scene(tmp_path / "from_mesh.json")
     assert opened.mesh_path().resolve() == (tmp_path / "stool.obj").resolve() and opened.paint == ()
+
+
+def test_alt_click_picks_the_voxels_color_for_the_bucket(display, tmp_path, scene_file):
+    """The eyedropper: with the bucket, Alt+click on the red block takes its color; a plain click on the blue top
+    then fills it with that red."""
+    scene = load_scene(scene_file)
+    place = object_to_world(scene.object)
+    red_front = apply_transform(place, voxel_centers_at(np.array([[8, 5, 11]]), 16) + [0, 0, 0.5 / 16])[0]
+    blue_top = apply_transform(place, voxel_centers_at(np.array([[8, 11, 8]]), 16) + [0, 0.5 / 16, 0])[0]
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "tool", "name": "paint"},
+        {"action": "paint_color", "color": list(GREEN)},
+        {"action": "mouse_move", "pos": screen_position(red_front)},
+        {"action": "mouse_down", "button": 0, "mods": ["alt"]},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "picked.json")},
+        {"action": "mouse_move", "pos": screen_position(blue_top)},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_up", "button": 0},
+        {"action": "save", "path": str(tmp_path / "filled.json")},
+    ])
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert load_scene(tmp_path / "picked.json").paint == ()  # picking paints nothing
+    (stroke,) = load_scene(tmp_path / "filled.json").paint
+    assert stroke.color == pytest.approx(RED, abs=1 / 255) and stroke.seed[1] >= 10  # the top, in the red (8-bit voxels)

@@ -190,6 +190,15 @@ class EditorApp:
             return
         self.edit(lambda s: edits.paint(s, op))
 
+    def pick_color(self, voxel: tuple[int, int, int]) -> None:
+        """The eyedropper (Alt+click with the bucket): the palette color becomes the voxel's, as it shows now."""
+        rgba, _ = self.voxels.painted(self.scene)
+        if not (all(0 <= v < rgba.shape[0] for v in voxel) and rgba[tuple(voxel)][3] >= 0.5):
+            self.say(f"voxel {list(voxel)} is not part of the object", error=True)
+            return
+        self.paint_color = tuple(round(float(c), 4) for c in rgba[tuple(voxel)][:3])
+        self.say("picked {:.2f}, {:.2f}, {:.2f} (sRGB)".format(*self.paint_color))
+
     def fill_object(self) -> None:
         self.edit(lambda s: edits.paint(s, PaintOp("object", tuple(self.paint_color))))
 

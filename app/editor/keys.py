@@ -20,7 +20,7 @@ BINDINGS = (
     ("left-drag the light square", "move the light; with Shift its height"),
     ("G, R, S", "grab, rotate, scale the object; then X, Y or Z for one axis"),
     ("click or Enter / right click or Escape", "confirm / cancel a grab, rotate or scale"),
-    ("click a voxel (Paint tab)", "bucket fill"),
+    ("click a voxel (Paint tab)", "bucket fill; with Alt, pick its color"),
     ("Ctrl+Z, Ctrl+Shift+Z or Ctrl+Y", "undo, redo"),
     ("Ctrl+N, Ctrl+O", "new scene, open a scene"),
     ("Ctrl+S, Ctrl+Shift+S", "save, save as"),

@@ -94,7 +94,9 @@ class ViewportInput:
         if not hovered:
             return
         if imgui.is_mouse_clicked(imgui.MouseButton_.left):
-            if self.hovered_voxel is not None:
+            if self.hovered_voxel is not None and imgui.get_io().key_alt:
+                app.pick_color(self.hovered_voxel)  # the eyedropper, as in MagicaVoxel
+            elif self.hovered_voxel is not None:
                 app.paint_region(self.hovered_voxel)
             elif self.light_hovered:
                 self._start_light_drag(app, mouse)
