@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from app.editor.layout import layout_for
+from app.editor.layout import Rect, layout_for
 from app.editor.orbit_view import HOME, viewport_camera
 from app.editor.picking import ray_at_height
 from app.editor.viewport_input import LIGHT_HEIGHT_PER_PIXEL
@@ -1074,3 +1074,25 @@ def test_alt_click_picks_the_voxels_color_for_the_bucket(display, tmp_path, scen
     assert load_scene(tmp_path / "picked.json").paint == ()  # picking paints nothing
     (stroke,) = load_scene(tmp_path / "filled.json").paint
     assert stroke.color == pytest.approx(RED, abs=1 / 255) and stroke.seed[1] >= 10  # the top, in the red (8-bit voxels)
+
+
+def test_dragging_the_column_border_widens_the_render_panel_and_its_image(display, tmp_path, scene_file):
+    border = [PANELS.render.x, PANELS.render.y + 300]
+    wide = layout_for(*WINDOW, right_width=WINDOW[0] - 540)
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "screenshot", "path": str(tmp_path / "before.png")},
+        {"action": "mouse_move", "pos": border},
+        {"action": "mouse_down", "button": 0},
+        {"action": "mouse_move", "pos": [border[0] - 150, border[1]]},
+        {"action": "mouse_move", "pos": [540, border[1]]},
+        {"action": "mouse_up", "button": 0},
+        {"action": "wait", "frames": 30},
+        {"action": "screenshot", "path": str(tmp_path / "after.png")},
+    ])
+    assert wide.render.x == 540 and wide.render_image.width > PANELS.render_image.width + 20  # as high as it may be
+    # Where the viewport was, the wide render panel now shows: its image, and above it its title bar.
+    strip = replace(wide.render_image, x=wide.render_image.x + 20, width=60, y=wide.render_image.y + 100, height=60)
+    before, after = pixels(tmp_path / "before.png", strip), pixels(tmp_path / "after.png", strip)
+    assert np.abs(after - before).mean() > 0.05
+    title = pixels(tmp_path / "after.png", Rect(560, wide.render.y + 2, 40, 14))  # the render panel's title bar
+    assert np.abs(title - pixels(tmp_path / "before.png", Rect(560, wide.render.y + 2, 40, 14))).mean() > 0.05

@@ -18,6 +18,7 @@ BINDINGS = (
     ("F, numpad .", "frame the object"),
     ("Home", "look through the render camera"),
     ("left-drag the light square", "move the light; with Shift its height"),
+    ("drag the border left of the render", "widen or narrow the render and tools column"),
     ("G, R, S", "grab, rotate, scale the object; then X, Y or Z for one axis"),
     ("click or Enter / right click or Escape", "confirm / cancel a grab, rotate or scale"),
     ("click a voxel (Paint tab)", "bucket fill; with Alt, pick its color"),

@@ -1,7 +1,7 @@
 """Where each panel sits in the window: viewport on the left, live render top right, tools below it.
 
-A fixed layout computed from the window size, so headless screenshots are reproducible and
-tests know where to look.
+A layout computed from the window size and the right column's width (the user drags the border between the
+columns), so headless screenshots are reproducible and tests know where to look.
 """
 
 from __future__ import annotations
@@ -10,7 +10,9 @@ from dataclasses import dataclass
 
 MENU_HEIGHT = 22
 STATUS_HEIGHT = 26
-RIGHT_WIDTH = 440
+RIGHT_WIDTH = 440  # the right column's width until the user drags the border
+MIN_RIGHT_WIDTH = 300
+MIN_VIEWPORT_WIDTH = 300
 RENDER_HEIGHT = 478
 RENDER_HEADER = 48  # the render panel's title bar and its status line, above the image
 PADDING = 8
@@ -33,11 +35,12 @@ class Layout:
     status: Rect
 
 
-def layout_for(width: int, height: int) -> Layout:
-    """Panel rectangles (window pixels, y down) for a window of `width` x `height`."""
-    right = min(RIGHT_WIDTH, width // 2)
+def layout_for(width: int, height: int, right_width: int = RIGHT_WIDTH) -> Layout:
+    """Panel rectangles (window pixels, y down) for a window of `width` x `height` whose right column is about
+    `right_width` wide (at least MIN_RIGHT_WIDTH, leaving the viewport MIN_VIEWPORT_WIDTH; a small window halves). The render panel grows with the column, up to two thirds of the window's height."""
+    right = max(min(right_width, width - MIN_VIEWPORT_WIDTH), min(MIN_RIGHT_WIDTH, width // 2))
     body = height - MENU_HEIGHT - STATUS_HEIGHT
-    render_height = min(RENDER_HEIGHT, body * 2 // 3)
+    render_height = min(RENDER_HEIGHT + max(right - RIGHT_WIDTH, 0), body * 2 // 3)
     side = max(1, min(right - 2 * PADDING, render_height - RENDER_HEADER - PADDING))
     return Layout(
         viewport=Rect(0, MENU_HEIGHT, width - right, body),

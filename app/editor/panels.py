@@ -20,7 +20,7 @@ from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_
 from app.editor.files import shipped
 from app.editor.frame_damage import Box
 from app.editor.keys import HelpWindow, view_keys
-from app.editor.layout import Rect, layout_for
+from app.editor.layout import RIGHT_WIDTH, Layout, Rect, layout_for
 from app.editor.light_panel import draw_lighting, draw_material
 from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import GRAY, PhotoPanel
@@ -31,6 +31,7 @@ from renderer.mesh import MESH_EXTENSIONS
 from renderer.paint import fill_region_voxels
 from renderer.scene import range_warnings
 
+BORDER_GRIP = 8  # the width, in pixels, of the strip along the column border that drags it
 FIXED = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
          | imgui.WindowFlags_.no_bring_to_front_on_focus | imgui.WindowFlags_.no_saved_settings)
 RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
@@ -83,6 +84,9 @@ class Interface:
         self._follow_scene_file()
         self.viewport_input = ViewportInput()
         self.help = HelpWindow()
+        self.right_width = RIGHT_WIDTH  # the render and tools column's, as the user drags the border
+        self._border_drag = False
+        self.border_hot = False  # the mouse is on the column border, or drags it
         self.photo_panel = PhotoPanel(app)
         self.underlay = None
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
@@ -118,9 +122,10 @@ class Interface:
         self._follow_scene_file()
         self._forget_old_document()
         width, height = app.window.size
-        panels = layout_for(width, height)
+        panels = layout_for(width, height, self.right_width)
         escape_is_free = not self.viewport_input.interacting  # else Esc cancels the drag or the G/R/S in progress
         self._menu()
+        self._column_border(panels, width)
         self._viewport(panels.viewport)
         self._render_panel(panels.render, panels.render_image)
         self.photo_panel.shown = None  # set again if the Photo tab is open
@@ -230,6 +235,25 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.q, False):
             app.request_quit()
 
+    def _column_border(self, panels: Layout, width: int) -> None:
+        """The border between the viewport and the right column: dragging it sizes the columns (the render panel
+        grows with its column, and a settled render is drawn again at the panel's size). Found by the mouse's place,
+        not by a window of its own: the panels either side would take the click."""
+        io = imgui.get_io()
+        x, top, body = panels.render.x, panels.viewport.y, panels.viewport.height
+        near = abs(io.mouse_pos.x - x) <= BORDER_GRIP / 2 and top <= io.mouse_pos.y < top + body
+        if self._border_drag:
+            if imgui.is_mouse_down(imgui.MouseButton_.left):
+                self.right_width = int(width - io.mouse_pos.x)
+            else:
+                self._border_drag = False
+        elif (near and imgui.is_mouse_clicked(imgui.MouseButton_.left) and self.app.prompt is None
+              and not imgui.is_any_item_active() and not self.viewport_input.interacting):
+            self._border_drag = True
+        self.border_hot = near or self._border_drag  # the viewport leaves the mouse to the border then
+        if self.border_hot:
+            imgui.set_mouse_cursor(imgui.MouseCursor_.resize_ew)
+
     # --- viewport -----------------------------------------------------------------------
 
     def _viewport(self, rect: Rect) -> None:
@@ -250,7 +274,7 @@ class Interface:
         self.underlay = (framebuffer, int(origin.x), int(origin.y))  # copied under the interface (Window.end_frame)
         imgui.invisible_button("viewport", imgui.ImVec2(w, h), imgui.ButtonFlags_.mouse_button_left
                                | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
-        hovered = imgui.is_item_hovered() and app.prompt is None
+        hovered = imgui.is_item_hovered() and app.prompt is None and not self.border_hot
         mouse = imgui.get_io().mouse_pos
         inputs.update(app, (mouse.x - origin.x, mouse.y - origin.y), (w, h), hovered)
         self._bucket_preview(inputs.hovered_voxel)
