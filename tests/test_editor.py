@@ -1096,3 +1096,21 @@ def test_dragging_the_column_border_widens_the_render_panel_and_its_image(displa
     assert np.abs(after - before).mean() > 0.05
     title = pixels(tmp_path / "after.png", Rect(560, wide.render.y + 2, 40, 14))  # the render panel's title bar
     assert np.abs(title - pixels(tmp_path / "before.png", Rect(560, wide.render.y + 2, 40, 14))).mean() > 0.05
+
+
+def test_an_export_can_voxelise_the_mesh_finer_and_the_scene_keeps_its_voxels(display, tmp_path, scene_file):
+    shutil.copy(REPOSITORY / "assets" / "demo" / "chair.obj", tmp_path / "chair.obj")
+    coarse = replace(load_scene(REPOSITORY / "assets" / "demo" / "scene.json"), base_dir=tmp_path)
+    coarse = replace(coarse, object=replace(coarse.object, resolution=64), image_size=64)
+    save_scene(coarse, tmp_path / "chair.json")
+    result = run_editor(display, tmp_path, tmp_path / "chair.json", [
+        {"action": "export", "path": str(tmp_path / "own.png"), "size": 256},
+        {"action": "export", "path": str(tmp_path / "fine.png"), "size": 256, "voxels": 256},
+        {"action": "save", "path": str(tmp_path / "after.json")},
+        {"action": "open", "path": str(scene_file)},  # an object of voxels, no mesh: refused in one line
+        {"action": "export", "path": str(tmp_path / "refused.png"), "size": 256, "voxels": 256},
+    ])
+    own, fine = (np.asarray(Image.open(tmp_path / f"{n}.png"), dtype=np.float64) for n in ("own", "fine"))
+    assert own.shape == fine.shape == (256, 256, 3) and np.abs(own - fine).mean() > 0.5
+    assert load_scene(tmp_path / "after.json").object.resolution == 64
+    assert "no mesh to voxelise more finely" in result.stderr and not (tmp_path / "refused.png").exists()

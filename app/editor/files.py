@@ -7,6 +7,7 @@ the files that ship with NVR Studio; every failure is a message in the window an
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 from app.editor import edits, side_by_side, state
@@ -18,6 +19,7 @@ from app.editor.render_panel import export_render, final_render
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
+from renderer.limits import MAX_RESOLUTION, MIN_RESOLUTION
 from renderer.mesh import MESH_EXTENSIONS
 from renderer.scene import ObjectSpec, Scene, save_scene
 
@@ -32,6 +34,18 @@ def shipped(path: str | Path | None) -> bool:
 def new_scene() -> Scene:
     """What File > New starts from: the demo chair (by absolute path) in the default set-up, no file yet."""
     return Scene(object=ObjectSpec(mesh=str(SHIPPED_ASSETS / "demo" / "chair.obj"), rotation_deg=30.0))
+
+
+def finer_for_export(scene: Scene, resolution: int) -> Scene:
+    """The scene with its object's mesh voxelised at `resolution` for an export; refused (InputError) for an object
+    without a mesh, or painted stroke by stroke (the strokes name voxels of its own resolution)."""
+    if scene.object.mesh is None:
+        raise InputError("the object has no mesh to voxelise more finely: it exports at its own voxels")
+    if any(op.target == "region" for op in scene.paint):
+        raise InputError(f"the object's paint strokes are on its {scene.object.resolution}^3 voxels: it exports at them")
+    if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
+        raise InputError(f"voxels per side must be from {MIN_RESOLUTION} to {MAX_RESOLUTION}, got {resolution}")
+    return replace(scene, object=replace(scene.object, resolution=int(resolution)))
 
 
 class FileCommands:
@@ -124,15 +138,23 @@ class FileCommands:
 
     # --- exports ------------------------------------------------------------------------------
 
-    def export(self, path: str | Path, overwrite: bool = False, size: int | None = None) -> bool:
+    def export(self, path: str | Path, overwrite: bool = False, size: int | None = None,
+               voxels: int | None = None) -> bool:
         """Write the panel renderer's image of the committed scene at `size` pixels (default the scene's; a network's
-        image of another size is resized and the message says so)."""
+        image of another size is resized and the message says so). `voxels`: voxelise the object's mesh at that
+        resolution for this export alone (finer voxels for a large image; the scene keeps its own)."""
         app = self.app
+        scene = app.doc.history.current
+        if voxels is not None and voxels != scene.object.resolution:
+            try:
+                scene = finer_for_export(scene, voxels)
+            except InputError as exc:
+                app.say(str(exc), error=True)
+                return False
 
         def write() -> str:
-            used = export_render(app.doc.history.current, path, app.live.model_path, app.live.renderer, app.voxels,
-                                 size)
-            return f"exported {Path(path).resolve()} ({used})"
+            used = export_render(scene, path, app.live.model_path, app.live.renderer, app.voxels, size)
+            return f"exported {Path(path).resolve()} ({used}, {scene.object.resolution}^3 voxels)"
 
         return self.write_file(path, overwrite, write)
 

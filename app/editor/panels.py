@@ -27,6 +27,7 @@ from app.editor.photo_panel import GRAY, PhotoPanel
 from app.editor.viewport_input import ViewportInput
 from models.renderers import INTERACTIVE, RENDERERS
 from renderer.errors import InputError
+from renderer.limits import MAX_RESOLUTION
 from renderer.mesh import MESH_EXTENSIONS
 from renderer.paint import fill_region_voxels
 from renderer.scene import range_warnings
@@ -61,6 +62,7 @@ class Fields:
     side_by_side_path: str = "viewport_and_render.png"
     turntable_path: str = "turntable.gif"
     export_size: int = 0  # index into EXPORT_SIZES
+    export_finer: bool = False  # voxelise the mesh at MAX_RESOLUTION for exports
     vox_in_path: str = ""
     vox_out_path: str = "object.vox"
     mesh_path: str = ""
@@ -166,7 +168,8 @@ class Interface:
                 self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
             imgui.separator()
             if imgui.menu_item_simple("Export render", "Ctrl+E"):
-                app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
+                app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size],
+                             voxels=self._export_voxels())
             if imgui.menu_item_simple("Export viewport and render"):
                 app.files.export_side_by_side(self.fields.side_by_side_path)
             if imgui.menu_item_simple("Export turntable"):
@@ -231,7 +234,8 @@ class Interface:
         elif imgui.is_key_pressed(imgui.Key.o, False):
             self._ask_path(SCENE_FILES, "scene_path", app.files.open)
         elif imgui.is_key_pressed(imgui.Key.e, False):
-            app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size])
+            app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size],
+                             voxels=self._export_voxels())
         elif imgui.is_key_pressed(imgui.Key.q, False):
             app.request_quit()
 
@@ -464,7 +468,7 @@ class Interface:
                 ("open", SCENE_FILES, "scene_path", "Open", app.files.open),
                 ("save", NEW_SCENE_FILE, "save_path", "Save as", app.files.save),
                 ("export", NEW_PNG_FILE, "export_path", "Export PNG",
-                 lambda p: app.files.export(p, size=EXPORT_SIZES[f.export_size])),
+                 lambda p: app.files.export(p, size=EXPORT_SIZES[f.export_size], voxels=self._export_voxels())),
                 ("side by side", NEW_PNG_FILE, "side_by_side_path", "Export viewport + render", app.files.export_side_by_side),
                 ("turntable", NEW_GIF_FILE, "turntable_path", "Export turntable", app.files.export_turntable),
                 ("import vox", VOX_FILES, "vox_in_path", "Import .vox", app.files.import_vox),
@@ -483,6 +487,16 @@ class Interface:
                 _, f.export_size = imgui.combo("export size", f.export_size,
                                                [scene_size] + [f"{s} px" + ("" if any_size else " (upscaled)")
                                                                for s in EXPORT_SIZES[1:]])
+                o = app.scene.object
+                imgui.text_colored(GRAY, f"the object's voxels: {o.resolution}^3")
+                if o.mesh is not None and o.resolution < MAX_RESOLUTION:
+                    imgui.same_line()
+                    _, f.export_finer = imgui.checkbox(f"voxelise at {MAX_RESOLUTION}^3 to export", f.export_finer)
+
+    def _export_voxels(self) -> int | None:
+        """The voxels an export draws the object with: MAX_RESOLUTION when the File tab asks for finer ones."""
+        o = self.app.scene.object
+        return MAX_RESOLUTION if self.fields.export_finer and o.mesh is not None and o.resolution < MAX_RESOLUTION else None
 
     def browse_button(self, key: str, kind: FileKind, field_name: str) -> None:
         """A Browse button after a path field: the chosen file fills the field."""

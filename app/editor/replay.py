@@ -12,7 +12,7 @@ High-level actions call the same commands as the interface:
     {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1}
     {"action": "fill_object", "color": [...]}                 {"action": "fill_floor", "color": [...]}
     {"action": "undo"} {"action": "redo"}
-    {"action": "open", "path": ...} (a scene, mesh or .vox) {"action": "save", "path": ...} {"action": "export", "path": ..., "size": 512}
+    {"action": "open", "path": ...} (a scene, mesh or .vox) {"action": "save", "path": ...} {"action": "export", "path": ..., "size": 512, "voxels": 256}
     {"action": "export_side_by_side", "path": ...}            an existing file is replaced only after "answer" "Replace"
     {"action": "import_vox", "path": ...} {"action": "export_vox", "path": ...}   MagicaVoxel models
     {"action": "export_turntable", "path": "t.gif", "frames": 8, "sweep": "light"}   in the background
@@ -287,7 +287,7 @@ ACTIONS = {
     "redo": lambda app, a: app.redo(),
     "open": lambda app, a: app.files.open(a["path"]),
     "save": lambda app, a: app.files.save(a.get("path")),
-    "export": lambda app, a: app.files.export(a["path"], size=a.get("size")),
+    "export": lambda app, a: app.files.export(a["path"], size=a.get("size"), voxels=a.get("voxels")),
     "export_side_by_side": lambda app, a: app.files.export_side_by_side(a["path"]),
     "import_vox": lambda app, a: app.files.import_vox(a["path"]),
     "reference_render": lambda app, a: app.reference.start(int(a.get("spp", 64))),
