@@ -57,7 +57,6 @@ def cmd_render(args: argparse.Namespace) -> None:
         raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
     scene = load_scene(args.scene)
     out = _output_path(args.output, args.force)
-    _warn(range_warnings(scene) + _material_warnings(scene.mesh_path()))
     size = args.size or scene.image_size
     start = time.perf_counter()
     renderer = make_renderer(args.renderer, RendererOptions(
@@ -78,9 +77,7 @@ def cmd_render(args: argparse.Namespace) -> None:
     save_png(out, image)
     print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{correction_note(renderer, size)}, "
           f"{elapsed:.2f} s)")
-    report = renderer.last_report
-    if report is not None and report.note:
-        print(f"note: {report.note}")
+    _warn(range_warnings(scene) + _material_warnings(scene.mesh_path()))  # after the image: a refusal stays one line
 
 
 def add_render_parser(sub: argparse._SubParsersAction) -> None:
@@ -227,8 +224,22 @@ def cmd_info(args: argparse.Namespace) -> None:
     print(f"object     {o.voxels or o.mesh} (up {o.up}, {o.resolution}^3 voxels)")
     print(f"  color    {'mesh colors' if o.color is None else list(o.color)}; {len(scene.paint)} paint operations")
     print(f"  placed   translation {list(o.translation)}, rotation {o.rotation_deg:g} deg, scale {list(o.scale)}")
+    m = o.material
+    print(f"  material {'matte' if m.diffuse_only else f'roughness {m.roughness:g}, specular {m.specular:g}, metallic {m.metallic:g}'}")
     print(f"floor      color {list(scene.floor.color)}")
-    print(f"light      position {list(scene.light.position)}")
+    print(f"light      position {list(scene.light.position)}{'' if scene.light.enabled else ' (off)'}")
+    env = scene.environment
+    if env is None:
+        print("sky        the uniform ambient light")
+    else:
+        if env.sky is not None:
+            s = env.sky
+            what = (f"sun and sky: sun at {s.sun_elevation_deg:g} deg elevation, {s.sun_azimuth_deg:g} deg azimuth, "
+                    f"turbidity {s.turbidity:g}")
+        else:
+            what = f"environment image {scene.environment_path()}"
+        print(f"sky        {what}; turned {env.rotation_deg:g} deg, strength {env.strength:g}")
+
     print(f"camera     elevation {scene.camera.elevation_deg:g} deg; image {scene.image_size}x{scene.image_size}")
     print(f"voxels     object {object_count} of {rgba.shape[0]}^3; scene grid {grid_count} of {grid.shape[0]}^3 occupied")
     warnings = range_warnings(scene)

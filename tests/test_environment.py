@@ -434,3 +434,20 @@ def test_a_data_set_lit_by_environments_writes_its_maps_and_scenes_that_load(tmp
 
     with pytest.raises(InputError, match="no network reads those yet"):
         VoxelRenderSet([tmp_path / "set"]).check_samples(32)
+
+
+def test_info_and_range_warnings_say_what_lights_the_scene_and_that_no_network_is_trained_for_it(tmp_path):
+    from renderer.scene import range_warnings
+
+    shutil.copy(ROOT / "assets" / "demo" / "chair.obj", tmp_path / "chair.obj")
+    data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
+    assert not any("no network" in w for w in range_warnings(scene_from_dict(data, tmp_path / "scene.json")))
+    data["environment"] = {"sky": {"sun_elevation_deg": 20}, "strength": 2}
+    data["object"]["material"] = {"roughness": 0.2, "specular": 0.5}
+    (tmp_path / "scene.json").write_text(json.dumps(data))
+    assert any("no network is trained" in w for w in range_warnings(load_scene(tmp_path / "scene.json")))
+    info = subprocess.run([sys.executable, "-m", "app.cli", "info", str(tmp_path / "scene.json")], capture_output=True,
+                          text=True, cwd=ROOT)
+    assert info.returncode == 0, info.stderr
+    assert "sun at 20 deg elevation" in info.stdout and "strength 2" in info.stdout
+    assert "roughness 0.2, specular 0.5, metallic 0" in info.stdout
