@@ -468,8 +468,7 @@ def range_warnings(scene: Scene) -> list[str]:
     for name, v in zip("xyz", scene.object.scale):
         check(f"object.scale.{name}", v, *SCALE_RANGE)
     if scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only:
-        out.append("an environment, the area light off or a glossy material: no network is trained for them yet "
-                   "(NVR+ shows the voxel shader's image)")
+        out.append("no network is trained for environments or gloss yet: NVR+ shows the shader's image")
     lx, ly, lz = scene.light.position
     check("light.position.x", lx, *LIGHT_XZ_RANGE)
     check("light.position.y", ly, *LIGHT_Y_RANGE)
