@@ -56,9 +56,8 @@ class EnvironmentLight:
 
     @property
     def key(self) -> tuple:
-        """Names everything a render reads of the environment."""
-        sun = None if self.sun_direction is None else tuple(self.sun_direction)
-        return (*self.source_key, self.rotation_deg, self.strength, sun)
+        """Names everything a render reads of the environment (the sun follows from the sky and the turn)."""
+        return (*self.source_key, self.rotation_deg, self.strength)
 
     def radiance(self, directions: np.ndarray, sharp: bool = False) -> np.ndarray:
         """Linear radiance (..., 3) arriving from world directions (..., 3): from the background map when `sharp`."""

@@ -19,7 +19,6 @@ from app.editor.render_panel import export_render, final_render
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
-from renderer.limits import MAX_RESOLUTION, MIN_RESOLUTION
 from renderer.mesh import MESH_EXTENSIONS
 from renderer.scene import ObjectSpec, Scene, save_scene
 
@@ -43,9 +42,7 @@ def finer_for_export(scene: Scene, resolution: int) -> Scene:
         raise InputError("the object has no mesh to voxelise more finely: it exports at its own voxels")
     if any(op.target == "region" for op in scene.paint):
         raise InputError(f"the object's paint strokes are on its {scene.object.resolution}^3 voxels: it exports at them")
-    if not MIN_RESOLUTION <= resolution <= MAX_RESOLUTION:
-        raise InputError(f"voxels per side must be from {MIN_RESOLUTION} to {MAX_RESOLUTION}, got {resolution}")
-    return replace(scene, object=replace(scene.object, resolution=int(resolution)))
+    return scene.with_changes(object=replace(scene.object, resolution=int(resolution)))  # validated as any edit
 
 
 class FileCommands:

@@ -100,7 +100,7 @@ from renderer.shading import (
     network_buffers,
     quality_named,
 )
-from renderer.shading.environment_shading import UNCORRECTED_NOTE, lighting_key, needs_environment_shading
+from renderer.shading.environment_shading import lighting_key, needs_environment_shading
 from renderer.shading.staged import StagedShader
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.stage_cache import RenderReport, StageCache
@@ -108,6 +108,8 @@ from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
+# What a render of a scene no network reads (an environment, the area light off, a glossy object) shows instead.
+UNCORRECTED_NOTE = "no network is trained for environment light or glossy materials yet: the voxel shader's image"
 # bfloat16 against float32 on the same scene, 0-255 scale: largest pixel difference and MSE (measured by
 # benchmarks/bench_precision.py).
 BF16_BOUND = {"max_abs": 4.0, "mse": 0.5}

@@ -26,6 +26,7 @@ from scipy import ndimage
 from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.environment import (
+    SUN_APERTURE_DEG,
     EnvironmentLight,
     direction_angles,
     environment_light,
@@ -233,7 +234,7 @@ def _world_lights(environment: EnvironmentLight, ready: PreparedEnvironment) -> 
     if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
         directions = np.vstack([environment.sun_direction, directions])
         irradiance = np.vstack([environment.sun_irradiance, irradiance])
-        spread = np.concatenate([[math.radians(0.5358 / 2.0)], spread])
+        spread = np.concatenate([[math.radians(SUN_APERTURE_DEG / 2.0)], spread])
         delta = np.concatenate([[True], delta])
     keep = irradiance.max(axis=1) > 0.0
     return _Lights(directions[keep], irradiance[keep], spread[keep], delta[keep])
@@ -243,9 +244,6 @@ def needs_environment_shading(scene: Scene) -> bool:
     """Whether the scene needs this module (an environment, the area light off, or an object that is not diffuse);
     every other scene is shaded by lighting.py alone."""
     return scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
-
-
-UNCORRECTED_NOTE = "no network is trained for environment light or glossy materials yet: the voxel shader's image"
 
 
 def lighting_key(scene: Scene) -> tuple:
@@ -275,8 +273,9 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     floor_albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64))
     # The coat's reflection averages the map over a fixed set of directions a few degrees apart: it reads the map
     # blurred by about as much, so that a small bright source shows as a highlight, not as streaks of samples.
-    sky = FloorSky(ready.sky_up * environment.strength, ready.blurred, environment.rotation_deg, environment.strength)
-    floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, sky, lights.directions,
+    sky_up = ready.sky_up * environment.strength  # the residual sky's irradiance on the floor
+    floor_sky = FloorSky(sky_up, ready.blurred, environment.rotation_deg, environment.strength)
+    floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, floor_sky, lights.directions,
                                                      lights.irradiance, lights.delta)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
     block = geometry.occluder_block * voxel
@@ -289,11 +288,10 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
         visibility[floor] = area.floor_visibility(surface, geometry, block)
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
-    floor_sky = floor_albedo * (ready.sky_up * environment.strength)  # the floor's albedo times the sky it gets
     if len(surface.points):
         radiance, seen = _object_radiance(surface.points, surface.normals, surface.albedo, surface.occlusion,
                                           camera.position, light_position, area, suns, lights, ready, environment,
-                                          material, block, floor_sky, floor_albedo)
+                                          material, block, sky_up, floor_albedo)
     r, c = surface.pixels[:, 0], surface.pixels[:, 1]
     cover = surface.coverage[r, c]
     composite(floor_terms.from_light, floor_terms.from_ambient, *floor_terms.row_weights, *floor_terms.col_weights,
@@ -302,8 +300,8 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     shown = 1.0 - surface.coverage
     rows, cols, theta, phi = _background_rays(geometry.elevation_deg, size)
     if len(rows):
-        sky = sample_angles(environment.background, theta, phi, environment.rotation_deg)
-        image[rows, cols] += sky * np.float32(environment.strength) * shown[rows, cols, None]
+        background = sample_angles(environment.background, theta, phi, environment.rotation_deg)
+        image[rows, cols] += background * np.float32(environment.strength) * shown[rows, cols, None]
     if len(per_light) and not geometry.empty:
         lit = np.zeros((int(floor.sum()), 3), dtype=np.float32)
         for term, maps in zip(per_light, suns):
@@ -313,7 +311,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
         image[floor] += sum(upsample(term, floor_terms)[floor] for term in per_light) * shown[floor][:, None]
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
-                        material, block, floor_sky, floor_albedo)
+                        material, block, sky_up, floor_albedo)
     visibility[r, c] = seen
     images = surface.images
     return ShadedImage(image=linear_to_srgb(np.maximum(image, 0.0)), coverage=surface.coverage, albedo=images.albedo,
@@ -386,7 +384,7 @@ class _ShadowMaps:
 def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray, occlusion: np.ndarray,
                      eye: np.ndarray, light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps],
                      lights: _Lights, ready: PreparedEnvironment, environment: EnvironmentLight,
-                     material: MaterialSpec, block: float, floor_sky: np.ndarray,
+                     material: MaterialSpec, block: float, sky_up: np.ndarray,
                      floor_albedo: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Linear radiance (N, 3) of object points and the share of the strongest light each sees."""
     n = len(points)
@@ -401,7 +399,7 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
     specular = np.zeros((n, 3))
     seen = np.ones(n)
     strongest = -1.0
-    floor_lit = np.broadcast_to(floor_sky / np.maximum(floor_albedo, 1e-6), (n, 3)).copy()  # the sky's, unshadowed
+    floor_lit = np.broadcast_to(sky_up, (n, 3)).copy()  # the floor's irradiance: the sky's, unshadowed
     floor_irradiance = floor_lit.copy()  # under the object: its shadow takes a share of the lights
     if area is not None:
         form = np.empty(n)
@@ -507,14 +505,14 @@ def _split_sum(cos_view: np.ndarray, roughness: float) -> tuple[np.ndarray, np.n
 def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection, camera: Camera,
                     light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps], lights: _Lights,
                     ready: PreparedEnvironment, environment: EnvironmentLight, material: MaterialSpec, block: float,
-                    floor_sky: np.ndarray, floor_albedo: np.ndarray) -> None:
+                    sky_up: np.ndarray, floor_albedo: np.ndarray) -> None:
     """The floor's reflection of the object, where the coat mirrored the environment: the object's points lit and
     seen from the camera mirrored below the floor, less the environment the coat showed there."""
     mirror_camera = Camera(camera.elevation_deg, width=reflection.side, height=reflection.side)
     below = mirror_camera.position * np.array([1.0, -1.0, 1.0])
     radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
                                    below, light_position, area, suns, lights, ready, environment, material, block,
-                                   floor_sky, floor_albedo)
+                                   sky_up, floor_albedo)
     _, rays = mirror_camera.pixel_rays(reflection.pixels[:, 1] + 0.5, reflection.pixels[:, 0] + 0.5)
     replaced = _specular(ready, environment, rays * np.array([1.0, -1.0, 1.0]), FLOOR_COAT_ROUGHNESS)
     add_reflection_change(image, surface, reflection, radiance - replaced)
