@@ -10,14 +10,21 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
+import cv2
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from renderer.errors import InputError
-from renderer.scene import PaintOp
+from renderer.scene import SIMILARITIES, PaintOp
 
 Color = tuple[float, float, float]
 COLOR_SLACK = 1e-6  # so a tolerance of exactly the difference counts despite float rounding
+# The "perceptual" similarity: CIELAB distance / 100 of each voxel's color averaged with its occupied neighbours of
+# a like color (within NEIGHBOUR_RANGE in every channel: photo colors are noisy voxel to voxel, and a part's edge
+# must not blend with the next part), lightness counting LIGHTNESS_WEIGHT (shading in photo colors is mostly
+# lightness; a change of hue is another part). Fewer blotches than "rgb" on captured colors: docs/results.md.
+LIGHTNESS_WEIGHT = 0.5
+NEIGHBOUR_RANGE = 0.15
 
 
 def occupied_voxels(rgba: np.ndarray) -> np.ndarray:
@@ -26,17 +33,22 @@ def occupied_voxels(rgba: np.ndarray) -> np.ndarray:
 
 
 def fill_region(rgba: np.ndarray, seed: tuple[int, int, int], color: Color, tolerance: float,
-                occupied: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
+                occupied: np.ndarray | None = None, out: np.ndarray | None = None,
+                similarity: str = "rgb") -> np.ndarray:
     """Paint the 6-connected occupied voxels around `seed` whose color is within `tolerance` of the seed's.
 
-    Color distance is the largest absolute channel difference. The seed must be an occupied
-    voxel of the grid. `occupied`: the grid's `occupied_voxels`, if the caller keeps them. `out`: see `paint_voxels`.
+    `similarity` "rgb": the largest absolute channel difference; "perceptual": see LIGHTNESS_WEIGHT. The seed must be
+    an occupied voxel of the grid. `occupied`: the grid's `occupied_voxels`, if the caller keeps them. `out`: see
+    `paint_voxels`.
     """
-    return paint_voxels(rgba, fill_region_voxels(rgba, seed, tolerance, occupied), color, out)
+    return paint_voxels(rgba, fill_region_voxels(rgba, seed, tolerance, occupied, similarity), color, out)
 
 
-def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.ndarray | None = None) -> np.ndarray:
+def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.ndarray | None = None,
+                       similarity: str = "rgb") -> np.ndarray:
     """The flat indices of the voxels `fill_region` would paint (the editor previews them under the cursor)."""
+    if similarity not in SIMILARITIES:
+        raise InputError(f"paint similarity must be one of {', '.join(SIMILARITIES)}, got {similarity!r}")
     shape = np.shape(rgba)[:3]
     seed = tuple(int(s) for s in seed)
     if len(seed) != 3 or not all(0 <= s < n for s, n in zip(seed, shape)):
@@ -45,7 +57,9 @@ def fill_region_voxels(rgba: np.ndarray, seed, tolerance: float, occupied: np.nd
         raise InputError(f"paint seed {list(seed)} is on an empty voxel; pick a voxel of the object")
     occupied = occupied_voxels(rgba) if occupied is None else occupied
     seed_flat = int(np.ravel_multi_index(seed, shape))
-    similar = occupied[_color_distance(rgba, occupied, seed_flat) <= tolerance + COLOR_SLACK]
+    distance = (_color_distance(rgba, occupied, seed_flat) if similarity == "rgb"
+                else _perceptual_distance(rgba, occupied, seed_flat))
+    similar = occupied[distance <= tolerance + COLOR_SLACK]
     mask = np.zeros(shape, dtype=bool)
     mask.reshape(-1)[similar] = True
     return np.sort(_flood(mask, seed_flat, len(similar)))
@@ -116,7 +130,8 @@ def stroke_voxels(rgba: np.ndarray, op: PaintOp, occupied: np.ndarray | None = N
     if op.target == "region" and op.seed is None:
         raise InputError("a region fill needs a seed voxel")
     occupied = occupied_voxels(rgba) if occupied is None else occupied
-    return occupied if op.target == "object" else fill_region_voxels(rgba, op.seed, op.tolerance, occupied)
+    return occupied if op.target == "object" else fill_region_voxels(rgba, op.seed, op.tolerance, occupied,
+                                                                     op.similarity)
 
 
 def _color_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -> np.ndarray:
@@ -142,3 +157,37 @@ def paint_voxels(rgba: np.ndarray, voxels: np.ndarray, color: Color, out: np.nda
         np.copyto(out, rgba)
     out.reshape(-1, 4)[voxels, :3] = np.clip(np.asarray(color, dtype=np.float32), 0.0, 1.0)
     return out
+
+
+def _perceptual_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -> np.ndarray:
+    """The "perceptual" distance (LIGHTNESS_WEIGHT) between the voxels at flat indices `voxels` (ascending, holding
+    `seed_flat`) and the seed: CIELAB by OpenCV (sRGB in, L in [0, 100]) of the neighbourhood means, over 100."""
+    rgba = np.asarray(rgba, dtype=np.float32)
+    means = np.empty((len(voxels), 3), dtype=np.float32)
+    neighbourhood_means(rgba, voxels, NEIGHBOUR_RANGE, means)
+    lab = cv2.cvtColor(means.reshape(-1, 1, 3), cv2.COLOR_RGB2Lab).reshape(-1, 3)
+    difference = lab - lab[np.searchsorted(voxels, seed_flat)]
+    difference[:, 0] *= LIGHTNESS_WEIGHT
+    return np.sqrt(np.einsum("ij,ij->i", difference, difference)) / 100.0
+
+
+@njit(cache=True, parallel=True)
+def neighbourhood_means(rgba, voxels, within, out):
+    """out[i] = the mean color of the occupied voxels (alpha >= 0.5) among the 3 x 3 x 3 around flat index voxels[i]
+    (itself included) whose channels each lie within `within` of its own: a pass over the surface, not a
+    convolution of the grid."""
+    n0, n1, n2 = rgba.shape[0], rgba.shape[1], rgba.shape[2]
+    for v in prange(voxels.shape[0]):
+        i, rest = divmod(voxels[v], n1 * n2)
+        j, k = divmod(rest, n2)
+        r0, g0, b0 = rgba[i, j, k, 0], rgba[i, j, k, 1], rgba[i, j, k, 2]
+        r = g = b = 0.0
+        count = 0
+        for a in range(max(i - 1, 0), min(i + 2, n0)):
+            for c in range(max(j - 1, 0), min(j + 2, n1)):
+                for d in range(max(k - 1, 0), min(k + 2, n2)):
+                    if (rgba[a, c, d, 3] >= 0.5 and abs(rgba[a, c, d, 0] - r0) <= within
+                            and abs(rgba[a, c, d, 1] - g0) <= within and abs(rgba[a, c, d, 2] - b0) <= within):
+                        r, g, b, count = r + rgba[a, c, d, 0], g + rgba[a, c, d, 1], b + rgba[a, c, d, 2], count + 1
+        out[v, 0], out[v, 1], out[v, 2] = r / count, g / count, b / count  # count >= 1: the voxel itself
+

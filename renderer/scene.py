@@ -59,6 +59,7 @@ LIGHT_Y_RANGE = (2.5, 3.0)
 SCALE_RANGE = (0.75, 1.25)
 
 # Hard limits; values outside them are impossible and rejected (sizes: renderer/limits.py).
+SIMILARITIES = ("rgb", "perceptual")  # a region fill's color comparisons (renderer/paint.py)
 MAX_ABS_POSITION = 100.0
 MAX_ABS_ANGLE = 36000.0  # degrees: a hundred turns, far beyond what a drag makes, far from float32's limits
 MAX_STRENGTH = 1000.0  # environment strength
@@ -78,6 +79,7 @@ class PaintOp:
     color: tuple[float, float, float]
     seed: tuple[int, int, int] | None = None
     tolerance: float = 0.1
+    similarity: str = "rgb"  # how a region fill compares colors: one of SIMILARITIES (renderer/paint.py)
 
 
 @dataclass(frozen=True)
@@ -204,6 +206,8 @@ def _paint_to_dict(op: PaintOp) -> dict[str, Any]:
         d["seed"] = list(op.seed)
     if op.target == "region":
         d["tolerance"] = op.tolerance
+        if op.similarity != "rgb":  # files from before the perceptual fill stay as they were
+            d["similarity"] = op.similarity
     return d
 
 
@@ -345,7 +349,7 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
         name = f"paint[{i}]"
         if not isinstance(p, dict):
             raise r.fail(name, "must be an object")
-        r.known_keys(p, ("target", "color", "seed", "tolerance"), f"{name}.")
+        r.known_keys(p, ("target", "color", "seed", "tolerance", "similarity"), f"{name}.")
         seed = p.get("seed")
         if seed is not None:
             if not isinstance(seed, list) or len(seed) != 3 or not all(isinstance(s, int) and not isinstance(s, bool) for s in seed):
@@ -360,6 +364,7 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
                 color=r.vector(p, "color", f"{name}.color", 3, (0, 0, 0)),
                 seed=seed,
                 tolerance=r.number(p, "tolerance", f"{name}.tolerance", 0.1),
+                similarity=r.string(p, "similarity", f"{name}.similarity", "rgb"),
             )
         )
     base_dir = path.parent if path is not None else Path(".")
@@ -452,6 +457,8 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
             raise fail(f"paint[{i}].color", "sRGB values must be in [0, 1]")
         if not 0.0 <= op.tolerance <= 1.0:
             raise fail(f"paint[{i}].tolerance", "must be in [0, 1]")
+        if op.similarity not in SIMILARITIES:
+            raise fail(f"paint[{i}].similarity", f"must be one of {', '.join(SIMILARITIES)}, got {op.similarity!r}")
 
 
 def range_warnings(scene: Scene) -> list[str]:

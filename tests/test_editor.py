@@ -165,6 +165,7 @@ def test_bucket_fill_changes_viewport_and_scene_file(edit_run, scene_file):
     assert share_of(after, RED) < 0.0005
     assert share_of(after, GREEN) > 0.005
     scene = load_scene(edit_run / "painted.json")
+    assert scene.paint[-1].similarity == "perceptual"  # the bucket's default
     rgba, _ = painted_voxels(scene, object_voxels(scene))
     expected = load_voxels(scene_file.parent / "box.npz")  # the box as stored (colors rounded to 8 bits)
     expected[4:12, 0:10, 4:12, :3] = GREEN  # the red block is one connected region of one color

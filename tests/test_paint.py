@@ -169,3 +169,55 @@ def test_a_scene_of_many_whole_object_fills_replays_one_and_too_many_strokes_are
     data["paint"].append({"target": "floor", "color": [0, 0, 0]})
     with pytest.raises(InputError, match=f"at most {MAX_PAINT_STROKES}"):
         scene_from_dict(json.loads(json.dumps(data)), tmp_path / "scene.json")
+
+
+def test_opencv_lab_is_cielab_of_srgb():
+    # The perceptual fill takes CIELAB from OpenCV: sRGB in [0, 1] (gamma decoded), D65 white, L in [0, 100].
+    # Reference values of the sRGB primaries and white (CIE 1976 L*a*b*, as colour-science tables give them).
+    import cv2
+
+    srgb = np.array([[[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]]], dtype=np.float32)
+    lab = cv2.cvtColor(srgb, cv2.COLOR_RGB2Lab)[0]
+    np.testing.assert_allclose(lab, [[53.24, 80.09, 67.20], [87.73, -86.18, 83.18], [32.30, 79.19, -107.86],
+                                     [100.0, 0.0, 0.0]], atol=0.3)
+
+
+def textured_slab(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A 24 x 4 x 24 slab of brown voxels shaded up to 20 % darker and noisy channel by channel (as photo colors
+    are), with a blue stripe across it; and the stripe's mask."""
+    rgba = np.zeros((24, 6, 24, 4), dtype=np.float32)
+    shade = 1.0 - 0.2 * np.linspace(0.0, 1.0, 24)[:, None, None]  # light falling off across the slab
+    brown = np.array([0.6, 0.4, 0.25]) * shade[..., None] + rng.normal(0.0, 0.03, (24, 4, 24, 3))
+    rgba[:, 1:5, :, :3] = np.clip(brown, 0.0, 1.0)
+    stripe = np.zeros((24, 6, 24), dtype=bool)
+    stripe[:, 1:5, 10:13] = True
+    rgba[stripe, :3] = np.clip(np.array([0.25, 0.35, 0.7]) + rng.normal(0.0, 0.03, (stripe.sum(), 3)), 0.0, 1.0)
+    rgba[:, 1:5, :, 3] = 1.0
+    return rgba, stripe
+
+
+def test_a_perceptual_fill_covers_a_shaded_noisy_part_and_stops_at_another_hue():
+    rng = np.random.default_rng(5)
+    rgba, stripe = textured_slab(rng)
+    brown_left = (rgba[..., 3] >= 0.5) & ~stripe
+    brown_left[:, :, 10:] = False  # the stripe cuts the slab in two: a fill from the left stays left
+    color = (1.0, 0.0, 1.0)
+    for seed in [(0, 2, 0), (23, 3, 5)]:  # in the lit corner and in the shaded one
+        out = fill_region(rgba, seed, color, 0.1, similarity="perceptual")
+        filled = np.all(out[..., :3] == color, axis=-1)
+        assert not (filled & ~brown_left).any() and (brown_left & ~filled).sum() <= 5  # of 960
+    # The same stroke comparing RGB leaves blotches across the same part (and the light fall-off beyond reach).
+    rgb = np.all(fill_region(rgba, (0, 2, 0), color, 0.1)[..., :3] == color, axis=-1)
+    assert (brown_left & ~rgb).sum() > 100
+    # From the stripe, the perceptual fill takes the stripe alone.
+    out = fill_region(rgba, (5, 2, 11), color, 0.1, similarity="perceptual")
+    np.testing.assert_array_equal(np.all(out[..., :3] == color, axis=-1), stripe)
+
+
+def test_a_perceptual_stroke_replays_and_an_unknown_similarity_is_refused():
+    rgba, stripe = textured_slab(np.random.default_rng(6))
+    op = PaintOp("region", (1.0, 0.0, 1.0), (5, 2, 11), 0.1, "perceptual")
+    replayed, _ = apply_paint(rgba, (0.5, 0.5, 0.5), [op])
+    np.testing.assert_array_equal(np.all(replayed[..., :3] == op.color, axis=-1), stripe)
+    with pytest.raises(InputError, match="similarity"):
+        fill_region(rgba, (5, 2, 11), (1.0, 0.0, 1.0), 0.1, similarity="hsv")

@@ -84,6 +84,7 @@ class EditorApp:
         self.requested_tab: str | None = None  # a tab to open on the next frame (a replay's "tool" action)
         self.paint_color: tuple[float, float, float] = PALETTE[0]
         self.tolerance = 0.1
+        self.similarity = "perceptual"  # how the bucket compares colors (renderer.paint; "rgb" as before)
         self.message: Message | None = None
         self.prompt: Prompt | None = None
         self.stats = FrameStats()
@@ -183,7 +184,8 @@ class EditorApp:
 
     def paint_region(self, seed: tuple[int, int, int]) -> None:
         """Bucket fill: the connected region of similar color around voxel `seed` takes the palette color."""
-        op = PaintOp("region", tuple(self.paint_color), tuple(int(s) for s in seed), float(self.tolerance))
+        op = PaintOp("region", tuple(self.paint_color), tuple(int(s) for s in seed), float(self.tolerance),
+                     self.similarity)
         rgba, _ = self.voxels.painted(self.scene)
         if not (all(0 <= s < rgba.shape[0] for s in op.seed) and rgba[op.seed][3] >= 0.5):
             self.say(f"voxel {list(op.seed)} is not part of the object", error=True)

@@ -304,7 +304,8 @@ class Interface:
         tolerance that leaves speckles shows before the click; the tint goes when the cursor leaves."""
         app, now = self.app, time.monotonic()
         rgba = app.shown_rgba
-        wanted = None if voxel is None or rgba is None else (voxel, app.tolerance, tuple(app.paint_color), id(rgba))
+        wanted = None if voxel is None or rgba is None else (voxel, app.tolerance, app.similarity,
+                                                             tuple(app.paint_color), id(rgba))
         if wanted != self._hover[0]:
             self._hover = (wanted, now)
         target = wanted if wanted is not None and now - self._hover[1] >= PREVIEW_DELAY_SECONDS else None
@@ -316,7 +317,7 @@ class Interface:
             self._preview_key = None
             return
         try:
-            region = fill_region_voxels(rgba, voxel, app.tolerance)
+            region = fill_region_voxels(rgba, voxel, app.tolerance, similarity=app.similarity)
         except InputError:
             return
         tint = (1.0 - PREVIEW_MIX) * rgba.reshape(-1, 4)[region, :3] + PREVIEW_MIX * np.asarray(app.paint_color)
@@ -453,6 +454,11 @@ class Interface:
         _, c = imgui.color_edit3("paint color", list(app.paint_color))
         app.paint_color = tuple(c)
         _, app.tolerance = imgui.slider_float("tolerance", app.tolerance, 0.0, 1.0, "%.2f")
+        _, perceptual = imgui.checkbox("perceptual colors", app.similarity == "perceptual")
+        app.similarity = "perceptual" if perceptual else "rgb"
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Compare colors as the eye does, each voxel's averaged with its neighbours: a fill\n"
+                              "covers a textured or photo-colored part without leaving blotches. Off: exact RGB.")
         if imgui.button("Fill whole object"):
             app.fill_object()
         imgui.same_line()

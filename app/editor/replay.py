@@ -9,7 +9,7 @@ High-level actions call the same commands as the interface:
     {"action": "turn_environment", "deg": 90, "strength": 1.5} either      {"action": "area_light", "on": false}
     {"action": "material", "preset": "metal", "roughness": 0.2}   a preset (matte, plastic, ceramic, rubber, metal)
                                                               and/or roughness, specular, metallic
-    {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1}
+    {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1, "similarity": "rgb"}
     {"action": "fill_object", "color": [...]}                 {"action": "fill_floor", "color": [...]}
     {"action": "undo"} {"action": "redo"}
     {"action": "open", "path": ...} (a scene, mesh or .vox) {"action": "save", "path": ...} {"action": "export", "path": ..., "size": 512, "voxels": 256}
@@ -143,6 +143,7 @@ def _paint(app, action) -> None:
     if "color" in action:
         app.paint_color = _color(action)
     app.tolerance = float(action.get("tolerance", app.tolerance))
+    app.similarity = str(action.get("similarity", app.similarity))
     app.paint_region(tuple(int(v) for v in action["voxel"]))
 
 

@@ -159,6 +159,63 @@ def block_mean2(occupied):
     return out
 
 
+@njit(cache=True, parallel=True)
+def mask_coverage2(mask):
+    """block_coverage2 of a bool volume whose set voxels cover their faces along every axis: per 2^3 block and axis,
+    the share of its four columns along the axis that hold a set voxel (cells past an odd side count as empty)."""
+    n0, n1, n2 = mask.shape
+    h0, h1, h2 = (n0 + 1) // 2, (n1 + 1) // 2, (n2 + 1) // 2
+    out = np.zeros((h0, h1, h2, 3), dtype=np.float32)
+    for a in prange(h0):
+        for b in range(h1):
+            for c in range(h2):
+                for i in range(2 * a, min(2 * a + 2, n0)):
+                    for j in range(2 * b, min(2 * b + 2, n1)):
+                        for k in range(2 * c, min(2 * c + 2, n2)):
+                            if mask[i, j, k]:
+                                # This voxel's column along each axis holds a set voxel: count each column once.
+                                first_i = i == 2 * a or not mask[2 * a, j, k]
+                                first_j = j == 2 * b or not mask[i, 2 * b, k]
+                                first_k = k == 2 * c or not mask[i, j, 2 * c]
+                                out[a, b, c, 0] += 0.25 * first_i
+                                out[a, b, c, 1] += 0.25 * first_j
+                                out[a, b, c, 2] += 0.25 * first_k
+    return out
+
+
+@njit(cache=True, parallel=True)
+def block_coverage2(coverage):
+    """Per 2 x 2 x 2 block of a volume of coverages (n0, n1, n2, 3: the share of a cell's face, across each axis, that
+    a line through the cell along that axis finds blocked; a voxel's own occupancy for a voxel), the same of the
+    block: along each axis the two cells one behind the other block as 1 - (1 - front) (1 - back), and the block's
+    face averages its four columns (half size rounded up; cells past an odd side count as empty). A wall blocks a
+    line across it at every size; a bar blocks only its share of the face. The two cells are taken as independent,
+    which counts a part lying along the axis through both more than once (more blocked than it is)."""
+    n0, n1, n2 = coverage.shape[0], coverage.shape[1], coverage.shape[2]
+    h0, h1, h2 = (n0 + 1) // 2, (n1 + 1) // 2, (n2 + 1) // 2
+    out = np.empty((h0, h1, h2, 3), dtype=np.float32)
+    for a in prange(h0):
+        for b in range(h1):
+            for c in range(h2):
+                for axis in range(3):
+                    total = 0.0
+                    for p in range(2):
+                        for q in range(2):
+                            through = 1.0
+                            for r in range(2):
+                                if axis == 0:
+                                    i, j, k = 2 * a + r, 2 * b + p, 2 * c + q
+                                elif axis == 1:
+                                    i, j, k = 2 * a + p, 2 * b + r, 2 * c + q
+                                else:
+                                    i, j, k = 2 * a + p, 2 * b + q, 2 * c + r
+                                if i < n0 and j < n1 and k < n2:
+                                    through *= 1.0 - coverage[i, j, k, axis]
+                            total += 1.0 - through
+                    out[a, b, c, axis] = 0.25 * total
+    return out
+
+
 def connected_to_border(blocked: np.ndarray) -> np.ndarray:
     """The voxels not `blocked` that a 6-connected path of such voxels joins to the volume's border: the outside of
     the blocked voxels, whose complement is them with their insides. A flood fill from the border's free voxels by

@@ -34,6 +34,7 @@ from renderer.shading.quality import (
     CORE_SIZE,
     CROP_MARGIN,
     DISTANCE_SIGMA,
+    FAR_BLOCKS,
     NORMAL_SIGMA,
     OCCLUDER_CELLS,
     SURFACE_LEVEL,
@@ -56,6 +57,8 @@ class ObjectGeometry:
     gradient: np.ndarray  # (D, H, W, 3): the gradient of the distance blurred by NORMAL_SIGMA, the normals' field
     coarse_gradient: np.ndarray  # the same of the distance averaged over 2^3 blocks: read for the normals' disc
     broad: np.ndarray | None  # occupancy blurred by BROAD_SIGMA (None: made without ambient occlusion)
+    far_occupancy: tuple[np.ndarray, ...] | None  # occupancy per block of FAR_BLOCKS voxels (_far_occupancy): the sky a hollow
+    # hides beyond the broad occupancy's reach (None: made without ambient occlusion)
     voxel_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
     occluders: np.ndarray  # (M, 3) float64 world positions of the shadow occluders: the mean centre of the occupied
     # voxels in each block of voxels (OCCLUDER_CELLS)
@@ -111,6 +114,7 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
     core = filters.minimum_filter(distance, CORE_SIZE)
     distance_and_core = np.stack([distance, core], axis=-1)
     cells = _surface_cells(distance_and_core)
+    half = filters.block_mean2(solid) if ambient_occlusion else None  # the solid occupancy at half resolution
     blocks = _occluder_blocks(resolution, factors)
     occluders = (_block_centroids(found, blocks) + 0.5) @ voxel_to_world[:3, :3].T + voxel_to_world[:3, 3]
     return ObjectGeometry(
@@ -118,7 +122,8 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
         distance_and_core=distance_and_core, surface_cells=_cell_runs(cells),
         coarse_surface_cells=_cells_by_block(cells, COARSE_CELLS), gradient=gradient,
         coarse_gradient=coarse_gradient,
-        broad=_broad(solid) if ambient_occlusion else None, voxel_to_world=voxel_to_world,
+        broad=_broad(half) if half is not None else None, far_occupancy=_far_occupancy(solid) if ambient_occlusion else None,
+        voxel_to_world=voxel_to_world,
         occluders=np.ascontiguousarray(occluders), occluder_box=points_box(occluders),
         occluder_block=float(np.prod(blocks)) ** (1.0 / 3.0))
 
@@ -230,10 +235,22 @@ def _erode_cube(mask: np.ndarray) -> np.ndarray:
     return ~dilate_cube(np.pad(~mask, 1, constant_values=True))[1:-1, 1:-1, 1:-1]
 
 
-def _broad(solid: np.ndarray) -> np.ndarray:
-    """The solid occupancy averaged over 2^3 blocks and blurred by BROAD_SIGMA voxels (at half resolution:
+def _broad(half: np.ndarray) -> np.ndarray:
+    """The solid occupancy averaged over 2^3 blocks (`half`) and blurred by BROAD_SIGMA voxels (at half resolution:
     occlusion is a broad effect), sampled at BROAD_SCALE times the crop's coordinates."""
-    return filters.gaussian_blur(filters.block_mean2(solid), BROAD_SIGMA * BROAD_SCALE, BLUR_TRUNCATE)
+    return filters.gaussian_blur(half, BROAD_SIGMA * BROAD_SCALE, BLUR_TRUNCATE)
+
+
+def _far_occupancy(solid: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The levels the cones of the far sky occlusion read, one per block size of FAR_BLOCKS voxels, a level's cell i
+    centred at crop coordinate (i + 0.5) * block: (.., .., .., 3) the share of the cell's face a line across it along
+    each axis finds blocked by the solid occupancy (filters.block_coverage2; a mean would let a thin wall leak)."""
+    levels, level, block = [], filters.mask_coverage2(solid), 2
+    while block < FAR_BLOCKS[-1]:
+        level, block = filters.block_coverage2(level), block * 2
+        if block in FAR_BLOCKS:
+            levels.append(level)
+    return tuple(levels)
 
 
 # --- compiled loops (numba, cached on disk) ---------------------------------------------------------

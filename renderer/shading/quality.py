@@ -48,6 +48,14 @@ FLOOR_SHADOW_BIAS = 0.25  # the same for a floor point
 FLOOR_SHADOW_STEP = 0.025  # world units between the floor points the shadow maps are read at
 OCCLUSION_DISTANCES = np.array([1.5, 3.0, 6.0, 12.0], dtype=np.float32)  # voxels along the normal
 OCCLUSION_WEIGHTS = np.array([0.35, 0.3, 0.25, 0.2], dtype=np.float32)
+# Beyond the broad occupancy's reach, the sky a hollow hides (the inside of a cup, a pipe, a box seen into its
+# opening): cones of FAR_CONE_HALF_ANGLE, one along the normal and FAR_RING_CONES at FAR_RING_TILT from it, traced
+# from FAR_START voxels through the solid occupancy averaged over blocks of FAR_BLOCKS voxels (voxel cone tracing).
+FAR_BLOCKS = (4, 8, 16, 32)
+FAR_CONE_HALF_ANGLE = 30.0  # degrees
+FAR_RING_CONES = 6
+FAR_RING_TILT = 50.0  # degrees
+FAR_START = 8.0  # voxels
 FLOOR_OCCLUSION_DISTANCES = np.array([2.0, 5.0, 10.0, 20.0], dtype=np.float32)  # voxels straight up
 FLOOR_OCCLUSION_WEIGHTS = np.array([0.3, 0.3, 0.25, 0.2], dtype=np.float32)
 BLOCKED_SKY_LIGHT = 0.35  # share of the ambient light a blocked sky direction still brings (the lit object)

@@ -32,6 +32,11 @@ from renderer.shading.quality import (
     COLOR_LEAST,
     COVERAGE_FULL,
     COVERAGE_PROBE,
+    FAR_BLOCKS,
+    FAR_CONE_HALF_ANGLE,
+    FAR_RING_CONES,
+    FAR_RING_TILT,
+    FAR_START,
     FLOOR_OCCLUSION_DISTANCES,
     FLOOR_OCCLUSION_WEIGHTS,
     FULL_QUALITY,
@@ -397,7 +402,28 @@ def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np
     occlusion_along(geometry.broad, BROAD_SCALE, points, normals, OCCLUSION_DISTANCES, OCCLUSION_WEIGHTS, found)
     flat = float(np.sum(OCCLUSION_WEIGHTS * _half_space_blur(OCCLUSION_DISTANCES + SURFACE_LEVEL, BROAD_SIGMA)))
     blocked = np.clip((found - flat) / max(1.0 - flat, 1e-6), 0.0, 1.0)
+    far = np.ones(len(points))
+    if geometry.far_occupancy:
+        far_sky_seen(geometry.far_occupancy, np.array(FAR_BLOCKS, dtype=np.float64), _FAR_CONES,
+                     math.tan(math.radians(FAR_CONE_HALF_ANGLE)), FAR_START,
+                     np.array(geometry.distance_and_core.shape[:3], dtype=np.float64), points, normals, far)
+    blocked = 1.0 - (1.0 - blocked) * far  # the sky seen is what both leave
     return (1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)).astype(np.float32)
+
+
+def _cone_directions() -> np.ndarray:
+    """(1 + FAR_RING_CONES, 4): the far occlusion's cone axes in a normal's frame (tangent, bitangent, normal) and
+    their weights (the cosine to the normal, summing to 1)."""
+    tilt = math.radians(FAR_RING_TILT)
+    angles = 2.0 * math.pi * np.arange(FAR_RING_CONES) / FAR_RING_CONES
+    ring = np.column_stack([math.sin(tilt) * np.cos(angles), math.sin(tilt) * np.sin(angles),
+                            np.full(FAR_RING_CONES, math.cos(tilt)), np.full(FAR_RING_CONES, math.cos(tilt))])
+    cones = np.vstack([[0.0, 0.0, 1.0, 1.0], ring])
+    cones[:, 3] /= cones[:, 3].sum()
+    return cones
+
+
+_FAR_CONES = _cone_directions()
 
 
 def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
@@ -509,9 +535,10 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
     more in a thin one).
     behind[i] (if `look_behind`, else False) = whether a ray that only grazes the part it hit (its coverage,
     (surface level - deepest) / ((surface level - core) * `full`), under 1) leaves it by EXIT_GAP and goes on to
-    reach a surface behind it (within HIT_GAP, or stepping inside) in 256 steps:
-    that ray is covered by the object, not by the floor (else a bright floor fringe outlines a part in front of
-    another). The rays are traced RAY_GROUP at a time in step."""
+    reach a surface behind it (within HIT_GAP, or stepping inside) in 256 steps, or goes on as deep as a covering
+    ray without leaving it (a concave wall or a crease seen at a slant): that ray is covered by the object, not by
+    the floor (else a bright floor fringe outlines a part in front of another, and seams of floor show in creases
+    and inside hollows). The rays are traced RAY_GROUP at a time in step."""
     n0, n1, n2 = fields.shape[0], fields.shape[1], fields.shape[2]
     count = pixels.shape[0]
     # Each ray's state between its samples: direction, where it is (t), its last point outside the surface
@@ -579,8 +606,12 @@ def trace_surface(fields, level, thin, probe, full, look_behind, origin, pixel_t
                         phase[i] = _DONE
                         continue
                     steps[i] += 1
-                    gap = surface_gap(fields, level, thin, origin[0] + at * dx, origin[1] + at * dy, origin[2] + at * dz)
-                    if left[i] and gap < HIT_GAP:
+                    distance, core = sample_pair(fields, origin[0] + at * dx, origin[1] + at * dy, origin[2] + at * dz)
+                    gap = distance - max(level, core + thin)
+                    surface = max(level, cores[i] + thin)
+                    # Reaching a surface after leaving the part, or going as deep as a covering ray without leaving
+                    # it (a concave wall or a crease seen at a slant): either way no floor shows through.
+                    if (left[i] and gap < HIT_GAP) or distance <= surface - (surface - cores[i]) * full:
                         behind[i] = True
                         phase[i] = _DONE
                         continue
@@ -817,3 +848,114 @@ def occlusion_along(field, scale, points, directions, distances, weights, out):
                                          scale * (points[i, 1] + s * directions[i, 1]),
                                          scale * (points[i, 2] + s * directions[i, 2]))
         out[i] = total
+
+
+@njit(cache=True, inline="always")
+def _blocked_along(level, x, y, z, wx, wy, wz):
+    """A far occupancy level's coverage at crop coordinates (x, y, z) (in its cells) along a unit direction whose
+    squared components are (wx, wy, wz)."""
+    i, j, k, i1, j1, k1, fx, fy, fz = cell_corners(level.shape[0], level.shape[1], level.shape[2], x, y, z)
+    return (wx * blend_fields(level, 0, i, j, k, i1, j1, k1, fx, fy, fz)
+            + wy * blend_fields(level, 1, i, j, k, i1, j1, k1, fx, fy, fz)
+            + wz * blend_fields(level, 2, i, j, k, i1, j1, k1, fx, fy, fz))
+
+
+@njit(cache=True, inline="always")
+def _flat_blocked(shape, block, x, y, z, px, py, pz, nx, ny, nz, wx, wy, wz):
+    """What `_blocked_along` reads at (x, y, z) (in cells of `block` voxels, `shape` the level's) from the solid half
+    space below the plane through crop point (px, py, pz) with unit normal (nx, ny, nz) alone: per cell and axis, the
+    share of its face's columns whose lowest point lies under the plane (their heights taken as spread evenly)."""
+    i, j, k, i1, j1, k1, fx, fy, fz = cell_corners(shape[0], shape[1], shape[2], x, y, z)
+    ax, ay, az = abs(nx), abs(ny), abs(nz)
+    total = 0.0
+    for corner in range(8):
+        ci, wi = (i1, fx) if corner & 4 else (i, 1.0 - fx)
+        cj, wj = (j1, fy) if corner & 2 else (j, 1.0 - fy)
+        ck, wk = (k1, fz) if corner & 1 else (k, 1.0 - fz)
+        height = ((ci + 0.5) * block - px) * nx + ((cj + 0.5) * block - py) * ny + ((ck + 0.5) * block - pz) * nz
+        cover_x = min(max(0.5 + (0.5 * ax * block - height) / max((ay + az) * block, 1e-6), 0.0), 1.0)
+        cover_y = min(max(0.5 + (0.5 * ay * block - height) / max((ax + az) * block, 1e-6), 0.0), 1.0)
+        cover_z = min(max(0.5 + (0.5 * az * block - height) / max((ax + ay) * block, 1e-6), 0.0), 1.0)
+        total += wi * wj * wk * (wx * cover_x + wy * cover_y + wz * cover_z)
+    return total
+
+
+@njit(cache=True, inline="always")
+def levels_shape(levels, level):
+    """The shape of the far occupancy's level `level`."""
+    if level == 0:
+        return levels[0].shape
+    if level == 1:
+        return levels[1].shape
+    if level == 2:
+        return levels[2].shape
+    return levels[3].shape
+
+
+@njit(cache=True, inline="always")
+def _level_blocked(levels, level, x, y, z, wx, wy, wz):
+    """`_blocked_along` of the far occupancy's level `level` (a tuple of arrays: numba indexes it by a constant only)."""
+    if level == 0:
+        return _blocked_along(levels[0], x, y, z, wx, wy, wz)
+    if level == 1:
+        return _blocked_along(levels[1], x, y, z, wx, wy, wz)
+    if level == 2:
+        return _blocked_along(levels[2], x, y, z, wx, wy, wz)
+    return _blocked_along(levels[3], x, y, z, wx, wy, wz)
+
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def far_sky_seen(levels, blocks, cones, tangent, start, shape, points, normals, out):
+    """out[i] = the share of the sky seen past `start` voxels from crop point i along its unit normal: the
+    cosine-weighted transmittance of `cones` (K, 4: axis in the normal's frame, weight) of half-angle tangent = tan,
+    each marched from `start` in steps of half its width through the occupancy level whose blocks (`blocks` voxels)
+    match that width (interpolated between two), less what the surface's own tangent plane would put there, until
+    it leaves the crop (`shape`), beyond which nothing is occupied. Four levels at most (_level_sample)."""
+    count_levels = len(blocks)
+    for i in prange(points.shape[0]):
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        # A tangent frame: any unit vector across the normal, and the third by the cross product.
+        if abs(nx) < 0.9:
+            tx, ty, tz = 0.0, -nz, ny
+        else:
+            tx, ty, tz = nz, 0.0, -nx
+        norm = math.sqrt(tx * tx + ty * ty + tz * tz)
+        tx, ty, tz = tx / norm, ty / norm, tz / norm
+        bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
+        seen = 0.0
+        for c in range(cones.shape[0]):
+            dx = cones[c, 0] * tx + cones[c, 1] * bx + cones[c, 2] * nx
+            dy = cones[c, 0] * ty + cones[c, 1] * by + cones[c, 2] * ny
+            dz = cones[c, 0] * tz + cones[c, 1] * bz + cones[c, 2] * nz
+            s, through = start, 1.0
+            while through > 0.02:
+                x, y, z = points[i, 0] + s * dx, points[i, 1] + s * dy, points[i, 2] + s * dz
+                if x < 0.0 or y < 0.0 or z < 0.0 or x >= shape[0] or y >= shape[1] or z >= shape[2]:
+                    break
+                width = 2.0 * s * tangent
+                # The level whose blocks match the cone's width, interpolated with the next (log2 of the sizes), but no
+                # larger than the sample's height over the tangent plane: blocks that straddle the surface itself
+                # cannot tell a wall from it.
+                at = min(max(math.log2(min(width, s * cones[c, 2]) / blocks[0]), 0.0), count_levels - 1.0)
+                low = min(int(at), count_levels - 2)
+                f = at - low
+                block0, block1 = blocks[low], blocks[low + 1]
+                wx, wy, wz = dx * dx, dy * dy, dz * dz
+                occupied = ((1.0 - f) * _level_blocked(levels, low, x / block0, y / block0, z / block0, wx, wy, wz)
+                            + f * _level_blocked(levels, low + 1, x / block1, y / block1, z / block1, wx, wy, wz))
+                # Less what the surface's own tangent plane puts in the same cells (the cells near the surface
+                # straddle it); where that fills them, nothing can be told apart from it.
+                px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+                flat = ((1.0 - f) * _flat_blocked(levels_shape(levels, low), block0, x / block0, y / block0,
+                                                  z / block0, px, py, pz, nx, ny, nz, wx, wy, wz)
+                        + f * _flat_blocked(levels_shape(levels, low + 1), block1, x / block1, y / block1, z / block1,
+                                            px, py, pz, nx, ny, nz, wx, wy, wz))
+                block = block0 * (1.0 - f) + block1 * f
+                occupied = min(max((occupied - flat) / (1.0 - flat), 0.0), 1.0) if flat < 0.95 else 0.0
+                step = min(0.5 * width, block)
+                through *= (1.0 - occupied) ** (step / block)
+                s += step
+            seen += cones[c, 3] * through
+        out[i] = seen
+
