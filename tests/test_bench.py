@@ -51,6 +51,15 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     shares = results["in_turn"]["shares"]
     assert set(shares) == {"full", "fast"} and all(len(v) == 1 and 0.0 < v[0] < 100.0 for v in shares.values())
     assert set(results["in_turn"]["rows"].values()) <= labels and "timed in turn (1 round;" in text
+    # Under environment light: path tracing, the shader and NVR+ on the same scenes, and each environment edit.
+    environment = results["environment"]
+    assert [r["renderer"] for r in environment["rows"]][-2:] == ["voxel shader", "NVR+"]
+    by_setting = {r["setting"]: r for r in environment["rows"] if r["renderer"] == "path tracing"}
+    assert by_setting["1 spp + OIDN"]["mse"] < by_setting["1 spp"]["mse"] / 10
+    for times in environment["edits"].values():
+        assert set(times) == {"environment turn", "sun move", "strength", "material", "object move"}
+        assert all(math.isfinite(ms) and ms > 0.0 for ms in times.values())
+    assert "## Under environment light" in text and "- NVR+ object move: " in text
     with Image.open(tmp_path / "speed_vs_error.png") as figure:
         assert figure.format == "PNG" and figure.width == 1100 and figure.height >= 760  # taller with a key
 

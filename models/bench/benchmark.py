@@ -10,7 +10,8 @@ bench_in_step), peak memory (models/bench/system.py), and MSE, DSSIM and the per
 distance against a raw path-traced reference of the same scene (1024 spp; --quick: 32).
 Also: the engine's latency per edit type with the object crop and with the full grid, the shipped NVR+'s
 frame timed in turn with path tracing at 1 spp + OIDN (bench_in_turn: the Pareto target's ratio), the FLOPs
-per frame of each network configuration, and the share of a measured fp32 matmul peak they imply.
+per frame of each network configuration, and the share of a measured fp32 matmul peak they imply; and the same scenes
+under a sun and sky with glossy objects (models/bench/environment.py).
 
 A network's time per frame is a re-render after an object move along the floor (resampling, voxel
 branch, splat and shading; the mesh is voxelised once per scene): what a drag in the editor costs per
@@ -40,6 +41,7 @@ import numpy as np
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
+from models.bench.environment import bench_environment
 from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.scenes import BenchScene, data_scenes, procedural_scenes
 from models.bench.system import PeakMemory, cpu_snapshot, machine_description, other_load
@@ -85,6 +87,7 @@ class BenchSettings:
     matmul_size: int = 2048
     in_turn_rounds: int = 6  # rounds of the shipped NVR+ timed in turn with path tracing (bench_in_turn)
     in_step_rounds: int = 4  # rounds over the scenes of the shader's and the networks' rows (bench_in_step)
+    environment_spps: tuple[int, ...] = (1, 4)  # path tracing's rows under environment light (bench_environment)
 
     def repeats_for(self, spp: int) -> int:
         return self.repeats if spp <= 16 else max(1, self.repeats // (2 if spp <= 64 else 5))
@@ -165,6 +168,10 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         live = next((e for e in candidates if e.weights == shipped and e.own_shading_grid and e.shader_quality == "full"),
                     None) or next((e for e in candidates if e.architecture == "nvr_plus" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
+        environment = bench_environment(
+            scenes, live, settings.environment_spps, settings.reference_spp, settings.repeats,
+            lambda image, target: {k: float(v[0]) for k, v in metrics(_batch(image), _batch(target)).items()},
+            alternating_ms)
         # The Pareto target's ratio, timed in turn with path tracing: the shipped NVR+ in float32 at both shader
         # qualities (the rows above are timed apart from path tracing, and this machine's speed may differ between them).
         fast = next((e for e in trained if e.precision == "fp32" and e.shader_quality == "fast"
@@ -206,6 +213,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "pareto_front": pareto_labels(rows),
         "pareto_front_without_bf16": pareto_labels(rows, without_bf16=True),
         "edits": edits,
+        "environment": environment,
         "in_turn": in_turn,
         "networks": networks,
         "matmul_peak_gflops": peak,

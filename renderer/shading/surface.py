@@ -34,8 +34,12 @@ from renderer.shading.quality import (
     COVERAGE_PROBE,
     FAR_BLOCKS,
     FAR_CONE_HALF_ANGLE,
+    FAR_FULL_SKY,
     FAR_RING_CONES,
     FAR_RING_TILT,
+    FAR_SHARE_COSINE,
+    FAR_SHARE_DISTANCE,
+    FAR_SHARE_PIXELS,
     FAR_START,
     FLOOR_OCCLUSION_DISTANCES,
     FLOOR_OCCLUSION_WEIGHTS,
@@ -118,7 +122,7 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     camera = Camera(geometry.elevation_deg, width=size, height=size)
     coverage, pixels, points_crop = _first_hits(geometry, camera, cover_behind, quality.silhouette_rays)
     normals_crop, color_voxels, occlusion = _point_normals(geometry, points_crop, quality.normal_rings,
-                                                          quality.ambient_occlusion)
+                                                          quality.ambient_occlusion, (pixels, size))
     points_world, normals_world, depth = _in_world(geometry, camera, points_crop, normals_crop)
     color_spread = quality.color_spread * np.maximum(depth, 0.0) / camera.focal_px  # pixel sides at its depth
 
@@ -182,18 +186,19 @@ def _first_hits(geometry: ObjectGeometry, camera: Camera, cover_behind: bool = T
     return coverage, np.stack([rows[r_idx], cols[c_idx]], axis=1), point[r_idx, c_idx]
 
 
-def _point_normals(geometry: ObjectGeometry, points_crop: np.ndarray, rings: int,
-                   occluded: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _point_normals(geometry: ObjectGeometry, points_crop: np.ndarray, rings: int, occluded: bool = True,
+                   pixels: tuple[np.ndarray, int] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each crop point's normal (in crop coordinates, averaged over `rings` rings of the tangent plane's disc), the
     crop index of the voxel its color is centred on (-1: none), and the sky light reaching it (all of it unless
-    `occluded`)."""
+    `occluded`; `pixels`: the points' pixels and the image's side, see _surface_occlusion)."""
     normals = np.zeros((len(points_crop), 3))
     color_voxels = np.full((len(points_crop), 3), -1, dtype=np.int64)
     if not len(points_crop):
         return normals, color_voxels, np.ones(0, dtype=np.float32)
     surface_normals_and_voxels(geometry.gradient, geometry.coarse_gradient, geometry.occupied, points_crop,
                                        normals, color_voxels, NORMAL_DISC, rings, NORMAL_AGREE)
-    sky = _surface_occlusion(geometry, points_crop, normals) if occluded else np.ones(len(points_crop), np.float32)
+    sky = (_surface_occlusion(geometry, points_crop, normals, pixels) if occluded
+           else np.ones(len(points_crop), np.float32))
     return normals, color_voxels, sky
 
 
@@ -222,7 +227,7 @@ def floor_reflection(geometry: ObjectGeometry, surface: VisibleSurface) -> Floor
     where = downscaled_mask(surface.floor & (surface.coverage < 1.0), side, min_cover=1e-6)
     coverage, pixels, points_crop = _first_hits(mirrored, camera, subpixels=1, where=where, coarse=True)
     normals_crop, color_voxels, occlusion = _point_normals(mirrored, points_crop, rings=0,
-                                                          occluded=geometry.broad is not None)
+                                                          occluded=geometry.broad is not None, pixels=(pixels, side))
     points, normals, _ = _in_world(mirrored, camera, points_crop, normals_crop)
     _, albedo = _surface_colors(mirrored, color_voxels, points_crop, np.zeros(len(points)))
     flip = _MIRROR.diagonal()[:3]
@@ -395,18 +400,34 @@ def _depth_axis(geometry: ObjectGeometry, camera: Camera) -> np.ndarray:
     return -(camera.world_to_camera()[2, :3] @ geometry.voxel_to_world[:3, :3])
 
 
-def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np.ndarray,
+                       pixels: tuple[np.ndarray, int] | None = None) -> np.ndarray:
     """Sky light reaching each surface point: 1 minus the broad occupancy found along its normal, less
-    what an open flat surface itself puts there."""
+    what an open flat surface itself puts there, times the far sky a hollow hides (far_sky_seen). `pixels`: the
+    points' pixels (N, 2) and the image's side, if they are an image's: the far sky, which changes slowly over a
+    surface, is then traced at one point of each block of pixels (FAR_SHARE_PIXELS on a side at 256^2, as many
+    voxels across at any size) and taken by the others of the block that lie on the same surface
+    (FAR_SHARE_DISTANCE, FAR_SHARE_COSINE)."""
     found = np.empty(len(points))
     occlusion_along(geometry.broad, BROAD_SCALE, points, normals, OCCLUSION_DISTANCES, OCCLUSION_WEIGHTS, found)
     flat = float(np.sum(OCCLUSION_WEIGHTS * _half_space_blur(OCCLUSION_DISTANCES + SURFACE_LEVEL, BROAD_SIGMA)))
     blocked = np.clip((found - flat) / max(1.0 - flat, 1e-6), 0.0, 1.0)
     far = np.ones(len(points))
     if geometry.far_occupancy:
+        source = np.full(len(points), -1, dtype=np.int64)
+        block = round(FAR_SHARE_PIXELS * pixels[1] / 256) if pixels is not None else 1  # the same voxels at any size
+        if block > 1:
+            block_sources(pixels[0], points, normals, pixels[1], block, FAR_SHARE_DISTANCE, FAR_SHARE_COSINE, source)
+        traced = np.flatnonzero(source < 0)
+        seen = np.empty(len(traced))
         far_sky_seen(geometry.far_occupancy, np.array(FAR_BLOCKS, dtype=np.float64), _FAR_CONES,
                      math.tan(math.radians(FAR_CONE_HALF_ANGLE)), FAR_START,
-                     np.array(geometry.distance_and_core.shape[:3], dtype=np.float64), points, normals, far)
+                     np.array(geometry.distance_and_core.shape[:3], dtype=np.float64), FAR_FULL_SKY, points[traced],
+                     normals[traced], seen)
+        far[traced] = seen
+        shared = np.flatnonzero(source >= 0)
+        far[shared] = far[source[shared]]
+    far = np.minimum(far / FAR_FULL_SKY, 1.0)
     blocked = 1.0 - (1.0 - blocked) * far  # the sky seen is what both leave
     return (1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)).astype(np.float32)
 
@@ -906,12 +927,13 @@ def _level_blocked(levels, level, x, y, z, wx, wy, wz):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def far_sky_seen(levels, blocks, cones, tangent, start, shape, points, normals, out):
+def far_sky_seen(levels, blocks, cones, tangent, start, shape, enough, points, normals, out):
     """out[i] = the share of the sky seen past `start` voxels from crop point i along its unit normal: the
     cosine-weighted transmittance of `cones` (K, 4: axis in the normal's frame, weight) of half-angle tangent = tan,
     each marched from `start` in steps of half its width through the occupancy level whose blocks (`blocks` voxels)
     match that width (interpolated between two), less what the surface's own tangent plane would put there, until
-    it leaves the crop (`shape`), beyond which nothing is occupied. Four levels at most (_level_sample)."""
+    it leaves the crop (`shape`), beyond which nothing is occupied. Four levels at most (_level_blocked). Once the
+    cones traced see `enough` of the sky the rest are left out (out[i] is then at least `enough`, not the share)."""
     count_levels = len(blocks)
     for i in prange(points.shape[0]):
         nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
@@ -925,6 +947,8 @@ def far_sky_seen(levels, blocks, cones, tangent, start, shape, points, normals, 
         bx, by, bz = ny * tz - nz * ty, nz * tx - nx * tz, nx * ty - ny * tx
         seen = 0.0
         for c in range(cones.shape[0]):
+            if seen >= enough:
+                break
             dx = cones[c, 0] * tx + cones[c, 1] * bx + cones[c, 2] * nx
             dy = cones[c, 0] * ty + cones[c, 1] * by + cones[c, 2] * ny
             dz = cones[c, 0] * tz + cones[c, 1] * bz + cones[c, 2] * nz
@@ -958,4 +982,24 @@ def far_sky_seen(levels, blocks, cones, tangent, start, shape, points, normals, 
                 s += step
             seen += cones[c, 3] * through
         out[i] = seen
+
+
+@njit(cache=True)
+def block_sources(pixels, points, normals, side, block, distance, cosine, out):
+    """out[i] = the index of the point at the first pixel of point i's `block` x `block` block of pixels when that
+    point lies within `distance` of it with a normal within `cosine` of its own; else out[i] is left as it is (-1:
+    trace its own). `pixels` (N, 2) are rows and columns of a `side`^2 image, each at most once."""
+    at = np.full((side, side), -1, dtype=np.int64)
+    for i in range(pixels.shape[0]):
+        at[pixels[i, 0], pixels[i, 1]] = i
+    for i in range(pixels.shape[0]):
+        first = at[pixels[i, 0] - pixels[i, 0] % block, pixels[i, 1] - pixels[i, 1] % block]
+        if first < 0 or first == i:
+            continue
+        d = 0.0
+        for k in range(3):
+            d += (points[i, k] - points[first, k]) ** 2
+        agree = normals[i, 0] * normals[first, 0] + normals[i, 1] * normals[first, 1] + normals[i, 2] * normals[first, 2]
+        if d <= distance * distance and agree >= cosine:
+            out[i] = first
 
