@@ -3,8 +3,9 @@
 It depends on the voxels' occupancy alone, so paint and every placement and camera edit keep it: the occupied voxels
 cropped to their box; the distance to the nearest occupied voxel (the surface is where it equals SURFACE_LEVEL, a
 little inside the voxel hull, which is fatter than the mesh; thin parts stay as tubes); the gradient of that distance
-smoothed, at full and half resolution, for normals; the occupancy smoothed broadly for ambient occlusion; the
-shadows' occluders (the occupied voxels' mean centre in each block of about 1 / OCCLUDER_CELLS of the object box).
+smoothed, at full and half resolution, for normals; the occupancy smoothed broadly for ambient occlusion, and its
+blocked lines per block of 4-32 voxels for the sky a hollow hides (far_occupancy); the shadows' occluders (the
+occupied voxels' mean centre in each block of about 1 / OCCLUDER_CELLS of the object box).
 Its compiled loops (numba) follow the Python that calls them.
 """
 
@@ -57,8 +58,8 @@ class ObjectGeometry:
     gradient: np.ndarray  # (D, H, W, 3): the gradient of the distance blurred by NORMAL_SIGMA, the normals' field
     coarse_gradient: np.ndarray  # the same of the distance averaged over 2^3 blocks: read for the normals' disc
     broad: np.ndarray | None  # occupancy blurred by BROAD_SIGMA (None: made without ambient occlusion)
-    far_occupancy: tuple[np.ndarray, ...] | None  # occupancy per block of FAR_BLOCKS voxels (_far_occupancy): the sky a hollow
-    # hides beyond the broad occupancy's reach (None: made without ambient occlusion)
+    far_occupancy: tuple[np.ndarray, ...] | None  # blocked lines per block of FAR_BLOCKS voxels (_far_occupancy): the
+    # sky a hollow hides beyond the broad occupancy's reach (None: made without ambient occlusion)
     voxel_to_world: np.ndarray  # 4x4, continuous voxel index -> world (object coordinates before `placed`)
     occluders: np.ndarray  # (M, 3) float64 world positions of the shadow occluders: the mean centre of the occupied
     # voxels in each block of voxels (OCCLUDER_CELLS)
@@ -122,7 +123,8 @@ def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int
         distance_and_core=distance_and_core, surface_cells=_cell_runs(cells),
         coarse_surface_cells=_cells_by_block(cells, COARSE_CELLS), gradient=gradient,
         coarse_gradient=coarse_gradient,
-        broad=_broad(half) if half is not None else None, far_occupancy=_far_occupancy(solid) if ambient_occlusion else None,
+        broad=_broad(half) if half is not None else None,
+        far_occupancy=_far_occupancy(solid) if ambient_occlusion else None,
         voxel_to_world=voxel_to_world,
         occluders=np.ascontiguousarray(occluders), occluder_box=points_box(occluders),
         occluder_block=float(np.prod(blocks)) ** (1.0 / 3.0))

@@ -58,11 +58,11 @@ FAR_RING_TILT = 50.0  # degrees
 FAR_START = 8.0  # voxels
 # A share of the sky the cones see at or above FAR_FULL_SKY counts as all of it: only a hollow's deep inside is darkened.
 # The cones are coarse (a chair's parts read as half the sky blocked where they hide less), and the shipped NVR+ was
-# trained without this term: at full strength its test error rose by a quarter (DC).
+# trained without this term, which at full strength it takes badly (DC).
 FAR_FULL_SKY = 0.5
 # The far sky changes slowly over a surface: it is traced at one point of each block of FAR_SHARE_PIXELS^2 pixels (at
 # 256^2; as many voxels across at any size), and taken by the block's points within FAR_SHARE_DISTANCE voxels of that
-# one whose normals agree to FAR_SHARE_COSINE (DC).
+# one whose normals agree to FAR_SHARE_COSINE.
 FAR_SHARE_PIXELS = 2
 FAR_SHARE_DISTANCE = 8.0
 FAR_SHARE_COSINE = 0.8

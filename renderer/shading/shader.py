@@ -14,12 +14,13 @@ lengths below in voxels are those merged voxels.
    object's occupied voxels, cropped to their box; the distance to the nearest occupied voxel
    (the surface is where it equals SURFACE_LEVEL, a little inside the voxel hull, which is fatter
    than the mesh; thin parts stay as tubes); the gradient of that distance smoothed, at full and half resolution,
-   for normals; the occupancy smoothed broadly for ambient occlusion; the shadows' occluders (the occupied voxels'
-   mean centre in each block of about 1 / OCCLUDER_CELLS of the object box).
+   for normals; the occupancy smoothed broadly for ambient occlusion, and its blocked lines per block of 4-32 voxels
+   for the sky a hollow hides; the shadows' occluders (the occupied voxels' mean centre in each block of about
+   1 / OCCLUDER_CELLS of the object box).
 2. visible_surface (adds the image size): per pixel, the first surface point a camera ray meets
    (sphere tracing the distance), anti-aliased at silhouettes by 2 x 2 rays (ShaderQuality), its normal (averaged over the
    surface around it where the surface is flat), albedo (the voxels' colors averaged over the pixel's footprint)
-   and ambient occlusion; the floor points, and how much of their sky the object blocks; these as
+   and ambient occlusion (near, and cones traced into the far sky); the floor points, and how much of their sky the object blocks; these as
    images too (SurfaceImages), shared by every light's shaded image. floor_reflection: the same, coarser, of the
    object mirrored in the floor, where the floor shows (for the shader's own image, not a network's input).
 3. shade (adds the light and the floor color): soft shadows from shadow maps seen from
