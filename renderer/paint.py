@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-import cv2
 import numpy as np
 from numba import njit, prange
 
@@ -162,6 +161,8 @@ def paint_voxels(rgba: np.ndarray, voxels: np.ndarray, color: Color, out: np.nda
 def _perceptual_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -> np.ndarray:
     """The "perceptual" distance (LIGHTNESS_WEIGHT) between the voxels at flat indices `voxels` (ascending, holding
     `seed_flat`) and the seed: CIELAB by OpenCV (sRGB in, L in [0, 100]) of the neighbourhood means, over 100."""
+    import cv2  # here, as elsewhere in the project: loading OpenCV slows the start of every command that paints
+
     rgba = np.asarray(rgba, dtype=np.float32)
     means = np.empty((len(voxels), 3), dtype=np.float32)
     neighbourhood_means(rgba, voxels, NEIGHBOUR_RANGE, means)
