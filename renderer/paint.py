@@ -165,7 +165,7 @@ def _perceptual_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -
 
     rgba = np.asarray(rgba, dtype=np.float32)
     means = np.empty((len(voxels), 3), dtype=np.float32)
-    neighbourhood_means(rgba, voxels, NEIGHBOUR_RANGE, means)
+    _neighbourhood_means(rgba, voxels, NEIGHBOUR_RANGE, means)
     lab = cv2.cvtColor(means.reshape(-1, 1, 3), cv2.COLOR_RGB2Lab).reshape(-1, 3)
     difference = lab - lab[np.searchsorted(voxels, seed_flat)]
     difference[:, 0] *= LIGHTNESS_WEIGHT
@@ -173,7 +173,7 @@ def _perceptual_distance(rgba: np.ndarray, voxels: np.ndarray, seed_flat: int) -
 
 
 @njit(cache=True, parallel=True)
-def neighbourhood_means(rgba, voxels, within, out):
+def _neighbourhood_means(rgba, voxels, within, out):
     """out[i] = the mean color of the occupied voxels (alpha >= 0.5) among the 3 x 3 x 3 around flat index voxels[i]
     (itself included) whose channels each lie within `within` of its own: a pass over the surface, not a
     convolution of the grid."""

@@ -53,8 +53,8 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
     assert set(results["in_turn"]["rows"].values()) <= labels and "timed in turn (1 round;" in text
     # Under environment light: path tracing, the shader and NVR+ on the same scenes, and each environment edit.
     environment = results["environment"]
-    assert [r["renderer"] for r in environment["rows"]][-2:] == ["voxel shader", "NVR+"]
-    by_setting = {r["setting"]: r for r in environment["rows"] if r["renderer"] == "path tracing"}
+    assert [r["family"] for r in environment["rows"]][-2:] == ["voxel shader", "NVR+"]
+    by_setting = {r["setting"]: r for r in environment["rows"] if r["family"] == "path tracing"}
     assert by_setting["1 spp + OIDN"]["mse"] < by_setting["1 spp"]["mse"] / 10
     for times in environment["edits"].values():
         assert set(times) == {"environment turn", "sun move", "strength", "material", "object move"}

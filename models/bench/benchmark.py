@@ -41,7 +41,7 @@ import numpy as np
 import torch
 from torch.utils.flop_counter import FlopCounterMode
 
-from models.bench.environment import bench_environment
+from models.bench.environment import MATERIALS, SKY, describe, edit_ms, environment_scene
 from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.scenes import BenchScene, data_scenes, procedural_scenes
 from models.bench.system import PeakMemory, cpu_snapshot, machine_description, other_load
@@ -137,10 +137,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         tracers = [PathTracer(b.scene, b.mesh, size=SIZE) for b in scenes]
         references = [t.render(spp=settings.reference_spp, seed=REFERENCE_SEED).image for t in tracers]
 
-        def score(images: list[np.ndarray]) -> dict[str, float]:
-            values = [metrics(_batch(i), _batch(r)) for i, r in zip(images, references)]
-            return {k: float(np.mean([float(v[k][0]) for v in values])) for k in ("mse", "dssim", "perceptual")}
-
+        score = _scorer(metrics, references)
         rows = bench_pathtracing(tracers, settings, memory, score)
         rows.append(bench_splatting(scenes, settings, memory, score))
         # The voxel shader as in the editor; of the network's grid (the object voxels merged in pairs): faster, further
@@ -168,10 +165,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         live = next((e for e in candidates if e.weights == shipped and e.own_shading_grid and e.shader_quality == "full"),
                     None) or next((e for e in candidates if e.architecture == "nvr_plus" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
-        environment = bench_environment(
-            scenes, live, settings.environment_spps, settings.reference_spp, settings.repeats,
-            lambda image, target: {k: float(v[0]) for k, v in metrics(_batch(image), _batch(target)).items()},
-            alternating_ms)
+        environment = bench_environment(scenes, live, settings, memory, metrics)
         # The Pareto target's ratio, timed in turn with path tracing: the shipped NVR+ in float32 at both shader
         # qualities (the rows above are timed apart from path tracing, and this machine's speed may differ between them).
         fast = next((e for e in trained if e.precision == "fp32" and e.shader_quality == "fast"
@@ -241,6 +235,34 @@ def bench_pathtracing(tracers: list[PathTracer], settings: BenchSettings, memory
             setting = f"{spp} spp" + (" + OIDN" if denoise else "")
             rows.append(Row(RENDERERS["pathtrace"].label, setting, *_spread(times), memory.peak_mb(), **score(images)))
     return rows
+
+
+def bench_environment(scenes: list[BenchScene], engine: RenderEngine, settings: BenchSettings, memory: PeakMemory,
+                      metrics: ImageMetrics) -> dict[str, Any]:
+    """The scenes under a sun and sky with glossy objects (models/bench/environment.py): path tracing's rows at
+    `settings.environment_spps`, the staged shader's and NVR+'s (a frame after an object move; NVR+ shows the shader's
+    image, no network being trained for environment light yet), against a path-traced reference; and each one's median
+    ms per environment edit."""
+    lit = [replace(b, scene=environment_scene(b.scene, i)) for i, b in enumerate(scenes)]
+    tracers = [PathTracer(b.scene, b.mesh, size=SIZE) for b in lit]
+    score = _scorer(metrics, [t.render(spp=settings.reference_spp, seed=REFERENCE_SEED).image for t in tracers])
+    rows = bench_pathtracing(tracers, replace(settings, spps=settings.environment_spps), memory, score)
+    edits = {}
+    for family, renderer_for, setting in (
+            (RENDERERS["shaded"].label, _PaintedShader, "staged, as in the editor"),
+            (_family(engine), lambda bench: engine, f"{engine.model_name}: the shader's image")):
+        memory.start()
+        images, times = [], {}
+        for bench in lit:
+            renderer = renderer_for(bench)
+            images.append(renderer.render(bench.scene))
+            for name, ms in edit_ms(renderer, bench.scene, settings.repeats, alternating_ms).items():
+                times[name] = times.get(name, []) + ms
+        rows.append(Row(family, setting, *_spread(times["object move"]), memory.peak_mb(), **score(images)))
+        edits[family] = {name: statistics.median(ms) for name, ms in times.items()}
+    return {"scenes": [b.name for b in lit], "materials": [describe(MATERIALS[i % len(MATERIALS)]) for i in range(len(lit))],
+            "sky": describe(SKY), "reference_spp": settings.reference_spp,
+            "rows": [asdict(r) | {"label": r.label} for r in rows], "edits": edits}
 
 
 def bench_splatting(scenes: list[BenchScene], settings: BenchSettings, memory: PeakMemory,
@@ -628,6 +650,14 @@ def _spread(times: list[float]) -> tuple[float, float, float]:
     """Median, first and third quartile."""
     q25, median, q75 = np.percentile(times, [25, 50, 75])
     return float(median), float(q25), float(q75)
+
+
+def _scorer(metrics: ImageMetrics, references: list[np.ndarray]) -> Callable[[list[np.ndarray]], dict[str, float]]:
+    """The mean over the scenes of each metric of images (one a scene) against `references`."""
+    def score(images: list[np.ndarray]) -> dict[str, float]:
+        values = [metrics(_batch(i), _batch(r)) for i, r in zip(images, references)]
+        return {k: float(np.mean([float(v[k][0]) for v in values])) for k in ("mse", "dssim", "perceptual")}
+    return score
 
 
 def _batch(image: np.ndarray) -> torch.Tensor:

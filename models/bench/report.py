@@ -179,7 +179,7 @@ def _environment(r: dict[str, Any]) -> list[str]:
              f"({'; '.join(e['materials'])}); reference {e['reference_spp']} spp path tracing, raw. "
              "No network is trained for environment light yet: NVR+ shows the voxel shader's image.", "",
              "| renderer | setting | median ms / frame | MSE (0-255) | DSSIM | perceptual |", "|---|---|---:|---:|---:|---:|"]
-    lines += [f"| {row['renderer']} | {row['setting']} | {row['ms']:.1f} | {row['mse']:.2f} | {row['dssim']:.4f} | "
+    lines += [f"| {row['family']} | {row['setting']} | {row['ms']:.1f} | {row['mse']:.2f} | {row['dssim']:.4f} | "
               f"{row['perceptual']:.3f} |" for row in e["rows"]]
     names = list(next(iter(e["edits"].values())))
     lines += ["", "| edit | " + " | ".join(f"{label} ms" for label in e["edits"]) + " |",
@@ -200,9 +200,8 @@ def _environment_targets(e: dict[str, Any]) -> list[str]:
         lines.append(f"- {label}, slowest environment edit ({slowest}): {verdict(e['edits'][label][slowest], target)}.")
     lines.append(f"- NVR+ object move: {verdict(e['edits']['NVR+']['object move'], ENVIRONMENT_MOVE_TARGET_MS)}; "
                  f"material change: {verdict(e['edits']['NVR+']['material'], MATERIAL_TARGET_MS)}.")
-    rows = {(row["renderer"], row["setting"].split(":")[0]): row for row in e["rows"]}
-    rival = rows.get(("path tracing", "1 spp + OIDN"))
-    nvr = next((row for row in e["rows"] if row["renderer"] == "NVR+"), None)
+    rival = next((row for row in e["rows"] if row["label"] == "path tracing 1 spp + OIDN"), None)
+    nvr = next((row for row in e["rows"] if row["family"] == "NVR+"), None)
     if rival and nvr:
         share, better = nvr["ms"] / rival["ms"], nvr["mse"] < rival["mse"]
         lines.append(f"- NVR+ against path tracing at 1 spp + OIDN ({rival['ms']:.1f} ms, MSE {rival['mse']:.2f}): "

@@ -420,8 +420,7 @@ def _surface_occlusion(geometry: ObjectGeometry, points: np.ndarray, normals: np
             block_sources(pixels[0], points, normals, pixels[1], block, FAR_SHARE_DISTANCE, FAR_SHARE_COSINE, source)
         traced = np.flatnonzero(source < 0)
         seen = np.empty(len(traced))
-        far_sky_seen(geometry.far_occupancy, np.array(FAR_BLOCKS, dtype=np.float64), _FAR_CONES,
-                     math.tan(math.radians(FAR_CONE_HALF_ANGLE)), FAR_START,
+        far_sky_seen(geometry.far_occupancy, _FAR_BLOCKS, _FAR_CONES, _FAR_TANGENT, FAR_START,
                      np.array(geometry.distance_and_core.shape[:3], dtype=np.float64), FAR_FULL_SKY, points[traced],
                      normals[traced], seen)
         far[traced] = seen
@@ -445,6 +444,8 @@ def _cone_directions() -> np.ndarray:
 
 
 _FAR_CONES = _cone_directions()
+_FAR_BLOCKS = np.array(FAR_BLOCKS, dtype=np.float64)
+_FAR_TANGENT = math.tan(math.radians(FAR_CONE_HALF_ANGLE))
 
 
 def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
@@ -902,7 +903,7 @@ def _flat_blocked(shape, block, x, y, z, px, py, pz, nx, ny, nz, wx, wy, wz):
 
 
 @njit(cache=True, inline="always")
-def levels_shape(levels, level):
+def _level_shape(levels, level):
     """The shape of the far occupancy's level `level`."""
     if level == 0:
         return levels[0].shape
@@ -925,17 +926,18 @@ def _level_blocked(levels, level, x, y, z, wx, wy, wz):
     return _blocked_along(levels[3], x, y, z, wx, wy, wz)
 
 
-
 @njit(cache=True, parallel=True, fastmath=True)
 def far_sky_seen(levels, blocks, cones, tangent, start, shape, enough, points, normals, out):
     """out[i] = the share of the sky seen past `start` voxels from crop point i along its unit normal: the
     cosine-weighted transmittance of `cones` (K, 4: axis in the normal's frame, weight) of half-angle tangent = tan,
-    each marched from `start` in steps of half its width through the occupancy level whose blocks (`blocks` voxels)
-    match that width (interpolated between two), less what the surface's own tangent plane would put there, until
+    each marched from `start` in steps of half its width (at most a block) through the occupancy level whose blocks
+    (`blocks` voxels) match that width (interpolated between two), less what the surface's own tangent plane would put
+    there, until
     it leaves the crop (`shape`), beyond which nothing is occupied. Four levels at most (_level_blocked). Once the
     cones traced see `enough` of the sky the rest are left out (out[i] is then at least `enough`, not the share)."""
     count_levels = len(blocks)
     for i in prange(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
         nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
         # A tangent frame: any unit vector across the normal, and the third by the cross product.
         if abs(nx) < 0.9:
@@ -952,9 +954,10 @@ def far_sky_seen(levels, blocks, cones, tangent, start, shape, enough, points, n
             dx = cones[c, 0] * tx + cones[c, 1] * bx + cones[c, 2] * nx
             dy = cones[c, 0] * ty + cones[c, 1] * by + cones[c, 2] * ny
             dz = cones[c, 0] * tz + cones[c, 1] * bz + cones[c, 2] * nz
+            wx, wy, wz = dx * dx, dy * dy, dz * dz
             s, through = start, 1.0
             while through > 0.02:
-                x, y, z = points[i, 0] + s * dx, points[i, 1] + s * dy, points[i, 2] + s * dz
+                x, y, z = px + s * dx, py + s * dy, pz + s * dz
                 if x < 0.0 or y < 0.0 or z < 0.0 or x >= shape[0] or y >= shape[1] or z >= shape[2]:
                     break
                 width = 2.0 * s * tangent
@@ -965,15 +968,13 @@ def far_sky_seen(levels, blocks, cones, tangent, start, shape, enough, points, n
                 low = min(int(at), count_levels - 2)
                 f = at - low
                 block0, block1 = blocks[low], blocks[low + 1]
-                wx, wy, wz = dx * dx, dy * dy, dz * dz
                 occupied = ((1.0 - f) * _level_blocked(levels, low, x / block0, y / block0, z / block0, wx, wy, wz)
                             + f * _level_blocked(levels, low + 1, x / block1, y / block1, z / block1, wx, wy, wz))
                 # Less what the surface's own tangent plane puts in the same cells (the cells near the surface
                 # straddle it); where that fills them, nothing can be told apart from it.
-                px, py, pz = points[i, 0], points[i, 1], points[i, 2]
-                flat = ((1.0 - f) * _flat_blocked(levels_shape(levels, low), block0, x / block0, y / block0,
+                flat = ((1.0 - f) * _flat_blocked(_level_shape(levels, low), block0, x / block0, y / block0,
                                                   z / block0, px, py, pz, nx, ny, nz, wx, wy, wz)
-                        + f * _flat_blocked(levels_shape(levels, low + 1), block1, x / block1, y / block1, z / block1,
+                        + f * _flat_blocked(_level_shape(levels, low + 1), block1, x / block1, y / block1, z / block1,
                                             px, py, pz, nx, ny, nz, wx, wy, wz))
                 block = block0 * (1.0 - f) + block1 * f
                 occupied = min(max((occupied - flat) / (1.0 - flat), 0.0), 1.0) if flat < 0.95 else 0.0
