@@ -30,7 +30,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.environment import direction_angles, weighted_mean_angles
 from renderer.errors import InputError
-from renderer.resample import bilinear_at, linear_weights
+from renderer.resample import linear_weights, upsampled
 from renderer.scene import AMBIENT_RADIANCE, FLOOR_IOR, FLOOR_ROUGHNESS, LIGHT_RADIANCE, LIGHT_SIZE
 from renderer.splat import cached_floor_mask
 
@@ -53,7 +53,7 @@ def lit_floor_image(camera: Camera, light_position, floor_color) -> np.ndarray:
     """(H, W, 3) float32 sRGB image of the empty floor lit by the light at `light_position` (world)."""
     geometry = _coarse_geometry(camera)
     from_light, from_ambient = _coarse_radiance(geometry, light_position, floor_color)
-    floor = _upsample(linear_to_srgb(from_light + from_ambient).astype(np.float32),  # smooth: sRGB interpolates well
+    floor = upsampled(linear_to_srgb(from_light + from_ambient).astype(np.float32),  # smooth: sRGB interpolates well
                       geometry.row_weights, geometry.col_weights)
     background = np.float32(linear_to_srgb(AMBIENT_RADIANCE))
     return np.where(geometry.floor[..., None], floor, background)
@@ -128,11 +128,13 @@ def _coat_samples(view: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky, directions: np.ndarray,
-                            irradiance: np.ndarray, glossy: np.ndarray) -> tuple[FloorTerms, list[np.ndarray]]:
+                            irradiance: np.ndarray, glossy: np.ndarray,
+                            spread: np.ndarray | None = None) -> tuple[FloorTerms, list[np.ndarray]]:
     """The empty floor under an environment: FloorTerms whose `from_light` is the area light's (zero when
     `light_position` is None) and whose `from_ambient` is the sky's, and per directional light (unit world
     `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its coarse (h, w, 3) radiance, unshadowed,
-    with the coat's highlight where `glossy` says (a light the mirrored sky does not hold already)."""
+    with the coat's highlight where `glossy` says (a light the mirrored sky does not hold already), widened by the
+    light's angular radius `spread` (K,) radians (default 0: a point)."""
     geometry = _coarse_geometry(camera)
     albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64)).astype(np.float32)
     through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
@@ -144,15 +146,16 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
     from_sky = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
                 + coat_reflection(geometry, sky))
     per_light = []
-    for direction, power, gloss in zip(np.asarray(directions, dtype=np.float64),
-                                       np.asarray(irradiance, dtype=np.float64), glossy):
+    spread = np.zeros(len(glossy)) if spread is None else spread
+    for direction, power, gloss, radius in zip(np.asarray(directions, dtype=np.float64),
+                                               np.asarray(irradiance, dtype=np.float64), glossy, spread):
         cos_in = max(float(direction[1]), 0.0)
         half = view + direction.astype(np.float32)
         half /= np.maximum(np.linalg.norm(half, axis=-1, keepdims=True), 1e-12)
         cos_half = np.clip(half[..., 1], 0.0, 1.0)
         cos_in_half = np.clip(np.sum(half * direction.astype(np.float32), axis=-1), 0.0, 1.0)
-        glossy = (coat_reflectance(cos_in_half) * _ggx(cos_half) * _smith_g1(max(cos_in, 1e-4))
-                  * geometry.view_masking / (4.0 * geometry.cos_view))
+        glossy = (coat_reflectance(cos_in_half) * _ggx_widened(cos_half, 0.5 * float(radius))
+                  * _smith_g1(max(cos_in, 1e-4)) * geometry.view_masking / (4.0 * geometry.cos_view))
         term = cos_in * through_coat[..., None] * albedo + (glossy[..., None] if gloss else 0.0)
         per_light.append((term * power.astype(np.float32)).astype(np.float32))
     terms = FloorTerms(from_light, from_sky.astype(np.float32), geometry.floor, geometry.row_weights,
@@ -162,7 +165,7 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
 
 def upsample(coarse: np.ndarray, terms: FloorTerms) -> np.ndarray:
     """A coarse (h, w, c) floor term at every pixel, by FloorTerms' weights."""
-    return _upsample(coarse, terms.row_weights, terms.col_weights)
+    return upsampled(coarse, terms.row_weights, terms.col_weights)
 
 
 def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:
@@ -275,6 +278,13 @@ def _ggx(cos_half):
     return a2 / (math.pi * denominator**2)
 
 
+def _ggx_widened(cos_half: np.ndarray, half_radius: float) -> np.ndarray:
+    """The coat's GGX distribution convolved, roughly, with a light `half_radius` radians wide in half-vector angle
+    (the light's own angular radius halved): the lobe's alpha^2 grows by its square, its integral stays 1."""
+    a2 = FLOOR_ROUGHNESS**2 + half_radius**2
+    return a2 / (math.pi * (cos_half**2 * (a2 - 1.0) + 1.0) ** 2)
+
+
 @njit(cache=True)
 def _smith_g1(cos_theta):
     a2 = FLOOR_ROUGHNESS**2
@@ -286,26 +296,3 @@ def _smith_g1(cos_theta):
 def coat_reflectance(cos_theta):
     """The coat's Fresnel reflectance (Schlick) at the cosine between the direction and the floor's normal."""
     return COAT_F0 + (1.0 - COAT_F0) * (1.0 - cos_theta) ** 5
-
-
-# --- interpolation ---------------------------------------------------------------------------
-
-
-def _upsample(coarse: np.ndarray, row_weights: tuple, col_weights: tuple) -> np.ndarray:
-    """Bilinear interpolation of (h, w, c) coarse float32 values to the full image."""
-    top, bottom, down = row_weights
-    left, right, across = col_weights
-    out = np.empty((len(top), len(left), coarse.shape[2]), dtype=np.float32)
-    _bilinear(np.ascontiguousarray(coarse, dtype=np.float32), top, bottom, down, left, right, across, out)
-    return out
-
-
-@njit(cache=True, parallel=True)
-def _bilinear(coarse, top, bottom, down, left, right, across, out):
-    """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c]: compiled, one
-    pass over the image (numpy's gathers were slower, and its BLAS fought the network's threads)."""
-    for r in prange(out.shape[0]):
-        t, b, wd = top[r], bottom[r], down[r]
-        for c in range(out.shape[1]):
-            for k in range(out.shape[2]):
-                out[r, c, k] = bilinear_at(coarse, t, b, wd, left[c], right[c], across[c], k)

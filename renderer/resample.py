@@ -6,7 +6,7 @@ instead of making a full-size image of them first."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from PIL import Image
 
 
@@ -51,3 +51,24 @@ def bilinear_at(coarse, top, bottom, down, left, right, across, k):
     upper = coarse[top, left, k] * (one - across) + coarse[top, right, k] * across
     lower = coarse[bottom, left, k] * (one - across) + coarse[bottom, right, k] * across
     return upper * (one - down) + lower * down
+
+
+def upsampled(coarse: np.ndarray, row_weights: tuple, col_weights: tuple) -> np.ndarray:
+    """Bilinear interpolation of (h, w, c) coarse float32 values to the full image, by each pixel row's and column's
+    `linear_weights`."""
+    top, bottom, down = row_weights
+    left, right, across = col_weights
+    out = np.empty((len(top), len(left), coarse.shape[2]), dtype=np.float32)
+    _bilinear(np.ascontiguousarray(coarse, dtype=np.float32), top, bottom, down, left, right, across, out)
+    return out
+
+
+@njit(cache=True, parallel=True)
+def _bilinear(coarse, top, bottom, down, left, right, across, out):
+    """out[r, c] = coarse interpolated between rows top[r], bottom[r] and columns left[c], right[c]: compiled, one
+    pass over the image (numpy's gathers were slower, and its BLAS fought the network's threads)."""
+    for r in prange(out.shape[0]):
+        t, b, wd = top[r], bottom[r], down[r]
+        for c in range(out.shape[1]):
+            for k in range(out.shape[2]):
+                out[r, c, k] = bilinear_at(coarse, t, b, wd, left[c], right[c], across[c], k)

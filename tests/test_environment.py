@@ -344,6 +344,75 @@ def test_a_metal_ball_is_tinted_by_its_albedo_and_a_glossy_one_keeps_the_lights_
     assert brightest.min() > 0.8 * brightest.max()  # the sun's highlight on the plastic is near white
 
 
+GREY = (0.4, 0.4, 0.4)
+
+
+def table(n: int = 40) -> np.ndarray:
+    """A grey table: a top 4 voxels thick over the whole square, on four 3 x 3 legs at its corners."""
+    rgba = np.zeros((n, n, n, 4), dtype=np.float32)
+    rgba[:, n - 4:, :] = (*GREY, 1.0)
+    for i in (slice(0, 3), slice(n - 3, n)):
+        for k in (slice(0, 3), slice(n - 3, n)):
+            rgba[i, :, k] = (*GREY, 1.0)
+    return rgba
+
+
+def linear_at(image: np.ndarray, point) -> float:
+    """The mean linear value of the 3 x 3 pixels around where world `point` shows."""
+    row, col = pixel_of(point)
+    srgb = image[row - 1:row + 2, col - 1:col + 2].mean()
+    return ((srgb + 0.055) / 1.055) ** 2.4
+
+
+def test_a_tables_top_shades_the_ground_under_it_from_a_constant_sky(tmp_path):
+    """Grey table 0.9 high on a grey floor under a constant sky: the path tracer (256 spp, a mesh of the same
+    boxes) shows the ground under the table's centre at 0.77 of the open ground beside it at the same depth. The top
+    is 35 voxels and more above it, past the 20 that the floor's straight-up probe reads."""
+    from renderer.voxels import save_voxels
+
+    save_voxels(tmp_path / "ball.npz", table())
+    write_map(tmp_path / "flat.exr", np.full((32, 64, 3), 0.5))
+    image = render(env_scene(EnvironmentSpec(image="flat.exr"), base_dir=tmp_path), floor=GREY).image
+    assert 0.7 < linear_at(image, (0.0, 0.0, 0.0)) / linear_at(image, (1.3, 0.0, 0.0)) < 0.92
+
+
+def test_a_sky_brighter_on_one_side_shades_the_ground_on_the_other_side_of_the_table(tmp_path):
+    """A smooth sky (no part bright enough to be a light of its own) twice as bright towards -x. Against the same
+    table without its top, the top darkens the ground beside the table on +x (which sees the bright side through it)
+    more than its mirror image on -x: the path tracer (as above) to 0.87 and 0.93 of the legs' image."""
+    from renderer.voxels import save_voxels
+
+    directions = map_directions(32, 64)
+    write_map(tmp_path / "side.exr", np.repeat((0.3 + 0.3 * np.maximum(-directions[..., :1], 0.0)), 3, axis=2))
+    legs = table()
+    legs[3:-3, 36:] = 0.0
+    legs[:, 36:, 3:-3] = 0.0
+    legs[:, 36:] = legs[:, :4]  # the legs' full height, so that the object's box (and its placement) stays the same
+    shown = {}
+    for name, rgba in (("table", table()), ("legs", legs)):
+        save_voxels(tmp_path / "ball.npz", rgba)
+        image = render(env_scene(EnvironmentSpec(image="side.exr"), base_dir=tmp_path), floor=GREY).image
+        shown[name] = np.array([linear_at(image, (0.75, 0.0, 0.2)), linear_at(image, (-0.75, 0.0, 0.2))])
+    east, west = shown["table"] / shown["legs"]
+    assert east < 0.97 and east < 0.99 * west
+
+
+def test_small_lights_leave_the_coats_map_and_a_soft_box_stays_in_it():
+    """The floor's coat draws a small light (a sun) as a highlight the object's shadow hides, so its excess leaves
+    the map the coat mirrors; a wide soft box keeps its shape in that map."""
+    from renderer.shading.environment_shading import SMALL_LIGHT_SPREAD, prepare_environment
+
+    h, w = 64, 128
+    radiance = np.full((h, w, 3), 0.2)
+    radiance[10, 20] = 500.0  # one texel: about 0.05 rad across
+    radiance[20:30, 70:90] = 5.0  # about 0.5 x 1 rad
+    ready = prepare_environment(radiance)
+    assert sorted(ready.light_small.tolist()) == [False, True]
+    assert ready.light_spread[ready.light_small][0] <= SMALL_LIGHT_SPREAD < ready.light_spread[~ready.light_small][0]
+    assert ready.blurred[10, 20].max() < 5.0  # the sun's excess is gone (what is left: the sky's level, blurred)
+    assert ready.blurred[25, 80].min() > 4.0  # the soft box is still there
+
+
 @pytest.mark.parametrize("case", ["black", "one hot pixel", "sun at the horizon", "sun at the zenith", "strength 0"])
 def test_hard_environments_give_finite_images(ball_dir, case):
     black = np.zeros((32, 64, 3))

@@ -10,8 +10,9 @@ from scipy import ndimage
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
-from renderer.floor_light import COARSE_STEP, _coarse_geometry, _upsample, lit_floor_image
+from renderer.floor_light import COARSE_STEP, _coarse_geometry, lit_floor_image
 from renderer.pathtrace.path_tracer import render_pathtraced
+from renderer.resample import upsampled
 from renderer.scene import AMBIENT_RADIANCE, CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
 from renderer.splat import background_color, floor_mask
 
@@ -105,7 +106,7 @@ def test_the_coarse_shading_is_interpolated_bilinearly(width, height):
     at_c = np.interp(np.arange(width) + 0.5, cols, np.arange(len(cols)))
     rr, cc = np.meshgrid(at_r, at_c, indexing="ij")
     expected = np.stack([ndimage.map_coordinates(coarse[..., k], [rr, cc], order=1) for k in range(4)], axis=-1)
-    np.testing.assert_allclose(_upsample(coarse, geometry.row_weights, geometry.col_weights), expected, atol=1e-5)
+    np.testing.assert_allclose(upsampled(coarse, geometry.row_weights, geometry.col_weights), expected, atol=1e-5)
 
 
 @pytest.mark.parametrize("light,color,match", [

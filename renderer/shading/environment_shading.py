@@ -62,6 +62,7 @@ from renderer.shading.lighting import (
     shadow_receivers,
 )
 from renderer.shading.quality import (
+    BLOCKED_SKY_LIGHT,
     FLOOR_BELOW_LIT,
     FLOOR_BOUNCE,
     FLOOR_SHADOW_BIAS,
@@ -73,7 +74,7 @@ from renderer.shading.quality import (
     SHADOW_NORMAL_OFFSET,
     ShaderQuality,
 )
-from renderer.shading.surface import FloorReflection, VisibleSurface
+from renderer.shading.surface import FloorReflection, VisibleSurface, floor_sky_axes
 from renderer.splat import cached_floor_mask
 
 ENVIRONMENT_LIGHTS = 8  # directional lights drawn from a map's bright parts (the sun is one more)
@@ -83,9 +84,12 @@ LOWEST_LIGHT_DEG = 2.0  # a light lower than this casts its shadows from this el
 IRRADIANCE_ROWS = 16  # the irradiance map's rows (twice as many columns)
 SPECULAR_ROWS = 32  # the prefiltered maps' rows
 SPECULAR_ROUGHNESS = (0.0, 0.15, 0.3, 0.5, 0.75, 1.0)  # the roughness of each prefiltered map
+SMALL_LIGHT_SPREAD = 0.1  # radians: a light this small (a sun, a lamp) the floor's coat shows as its own highlight,
+# which the object's shadow hides; a larger one (a soft box) stays in the map the coat mirrors, whose shape it keeps
 MAX_SHADOW_SPREAD = 0.15  # radians: a wider light's shadows are drawn as this wide (the maps' taps grow sparse)
 MIN_ROUGHNESS = 0.05  # as the path tracer's (renderer/pathtrace/mitsuba_object.py)
 DIELECTRIC_F0 = 0.08  # times `specular`: principled's reflectance head on
+FLOOR_COAT_ROUGHNESS = 0.32  # sqrt of the floor coat's GGX alpha (renderer.scene.FLOOR_ROUGHNESS = 0.1)
 DIFFUSE = MaterialSpec()
 
 
@@ -96,10 +100,13 @@ class PreparedEnvironment:
     light_directions: np.ndarray  # (K, 3) unit, towards each light
     light_irradiance: np.ndarray  # (K, 3) facing the light
     light_spread: np.ndarray  # (K,) radians: the angular radius of the part each light stands for
+    light_small: np.ndarray  # (K,) bool: small enough for the floor's coat to show it as a highlight of its own
     irradiance: np.ndarray  # (IRRADIANCE_ROWS, 2 x, 3): the residual sky's irradiance on a surface facing each texel
     sky_up: np.ndarray  # (3,) the residual sky's irradiance on the floor
+    residual_sky: np.ndarray  # (SPECULAR_ROWS, 2 x, 3): the residual sky above the horizon (0 below)
     specular: np.ndarray  # (len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 x, 3): the whole map prefiltered by GGX
-    blurred: np.ndarray  # the whole map blurred by COAT_SAMPLE_BLUR texels
+    blurred: np.ndarray  # the map less its small lights (drawn as highlights), blurred by COAT_SAMPLE_BLUR texels
+    coat_specular: np.ndarray  # (SPECULAR_ROWS, 2 x, 3): the same prefiltered at the floor coat's roughness
 
 
 _PREPARED: dict[tuple, PreparedEnvironment] = {}
@@ -128,6 +135,7 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
     bright = sky & (lum > threshold) & (threshold > 0.0)
     labels, count = ndimage.label(bright)
     residual = radiance.copy()
+    coat = radiance.copy()  # what the floor's coat mirrors from the map: all but the small lights
     lights = []
     if count:
         excess_share = np.where(bright, 1.0 - threshold / np.maximum(lum, 1e-30), 0.0)
@@ -142,6 +150,8 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
             spread = math.sqrt(float(np.sum(solid[part])) / math.pi)
             lights.append((direction, irradiance, spread))
             residual[part] -= excess[part]
+            if spread <= SMALL_LIGHT_SPREAD:
+                coat[part] -= excess[part]
     residual_sky = residual * sky[..., None]
     sky_up = np.maximum(directions.reshape(-1, 3)[:, 1], 0.0) @ (residual_sky * solid[..., None]).reshape(-1, 3)
     # The irradiance map from the residual sky reduced as the specular maps are (the cosine lobe is broad).
@@ -151,28 +161,31 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
         light_directions=np.array([d for d, _, _ in lights]).reshape(-1, 3),
         light_irradiance=np.array([e for _, e, _ in lights]).reshape(-1, 3),
         light_spread=np.array([s for _, _, s in lights]),
+        light_small=np.array([s <= SMALL_LIGHT_SPREAD for _, _, s in lights], dtype=bool),
         irradiance=irradiance.astype(np.float32), sky_up=sky_up,
+        residual_sky=reduced.reshape(SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3),
         specular=_prefiltered(radiance).astype(np.float32),
-        blurred=ndimage.gaussian_filter(radiance, (COAT_SAMPLE_BLUR, COAT_SAMPLE_BLUR, 0),
+        coat_specular=_prefiltered(coat, (FLOOR_COAT_ROUGHNESS,))[0],
+        blurred=ndimage.gaussian_filter(coat, (COAT_SAMPLE_BLUR, COAT_SAMPLE_BLUR, 0),
                                         mode=("nearest", "wrap", "nearest")).astype(np.float32))
 
 
-def _prefiltered(radiance: np.ndarray) -> np.ndarray:
-    """The map, reduced to SPECULAR_ROWS rows, convolved with GGX lobes of each SPECULAR_ROUGHNESS (about the
+def _prefiltered(radiance: np.ndarray, roughnesses: tuple[float, ...] = SPECULAR_ROUGHNESS) -> np.ndarray:
+    """The map, reduced to SPECULAR_ROWS rows, convolved with GGX lobes of each of `roughnesses` (about the
     reflected direction, as if normal, view and reflection coincided), normalised so that a constant map stays
     constant. The cosines between the reduced map's texels are computed once (_specular_cosines)."""
     radiance = np.asarray(radiance, dtype=np.float32)
     sources = {rows: np.ascontiguousarray(reduce_map(radiance, 2 * rows).reshape(-1, 3))
                for rows in (SPECULAR_ROWS, SPECULAR_ROWS // 2)}
-    out = np.empty((len(SPECULAR_ROUGHNESS), 2 * SPECULAR_ROWS**2, 3), dtype=np.float32)
-    for level, roughness in enumerate(SPECULAR_ROUGHNESS):
+    out = np.empty((len(roughnesses), 2 * SPECULAR_ROWS**2, 3), dtype=np.float32)
+    for level, roughness in enumerate(roughnesses):
         if roughness == 0.0:
             out[level] = sources[SPECULAR_ROWS]
             continue
         rows = SPECULAR_ROWS if roughness < 0.5 else SPECULAR_ROWS // 2  # a broad lobe reads a coarser map
         cosine, solid = _specular_cosines(rows)
         _ggx_convolve(cosine, solid[0], sources[rows], max(roughness, MIN_ROUGHNESS) ** 4, out[level])
-    return out.reshape(len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3)
+    return out.reshape(len(roughnesses), SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3)
 
 
 @njit(cache=True, parallel=True)
@@ -224,6 +237,7 @@ class _Lights:
     irradiance: np.ndarray  # (K, 3)
     spread: np.ndarray  # (K,)
     delta: np.ndarray  # (K,) bool: the sun, which no map holds (its gloss is drawn from it; the others' from the map)
+    small: np.ndarray  # (K,) bool: the sun and the map's small lights, whose gloss on the floor is drawn from them
 
 
 def _world_lights(environment: EnvironmentLight, ready: PreparedEnvironment) -> _Lights:
@@ -231,13 +245,15 @@ def _world_lights(environment: EnvironmentLight, ready: PreparedEnvironment) -> 
     irradiance = ready.light_irradiance.reshape(-1, 3) * environment.strength
     spread = np.minimum(ready.light_spread.reshape(-1), MAX_SHADOW_SPREAD)
     delta = np.zeros(len(directions), dtype=bool)
+    small = ready.light_small.reshape(-1)
     if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
         directions = np.vstack([environment.sun_direction, directions])
         irradiance = np.vstack([environment.sun_irradiance, irradiance])
         spread = np.concatenate([[math.radians(SUN_APERTURE_DEG / 2.0)], spread])
         delta = np.concatenate([[True], delta])
+        small = np.concatenate([[True], small])
     keep = irradiance.max(axis=1) > 0.0
-    return _Lights(directions[keep], irradiance[keep], spread[keep], delta[keep])
+    return _Lights(directions[keep], irradiance[keep], spread[keep], delta[keep], small[keep])
 
 
 def needs_environment_shading(scene: Scene) -> bool:
@@ -263,9 +279,10 @@ def scene_environment(scene: Scene) -> EnvironmentLight:
 def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
                       environment: EnvironmentLight, material: MaterialSpec = DIFFUSE,
                       reflection: FloorReflection | None = None,
-                      quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
+                      quality: ShaderQuality = FULL_QUALITY, floor_cones: np.ndarray | None = None) -> ShadedImage:
     """The shaded image under `environment` and, unless `light_position` is None, the area light; the object of
-    `material`. `reflection`: the floor's mirror image of the object, if drawn."""
+    `material`. `reflection`: the floor's mirror image of the object, if drawn. `floor_cones`: the sky the object
+    leaves open to each floor point, per direction (surface.floor_sky_cones), which the sky's light weighs."""
     ready = prepared(environment)
     lights = _world_lights(environment, ready)
     size = surface.size
@@ -276,7 +293,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     sky_up = ready.sky_up * environment.strength  # the residual sky's irradiance on the floor
     floor_sky = FloorSky(sky_up, ready.blurred, environment.rotation_deg, environment.strength)
     floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, floor_sky, lights.directions,
-                                                     lights.irradiance, lights.delta)
+                                                     lights.irradiance, lights.small, lights.spread)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
     block = geometry.occluder_block * voxel
     area = _ShadowMaps.area(geometry, light_position, quality, block) if light_position is not None else None
@@ -294,21 +311,25 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
                                           material, block, sky_up, floor_albedo)
     r, c = surface.pixels[:, 0], surface.pixels[:, 1]
     cover = surface.coverage[r, c]
+    floor_occlusion = surface.images.floor_occlusion
+    if floor_cones is not None:
+        open_sky = floor_cones @ _cone_sky_shares(ready, environment).astype(np.float32)
+        floor_occlusion = floor_occlusion.copy()
+        floor_occlusion[floor] = np.minimum(floor_occlusion[floor],
+                                            1.0 - (1.0 - open_sky) * (1.0 - BLOCKED_SKY_LIGHT))
     composite(floor_terms.from_light, floor_terms.from_ambient, *floor_terms.row_weights, *floor_terms.col_weights,
-              floor, visibility, surface.images.floor_occlusion, np.zeros(3, dtype=np.float32), r, c, radiance, cover,
-              image)
+              floor, visibility, floor_occlusion, np.zeros(3, dtype=np.float32), r, c, radiance, cover, image)
     shown = 1.0 - surface.coverage
     rows, cols, theta, phi = _background_rays(geometry.elevation_deg, size)
     if len(rows):
         background = sample_angles(environment.background, theta, phi, environment.rotation_deg)
         image[rows, cols] += background * np.float32(environment.strength) * shown[rows, cols, None]
-    if len(per_light) and not geometry.empty:
+    if len(per_light):
         lit = np.zeros((int(floor.sum()), 3), dtype=np.float32)
         for term, maps in zip(per_light, suns):
-            lit += upsample(term, floor_terms)[floor] * maps.floor_visibility(surface, geometry, block)[:, None]
+            shadowed = 1.0 if geometry.empty else maps.floor_visibility(surface, geometry, block)[:, None]
+            lit += upsample(term, floor_terms)[floor] * shadowed
         image[floor] += lit * shown[floor][:, None]
-    elif len(per_light):
-        image[floor] += sum(upsample(term, floor_terms)[floor] for term in per_light) * shown[floor][:, None]
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
                         material, block, sky_up, floor_albedo)
@@ -319,7 +340,19 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
                        visibility=visibility, occlusion=images.occlusion)
 
 
-FLOOR_COAT_ROUGHNESS = 0.32  # sqrt of the floor coat's GGX alpha (renderer.scene.FLOOR_ROUGHNESS = 0.1)
+def _cone_sky_shares(ready: PreparedEnvironment, environment: EnvironmentLight) -> np.ndarray:
+    """(K,): the share of the residual sky's light on the floor (luminance) that arrives nearest each axis of
+    surface.floor_sky_axes(), with the environment turned."""
+    axes = floor_sky_axes()
+    rows = SPECULAR_ROWS
+    directions = rotate_y(map_directions(rows, 2 * rows), environment.rotation_deg).reshape(-1, 3)
+    weight = (luminance(ready.residual_sky).reshape(-1) * np.maximum(directions[:, 1], 0.0)
+              * np.broadcast_to(texel_solid_angles(rows, 2 * rows), (rows, 2 * rows)).reshape(-1))
+    shares = np.bincount(np.argmax(directions @ axes.T, axis=1), weights=weight, minlength=len(axes))
+    total = float(shares.sum())
+    return shares / total if total > 0.0 else np.full(len(axes), 1.0 / len(axes))
+
+
 COAT_SAMPLE_BLUR = 0.6  # texels of the lighting map: the blur of the map the floor's coat reflection samples
 
 
@@ -514,5 +547,6 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
                                    below, light_position, area, suns, lights, ready, environment, material, block,
                                    sky_up, floor_albedo)
     _, rays = mirror_camera.pixel_rays(reflection.pixels[:, 1] + 0.5, reflection.pixels[:, 0] + 0.5)
-    replaced = _specular(ready, environment, rays * np.array([1.0, -1.0, 1.0]), FLOOR_COAT_ROUGHNESS)
+    theta, phi = direction_angles(rays * np.array([1.0, -1.0, 1.0]))
+    replaced = sample_angles(ready.coat_specular, theta, phi, environment.rotation_deg) * environment.strength
     add_reflection_change(image, surface, reflection, radiance - replaced)

@@ -68,6 +68,10 @@ FAR_SHARE_DISTANCE = 8.0
 FAR_SHARE_COSINE = 0.8
 FLOOR_OCCLUSION_DISTANCES = np.array([2.0, 5.0, 10.0, 20.0], dtype=np.float32)  # voxels straight up
 FLOOR_OCCLUSION_WEIGHTS = np.array([0.3, 0.3, 0.25, 0.2], dtype=np.float32)
+# Under an environment the floor's sky is traced through the far cones too (a table's top hides the zenith from the
+# ground under it, 35 voxels up and more), at points FLOOR_SKY_PIXELS apart at 256^2, from FLOOR_SKY_START voxels.
+FLOOR_SKY_PIXELS = 4
+FLOOR_SKY_START = 4.0
 BLOCKED_SKY_LIGHT = 0.35  # share of the ambient light a blocked sky direction still brings (the lit object)
 FLOOR_BOUNCE = 1.0  # weight of the light the floor sends back up onto the object (0: none)
 FLOOR_BELOW_LIT = 0.5  # share of the direct light the floor under an object point gets (its shadow falls there)

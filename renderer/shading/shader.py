@@ -46,7 +46,7 @@ from renderer.shading.environment_shading import needs_environment_shading, scen
 from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
-from renderer.shading.surface import floor_reflection, visible_surface
+from renderer.shading.surface import floor_reflection, floor_sky_cones, visible_surface
 
 
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
@@ -67,5 +67,5 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     if needs_environment_shading(scene):
         light = scene.light.position if scene.light.enabled else None
         return shade_environment(geometry, surface, light, floor_color, scene_environment(scene),
-                                 scene.object.material, mirrored, quality)
+                                 scene.object.material, mirrored, quality, floor_sky_cones(geometry, surface))
     return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored, quality=quality)

@@ -10,6 +10,8 @@ This chain is the one table of the shader's stages; the standalone shader and th
     colors      surface, painted voxels (the seen points' colors)             the same, paint
     reflection  colors (the object mirrored in the floor; optional)           the same
     floor       camera elevation, image size, light position, floor color     camera, floor color, a light move
+    floor_sky   surface (under an environment: the sky the object leaves      the same as surface
+                open to the floor, per direction)
     lighting    colors, reflection, floor                                     any of the above
                 (under an environment or for a glossy object: colors, reflection, the light, the floor color, the
                 environment and the material; it lights the floor itself)
@@ -36,7 +38,7 @@ from renderer.shading.environment_shading import needs_environment_shading, scen
 from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
-from renderer.shading.surface import floor_reflection, repaint_surface, visible_surface
+from renderer.shading.surface import floor_reflection, floor_sky_cones, repaint_surface, visible_surface
 from renderer.stage_cache import StageCache
 
 Pool = Callable[[tuple[int, int, int]], np.ndarray]  # merge factors -> the painted voxels merged by them
@@ -98,8 +100,9 @@ class StagedShader:
                 where, surface, light, floor, floor_terms, reflection, self.quality), keep)
         environment = scene_environment(scene)
         light = light if scene.light.enabled else None
+        cones = stage("floor_sky", (placed_key, size), lambda: floor_sky_cones(where, seen), keep)
         return stage("lighting", (painted_key, light, floor, environment.key, o.material), lambda: shade_environment(
-            where, surface, light, floor, environment, o.material, reflection, self.quality), keep)
+            where, surface, light, floor, environment, o.material, reflection, self.quality, cones), keep)
 
     def _stage(self, name: str, key: Hashable, compute: Callable, keep: bool = True):
         return self.cache(self._prefix + name, key, compute, keep)

@@ -22,7 +22,7 @@ from scipy import ndimage, special
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
 from renderer.floor_light import coat_reflectance
-from renderer.resample import downscaled_mask
+from renderer.resample import downscaled_mask, linear_weights, upsampled
 from renderer.shading.fields import FAR, HIT_GAP, blend_fields, cell_corners, sample, sample_pair, surface_gap
 from renderer.shading.geometry import ObjectGeometry, points_box
 from renderer.shading.quality import (
@@ -43,6 +43,8 @@ from renderer.shading.quality import (
     FAR_START,
     FLOOR_OCCLUSION_DISTANCES,
     FLOOR_OCCLUSION_WEIGHTS,
+    FLOOR_SKY_PIXELS,
+    FLOOR_SKY_START,
     FULL_QUALITY,
     NORMAL_AGREE,
     NORMAL_DISC,
@@ -491,6 +493,53 @@ def _floor_occlusion(geometry: ObjectGeometry, floor_points: np.ndarray, world_t
     blocked = np.clip(found, 0.0, 1.0)
     occlusion[near] = 1.0 - blocked * (1.0 - BLOCKED_SKY_LIGHT)
     return occlusion
+
+
+def floor_sky_axes() -> np.ndarray:
+    """(K, 3) world unit axes of the cones floor_sky_cones traces: the far occlusion's cones about the floor's normal."""
+    cones = _cone_directions()
+    axes = cones[:, [0, 2, 1]]  # tangent x, bitangent z, normal y
+    return axes / np.linalg.norm(axes, axis=1, keepdims=True)
+
+
+def floor_sky_cones(geometry: ObjectGeometry, surface: VisibleSurface) -> np.ndarray | None:
+    """(F, K): per floor point of `surface`, the share of each cone about floor_sky_axes() that the object leaves
+    open, so that a sky whose light comes from one side puts the object's shadow on the other (a table's top shades
+    the ground under it from the zenith). Traced at floor points FLOOR_SKY_PIXELS apart (at 256^2) and interpolated
+    bilinearly; None where the geometry has no far occupancy (fast quality)."""
+    if not geometry.far_occupancy:
+        return None
+    axes = floor_sky_axes()
+    if geometry.empty or not surface.floor.any():
+        return np.ones((len(surface.floor_points), len(axes)), dtype=np.float32)
+    points, row_weights, col_weights = _floor_sky_grid(geometry.elevation_deg, surface.size)
+    world_to_voxel = np.linalg.inv(geometry.voxel_to_world)
+    crop = points.reshape(-1, 3) @ world_to_voxel[:3, :3].T + world_to_voxel[:3, 3] - geometry.offset
+    crop_axes = axes @ world_to_voxel[:3, :3].T
+    crop_axes /= np.linalg.norm(crop_axes, axis=1, keepdims=True)
+    coarse = np.empty((len(crop), len(axes)))
+    cones_through(geometry.far_occupancy, _FAR_BLOCKS, np.ascontiguousarray(crop_axes), _FAR_TANGENT,
+                  FLOOR_SKY_START, np.array(geometry.distance_and_core.shape[:3], dtype=np.float64),
+                  np.ascontiguousarray(crop), coarse)
+    return upsampled(coarse.reshape(*points.shape[:2], len(axes)), row_weights, col_weights)[surface.floor]
+
+
+@lru_cache(maxsize=8)
+def _floor_sky_grid(elevation_deg: float, size: int) -> tuple[np.ndarray, tuple, tuple]:
+    """floor_sky_cones' world points (h, w, 3) on the floor, FLOOR_SKY_PIXELS apart at 256^2 and at the image's
+    edges, and the weights that interpolate them to every pixel; past the horizon a far point (its cones see no
+    object). Per camera, read-only."""
+    camera = Camera(elevation_deg, width=size, height=size)
+    step = max(1, round(FLOOR_SKY_PIXELS * size / 256))
+    centres = np.arange(0.5, size, step)
+    centres = np.append(centres, size - 0.5) if centres[-1] < size - 0.5 else centres
+    v, u = np.meshgrid(centres, centres, indexing="ij")
+    origin, dirs = camera.pixel_rays(u, v)
+    dirs[..., 1] = np.minimum(dirs[..., 1], -1e-3)
+    points = origin + (-origin[1] / dirs[..., 1])[..., None] * dirs
+    weights = linear_weights(centres, size)
+    points.flags.writeable = False
+    return points, weights, weights
 
 
 def _view_axis(camera: Camera) -> np.ndarray:
@@ -983,6 +1032,35 @@ def far_sky_seen(levels, blocks, cones, tangent, start, shape, enough, points, n
                 s += step
             seen += cones[c, 3] * through
         out[i] = seen
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def cones_through(levels, blocks, axes, tangent, start, shape, points, out):
+    """out[i, c] = the transmittance of the cone of half-angle tangent = tan about the unit crop direction axes[c]
+    from crop point i (a point of the floor, which has no surface of its own in the occupancy): marched as
+    far_sky_seen's cones are, from `start` voxels or where it enters the crop, to where it leaves it."""
+    count_levels = len(blocks)
+    for i in prange(points.shape[0]):
+        px, py, pz = points[i, 0], points[i, 1], points[i, 2]
+        for c in range(axes.shape[0]):
+            dx, dy, dz = axes[c, 0], axes[c, 1], axes[c, 2]
+            enter, leave = _box_interval(px, py, pz, dx, dy, dz, shape[0], shape[1], shape[2])
+            s, through = max(start, enter), 1.0
+            wx, wy, wz = dx * dx, dy * dy, dz * dz
+            while through > 0.02 and s < leave:
+                width = 2.0 * s * tangent
+                at = min(max(math.log2(width / blocks[0]), 0.0), count_levels - 1.0)
+                low = min(int(at), count_levels - 2)
+                f = at - low
+                block0, block1 = blocks[low], blocks[low + 1]
+                x, y, z = px + s * dx, py + s * dy, pz + s * dz
+                occupied = ((1.0 - f) * _level_blocked(levels, low, x / block0, y / block0, z / block0, wx, wy, wz)
+                            + f * _level_blocked(levels, low + 1, x / block1, y / block1, z / block1, wx, wy, wz))
+                block = block0 * (1.0 - f) + block1 * f
+                step = min(0.5 * width, block)
+                through *= (1.0 - min(max(occupied, 0.0), 1.0)) ** (step / block)
+                s += step
+            out[i, c] = through
 
 
 @njit(cache=True)
