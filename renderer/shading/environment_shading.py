@@ -171,9 +171,11 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
 
 
 def _prefiltered(radiance: np.ndarray, roughnesses: tuple[float, ...] = SPECULAR_ROUGHNESS) -> np.ndarray:
-    """The map, reduced to SPECULAR_ROWS rows, convolved with GGX lobes of each of `roughnesses` (about the
-    reflected direction, as if normal, view and reflection coincided), normalised so that a constant map stays
-    constant. The cosines between the reduced map's texels are computed once (_specular_cosines)."""
+    """The map's sky, reduced to SPECULAR_ROWS rows, convolved with GGX lobes of each of `roughnesses` (about the
+    reflected direction, as if normal, view and reflection coincided) over the texels above the floor alone,
+    normalised so that a constant sky stays constant: what a lobe sees below the horizon is the floor, which the
+    shader adds itself (_floor_seen). The cosines between the reduced map's texels are computed once
+    (_specular_cosines)."""
     radiance = np.asarray(radiance, dtype=np.float32)
     sources = {rows: np.ascontiguousarray(reduce_map(radiance, 2 * rows).reshape(-1, 3))
                for rows in (SPECULAR_ROWS, SPECULAR_ROWS // 2)}
@@ -184,7 +186,8 @@ def _prefiltered(radiance: np.ndarray, roughnesses: tuple[float, ...] = SPECULAR
             continue
         rows = SPECULAR_ROWS if roughness < 0.5 else SPECULAR_ROWS // 2  # a broad lobe reads a coarser map
         cosine, solid = _specular_cosines(rows)
-        _ggx_convolve(cosine, solid[0], sources[rows], max(roughness, MIN_ROUGHNESS) ** 4, out[level])
+        _ggx_convolve(cosine, solid[0] * _above_floor(rows), sources[rows], max(roughness, MIN_ROUGHNESS) ** 4,
+                      out[level])
     return out.reshape(len(roughnesses), SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3)
 
 
@@ -216,6 +219,12 @@ def _specular_cosines(rows: int) -> tuple[np.ndarray, np.ndarray]:
     directions = map_directions(rows, 2 * rows).reshape(-1, 3)
     solid = np.broadcast_to(texel_solid_angles(rows, 2 * rows), (rows, 2 * rows))
     return (np.clip(into @ directions.T, -1.0, 1.0).astype(np.float32), solid.reshape(1, -1).astype(np.float32))
+
+
+@lru_cache(maxsize=2)
+def _above_floor(rows: int) -> np.ndarray:
+    """(rows x 2 rows,) float32: 1 at the texels of a `rows`-row map above the horizon, 0 below."""
+    return (map_directions(rows, 2 * rows)[..., 1] > 0.0).reshape(-1).astype(np.float32)
 
 
 @lru_cache(maxsize=1)
@@ -504,9 +513,9 @@ def _floor_seen(directions: np.ndarray, floor_albedo: np.ndarray, floor_lit: np.
 
 def _above_horizon(directions: np.ndarray, roughness: float) -> np.ndarray:
     """(N, 1): how much of a glossy lobe about each direction sees the sky rather than the floor (a ramp across the
-    horizon as wide as the lobe)."""
+    horizon as wide as the lobe: about twice GGX's alpha = roughness^2, which measures the half vector's spread)."""
     y = directions[:, 1] / np.maximum(np.linalg.norm(directions, axis=1), 1e-12)
-    return np.clip(0.5 + y / (2.0 * max(roughness**2, 0.02)), 0.0, 1.0)[:, None]
+    return np.clip(0.5 + y / (4.0 * max(roughness**2, 0.02)), 0.0, 1.0)[:, None]
 
 
 def _ggx_reflectance(normals: np.ndarray, view: np.ndarray, light: np.ndarray, roughness: float,
