@@ -362,7 +362,7 @@ def _cone_sky_shares(ready: PreparedEnvironment, environment: EnvironmentLight) 
     return shares / total if total > 0.0 else np.full(len(axes), 1.0 / len(axes))
 
 
-COAT_SAMPLE_BLUR = 0.6  # texels of the lighting map: the blur of the map the floor's coat reflection samples
+COAT_SAMPLE_BLUR = 0.3  # texels of the lighting map: the blur of the map the floor's coat reflection samples
 
 
 @lru_cache(maxsize=8)
