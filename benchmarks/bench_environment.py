@@ -20,27 +20,22 @@ from pathlib import Path
 
 import numpy as np
 
+from models.bench.environment import edit_pairs, sun_drag
 from renderer.environment_maps import make_map
 from renderer.objects.demo import DEMO_DIR
 from renderer.pipeline import object_voxels
-from renderer.scene import EnvironmentSpec, MaterialSpec, Scene, SkySpec, load_scene
+from renderer.scene import EnvironmentSpec, Scene, SkySpec, load_scene
 from renderer.shading.staged import StagedShader
 
 
-def edit_pairs(scene: Scene) -> dict[str, tuple[Scene, Scene]]:
-    """Two scenes per environment edit that differ only in it."""
-    env, o = scene.environment, scene.object
-    pairs = {
-        "environment turn": (scene, replace(scene, environment=replace(env, rotation_deg=env.rotation_deg + 15.0))),
-        "strength": (scene, replace(scene, environment=replace(env, strength=env.strength * 1.2))),
-        "material": (scene, replace(scene, object=replace(o, material=MaterialSpec(0.3, 0.5, 1.0)))),
-        "object move": (scene, replace(scene, object=replace(o, translation=(o.translation[0] + 0.15,
-                                                                             o.translation[1] - 0.1)))),
-    }
+def timed_pairs(scene: Scene) -> dict[str, tuple[Scene, Scene]]:
+    """The bench's environment edits (models.bench.environment.edit_pairs) and, under a sky, the sun moved between
+    two skies the cache keeps."""
+    pairs = edit_pairs(scene)
+    env = scene.environment
     if env.sky is not None:
-        sky = env.sky
-        pairs["sun move"] = (scene, replace(scene, environment=replace(env, sky=replace(
-            sky, sun_azimuth_deg=sky.sun_azimuth_deg + 10.0))))
+        pairs["sun move"] = (scene, scene.with_changes(environment=replace(env, sky=replace(
+            env.sky, sun_azimuth_deg=env.sky.sun_azimuth_deg + 10.0))))
     return pairs
 
 
@@ -48,7 +43,7 @@ def time_edits(scene: Scene, repeats: int, size: int) -> dict[str, dict]:
     rgba = object_voxels(scene)
     shader = StagedShader()
     out = {}
-    for name, pair in edit_pairs(scene).items():
+    for name, pair in timed_pairs(scene).items():
         for p in pair:  # the painted voxels are the same throughout: one key names them
             shader.render(p, "voxels", rgba, p.floor.color, size)
         times, stages = [], set()
@@ -60,17 +55,14 @@ def time_edits(scene: Scene, repeats: int, size: int) -> dict[str, dict]:
             stages |= set(shader.stage_ms)
         out[name] = {"ms": round(statistics.median(times), 1), "stages": sorted(stages)}
         print(f"{name}: {out[name]['ms']:.1f} ms  (reran {', '.join(sorted(stages))})")
-    env = scene.environment
-    if env.sky is not None:  # a drag: every step a sun the caches have not seen (the sky is baked and split again)
+    if scene.environment.sky is not None:  # a drag: every step a sun the caches have not seen (a new sky bake)
         times = []
-        for k in range(repeats):
-            sky = replace(env.sky, sun_azimuth_deg=env.sky.sun_azimuth_deg + 0.7 * (k + 1))
-            moved = replace(scene, environment=replace(env, sky=sky))
+        for moved in sun_drag(scene, repeats):
             start = time.perf_counter()
             shader.render(moved, "voxels", rgba, moved.floor.color, size)
             times.append((time.perf_counter() - start) * 1000.0)
         out["sun drag"] = {"ms": round(statistics.median(times), 1), "stages": ["lighting"]}
-        print(f"sun drag: {out['sun drag']['ms']:.1f} ms  (a new sun each step: sky baked and split, lighting)")
+        print(f"sun drag: {out['sun drag']['ms']:.1f} ms  (a new sky each step: baked and split, lighting)")
     return out
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -409,8 +409,12 @@ def environment_light(scene: Scene) -> EnvironmentLight | None:
     if env is None:
         return None
     if env.sky is not None:
-        sky_map, sun = sky_light(env.sky)
-        return _assemble(sky_map, env, scene_sun_direction(scene), sun, ("sky", env.sky))
+        # The sky turns with its sun's azimuth: it is baked with the sun at azimuth 0 and turned by the rest, so that a
+        # sun dragged around the sky reuses the bake and all the work renderers keep on its map.
+        facing = replace(env.sky, sun_azimuth_deg=0.0)
+        sky_map, sun = sky_light(facing)
+        turned = replace(env, rotation_deg=env.rotation_deg + env.sky.sun_azimuth_deg)
+        return _assemble(sky_map, turned, scene_sun_direction(scene), sun, ("sky", facing))
     path = scene.environment_path()
     try:
         stat = path.stat()

@@ -163,11 +163,6 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
     return terms, per_light
 
 
-def upsample(coarse: np.ndarray, terms: FloorTerms) -> np.ndarray:
-    """A coarse (h, w, c) floor term at every pixel, by FloorTerms' weights."""
-    return upsampled(coarse, terms.row_weights, terms.col_weights)
-
-
 def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:
     """Linear radiance (h, w, 3) of the coarse floor points: from the area light, from the ambient light."""
     light = np.asarray(light_position, dtype=np.float64)

@@ -241,6 +241,20 @@ def test_the_sky_is_brightest_around_its_sun_and_a_higher_sun_gives_more_light()
     assert high > 2.0 * low > 0.0 and np.all(sun > 0.0)
 
 
+def test_a_scenes_sky_is_the_model_baked_at_its_suns_azimuth():
+    """The scene's sky is baked with the sun at azimuth 0 and turned (so that a dragged sun reuses the bake): it
+    must show what Mitsuba's model gives baked at the sun's own azimuth, the sun where its angles say."""
+    spec = EnvironmentSpec(sky=SkySpec(25.0, 130.0, 4.0), rotation_deg=-20.0)
+    light = environment_light(Scene(environment=spec))
+    baked, sun = sky_light(spec.sky)
+    directions = map_directions(16, 32).reshape(-1, 3)
+    directions = directions[directions[:, 1] > 0.05]
+    expected = sample_map(baked, rotate_y(directions, 20.0))  # the world direction in the map turned by -20
+    np.testing.assert_allclose(light.radiance(directions, sharp=True), expected, rtol=0.05, atol=1e-3)
+    np.testing.assert_allclose(light.sun_direction, rotate_y(sun_direction(spec.sky), -20.0), atol=1e-9)
+    np.testing.assert_allclose(light.sun_irradiance, sun, rtol=0.01)  # its disc sampled turned
+
+
 # --- the shader against known answers -----------------------------------------------------------------
 
 

@@ -32,11 +32,13 @@ def describe(value: SkySpec | MaterialSpec) -> str:
 
 
 def sun_drag(scene: Scene, steps: int) -> list[Scene]:
-    """`scene` with its sun moved 2 degrees in azimuth at each of `steps` steps: a drag through skies never seen
-    before (alternating two skies would time the cache that keeps them)."""
+    """`scene` with its sun moved 2 degrees in azimuth and 0.5 in elevation at each of `steps` steps, as a drag
+    on the sun's hemisphere moves it: a drag through skies never seen before (alternating two skies would time the
+    cache that keeps them; the azimuth alone turns one baked sky)."""
     env = scene.environment
-    return [scene.with_changes(environment=replace(env, sky=replace(env.sky, sun_azimuth_deg=(
-        env.sky.sun_azimuth_deg + 2.0 * (k + 1)) % 360.0))) for k in range(steps)]
+    return [scene.with_changes(environment=replace(env, sky=replace(
+        env.sky, sun_azimuth_deg=(env.sky.sun_azimuth_deg + 2.0 * (k + 1)) % 360.0,
+        sun_elevation_deg=5.0 + (env.sky.sun_elevation_deg - 5.0 + 0.5 * (k + 1)) % 80.0))) for k in range(steps)]
 
 
 def edit_pairs(scene: Scene) -> dict[str, tuple[Scene, Scene]]:

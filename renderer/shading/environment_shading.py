@@ -46,8 +46,8 @@ from renderer.floor_light import (
     FloorSky,
     coat_reflectance,
     environment_floor_terms,
-    upsample,
 )
+from renderer.resample import bilinear_at
 from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, MaterialSpec, Scene
 from renderer.shading.geometry import ObjectGeometry
 from renderer.shading.lighting import (
@@ -79,6 +79,8 @@ from renderer.splat import cached_floor_mask
 
 ENVIRONMENT_LIGHTS = 8  # directional lights drawn from a map's bright parts (the sun is one more)
 CONCENTRATED = 2.0  # a texel brighter than this many times the sky's mean belongs to a light
+MIN_LIGHT_SHARE = 0.02  # a bright part with less of the sky's light stays in it: its own shadows would cost more than
+# they show
 LIGHT_DISTANCE = 100.0  # world units: a directional light's shadow maps look from a point this far
 LOWEST_LIGHT_DEG = 2.0  # a light lower than this casts its shadows from this elevation (the maps need height)
 IRRADIANCE_ROWS = 16  # the irradiance map's rows (twice as many columns)
@@ -104,9 +106,9 @@ class PreparedEnvironment:
     irradiance: np.ndarray  # (IRRADIANCE_ROWS, 2 x, 3): the residual sky's irradiance on a surface facing each texel
     sky_up: np.ndarray  # (3,) the residual sky's irradiance on the floor
     residual_sky: np.ndarray  # (SPECULAR_ROWS, 2 x, 3): the residual sky above the horizon (0 below)
-    specular: np.ndarray  # (len(SPECULAR_ROUGHNESS), SPECULAR_ROWS, 2 x, 3): the whole map prefiltered by GGX
+    specular: PrefilteredSky  # the whole map's sky, prefiltered by GGX
     blurred: np.ndarray  # the map less its small lights (drawn as highlights), blurred by COAT_SAMPLE_BLUR texels
-    coat_specular: np.ndarray  # (SPECULAR_ROWS, 2 x, 3): the same prefiltered at the floor coat's roughness
+    coat_specular: PrefilteredSky  # the same map less its small lights, prefiltered
 
 
 _PREPARED: dict[tuple, PreparedEnvironment] = {}
@@ -141,7 +143,10 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
         excess_share = np.where(bright, 1.0 - threshold / np.maximum(lum, 1e-30), 0.0)
         excess = radiance * excess_share[..., None]
         power = ndimage.sum_labels(luminance(excess) * solid, labels, index=np.arange(1, count + 1))
+        enough = MIN_LIGHT_SHARE * float(np.sum(lum * solid * sky))
         for label in np.argsort(power)[::-1][:ENVIRONMENT_LIGHTS] + 1:
+            if power[label - 1] < enough:
+                break
             part = labels == label
             weights = (luminance(excess) * solid)[part]
             direction = np.sum(directions[part] * weights[:, None], axis=0)
@@ -164,31 +169,38 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
         light_small=np.array([s <= SMALL_LIGHT_SPREAD for _, _, s in lights], dtype=bool),
         irradiance=irradiance.astype(np.float32), sky_up=sky_up,
         residual_sky=reduced.reshape(SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3),
-        specular=_prefiltered(radiance).astype(np.float32),
-        coat_specular=_prefiltered(coat, (FLOOR_COAT_ROUGHNESS,))[0],
+        specular=PrefilteredSky(radiance),
+        coat_specular=PrefilteredSky(coat),
         blurred=ndimage.gaussian_filter(coat, (COAT_SAMPLE_BLUR, COAT_SAMPLE_BLUR, 0),
                                         mode=("nearest", "wrap", "nearest")).astype(np.float32))
 
 
-def _prefiltered(radiance: np.ndarray, roughnesses: tuple[float, ...] = SPECULAR_ROUGHNESS) -> np.ndarray:
-    """The map's sky, reduced to SPECULAR_ROWS rows, convolved with GGX lobes of each of `roughnesses` (about the
-    reflected direction, as if normal, view and reflection coincided) over the texels above the floor alone,
-    normalised so that a constant sky stays constant: what a lobe sees below the horizon is the floor, which the
-    shader adds itself (_floor_seen). The cosines between the reduced map's texels are computed once
-    (_specular_cosines)."""
-    radiance = np.asarray(radiance, dtype=np.float32)
-    sources = {rows: np.ascontiguousarray(reduce_map(radiance, 2 * rows).reshape(-1, 3))
-               for rows in (SPECULAR_ROWS, SPECULAR_ROWS // 2)}
-    out = np.empty((len(roughnesses), 2 * SPECULAR_ROWS**2, 3), dtype=np.float32)
-    for level, roughness in enumerate(roughnesses):
-        if roughness == 0.0:
-            out[level] = sources[SPECULAR_ROWS]
-            continue
-        rows = SPECULAR_ROWS if roughness < 0.5 else SPECULAR_ROWS // 2  # a broad lobe reads a coarser map
-        cosine, solid = _specular_cosines(rows)
-        _ggx_convolve(cosine, solid[0] * _above_floor(rows), sources[rows], max(roughness, MIN_ROUGHNESS) ** 4,
-                      out[level])
-    return out.reshape(len(roughnesses), SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3)
+class PrefilteredSky:
+    """A map's sky, reduced to SPECULAR_ROWS rows, convolved with the GGX lobe of a roughness (about the reflected
+    direction, as if normal, view and reflection coincided) over the texels above the floor alone, normalised so that
+    a constant sky stays constant: what a lobe sees below the horizon is the floor, which the shader adds itself
+    (_floor_seen). Each roughness is made on first use and kept: a new sky pays only for the lobes drawn. The
+    cosines between the reduced map's texels are computed once (_specular_cosines)."""
+
+    def __init__(self, radiance: np.ndarray):
+        radiance = np.asarray(radiance, dtype=np.float32)
+        self._sources = {rows: np.ascontiguousarray(reduce_map(radiance, 2 * rows).reshape(-1, 3))
+                         for rows in (SPECULAR_ROWS, SPECULAR_ROWS // 2)}
+        self._levels: dict[float, np.ndarray] = {}
+
+    def at(self, roughness: float) -> np.ndarray:
+        """(SPECULAR_ROWS, 2 x, 3): the sky prefiltered at `roughness` (0: the reduced map itself)."""
+        if roughness not in self._levels:
+            if roughness == 0.0:
+                out = self._sources[SPECULAR_ROWS]
+            else:
+                rows = SPECULAR_ROWS if roughness < 0.5 else SPECULAR_ROWS // 2  # a broad lobe reads a coarser map
+                cosine, solid = _specular_cosines(rows)
+                out = np.empty((2 * SPECULAR_ROWS**2, 3), dtype=np.float32)
+                _ggx_convolve(cosine, solid[0] * _above_floor(rows), self._sources[rows],
+                              max(roughness, MIN_ROUGHNESS) ** 4, out)
+            self._levels[roughness] = out.reshape(SPECULAR_ROWS, 2 * SPECULAR_ROWS, 3)
+        return self._levels[roughness]
 
 
 @njit(cache=True, parallel=True)
@@ -334,11 +346,13 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
         background = sample_angles(environment.background, theta, phi, environment.rotation_deg)
         image[rows, cols] += background * np.float32(environment.strength) * shown[rows, cols, None]
     if len(per_light):
-        lit = np.zeros((int(floor.sum()), 3), dtype=np.float32)
-        for term, maps in zip(per_light, suns):
-            shadowed = 1.0 if geometry.empty else maps.floor_visibility(surface, geometry, block)[:, None]
-            lit += upsample(term, floor_terms)[floor] * shadowed
-        image[floor] += lit * shown[floor][:, None]
+        floor_rows, floor_cols = _floor_pixels(geometry.elevation_deg, size)
+        shadowed = np.ones((len(per_light), len(floor_rows)), dtype=np.float32)
+        if not geometry.empty:
+            for k, maps in enumerate(suns):
+                shadowed[k] = maps.floor_visibility(surface, geometry, block)
+        add_floor_lights(image, np.stack(per_light), shadowed, floor_rows, floor_cols, *floor_terms.row_weights,
+                         *floor_terms.col_weights, shown)
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
                         material, block, sky_up, floor_albedo)
@@ -375,6 +389,31 @@ def _background_rays(elevation_deg: float, size: int) -> tuple[np.ndarray, ...]:
     for array in out:
         array.flags.writeable = False
     return out
+
+
+@lru_cache(maxsize=8)
+def _floor_pixels(elevation_deg: float, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows and columns of the pixels that show the floor, row-major (as VisibleSurface's floor points), per
+    camera (read-only)."""
+    rows, cols = np.nonzero(cached_floor_mask(Camera(elevation_deg, width=size, height=size)))
+    rows.flags.writeable = False
+    cols.flags.writeable = False
+    return rows, cols
+
+
+@njit(cache=True, parallel=True)
+def add_floor_lights(image, terms, shadowed, rows, cols, top, bottom, down, left, right, across, shown):
+    """image[rows[i], cols[i]] += the sum over lights k of their coarse floor radiance terms[k] (K, h, w, 3),
+    interpolated bilinearly at the pixel (bilinear_at), times the share of the light the point sees, shadowed[k, i],
+    times the share of the pixel that shows the floor, `shown`: one pass instead of full-size images per light."""
+    for i in prange(rows.shape[0]):
+        r, c = rows[i], cols[i]
+        for channel in range(3):
+            total = np.float32(0.0)
+            for k in range(terms.shape[0]):
+                total += bilinear_at(terms[k], top[r], bottom[r], down[r], left[c], right[c], across[c],
+                                     channel) * shadowed[k, i]
+            image[r, c, channel] += total * shown[r, c]
 
 
 class _ShadowMaps:
@@ -496,8 +535,8 @@ def _specular(ready: PreparedEnvironment, environment: EnvironmentLight, directi
     t = (roughness - levels[upper - 1]) / (levels[upper] - levels[upper - 1])
     theta, phi = direction_angles(directions)
     turn = environment.rotation_deg
-    found = ((1.0 - t) * sample_angles(ready.specular[upper - 1], theta, phi, turn)
-             + t * sample_angles(ready.specular[upper], theta, phi, turn))
+    found = ((1.0 - t) * sample_angles(ready.specular.at(float(levels[upper - 1])), theta, phi, turn)
+             + t * sample_angles(ready.specular.at(float(levels[upper])), theta, phi, turn))
     return found * environment.strength
 
 
@@ -557,5 +596,6 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
                                    sky_up, floor_albedo)
     _, rays = mirror_camera.pixel_rays(reflection.pixels[:, 1] + 0.5, reflection.pixels[:, 0] + 0.5)
     theta, phi = direction_angles(rays * np.array([1.0, -1.0, 1.0]))
-    replaced = sample_angles(ready.coat_specular, theta, phi, environment.rotation_deg) * environment.strength
+    replaced = (sample_angles(ready.coat_specular.at(FLOOR_COAT_ROUGHNESS), theta, phi, environment.rotation_deg)
+                * environment.strength)
     add_reflection_change(image, surface, reflection, radiance - replaced)
