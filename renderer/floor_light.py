@@ -129,22 +129,25 @@ def _coat_samples(view: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky, directions: np.ndarray,
                             irradiance: np.ndarray, glossy: np.ndarray,
-                            spread: np.ndarray | None = None) -> tuple[FloorTerms, list[np.ndarray]]:
+                            spread: np.ndarray | None = None, coat: bool = True,
+                            ) -> tuple[FloorTerms, list[np.ndarray]]:
     """The empty floor under an environment: FloorTerms whose `from_light` is the area light's (zero when
     `light_position` is None) and whose `from_ambient` is the sky's, and per directional light (unit world
     `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its coarse (h, w, 3) radiance, unshadowed,
     with the coat's highlight where `glossy` says (a light the mirrored sky does not hold already), widened by the
-    light's angular radius `spread` (K,) radians (default 0: a point)."""
+    light's angular radius `spread` (K,) radians (default 0: a point). `coat`: False leaves out all the coat
+    reflects (the diffuse base alone, which a texture varies)."""
     geometry = _coarse_geometry(camera)
     albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64)).astype(np.float32)
     through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
     if light_position is None:
         from_light = np.zeros((*geometry.cos_view.shape, 3), dtype=np.float32)
     else:
-        from_light, _ = _coarse_radiance(geometry, light_position, floor_color)
+        from_light, _ = _coarse_radiance(geometry, light_position, floor_color, coat)
     view = geometry.view
-    from_sky = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
-                + coat_reflection(geometry, sky))
+    from_sky = through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
+    if coat:
+        from_sky = from_sky + coat_reflection(geometry, sky)
     per_light = []
     spread = np.zeros(len(glossy)) if spread is None else spread
     for direction, power, gloss, radius in zip(np.asarray(directions, dtype=np.float64),
@@ -156,15 +159,17 @@ def environment_floor_terms(camera: Camera, light_position, floor_color, sky: Fl
         cos_in_half = np.clip(np.sum(half * direction.astype(np.float32), axis=-1), 0.0, 1.0)
         glossy = (coat_reflectance(cos_in_half) * _ggx_widened(cos_half, 0.5 * float(radius))
                   * _smith_g1(max(cos_in, 1e-4)) * geometry.view_masking / (4.0 * geometry.cos_view))
-        term = cos_in * through_coat[..., None] * albedo + (glossy[..., None] if gloss else 0.0)
+        term = cos_in * through_coat[..., None] * albedo + (glossy[..., None] if gloss and coat else 0.0)
         per_light.append((term * power.astype(np.float32)).astype(np.float32))
     terms = FloorTerms(from_light, from_sky.astype(np.float32), geometry.floor, geometry.row_weights,
                        geometry.col_weights)
     return terms, per_light
 
 
-def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:
-    """Linear radiance (h, w, 3) of the coarse floor points: from the area light, from the ambient light."""
+def _coarse_radiance(geometry: _Geometry, light_position, floor_color,
+                     coat: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Linear radiance (h, w, 3) of the coarse floor points: from the area light, from the ambient light; `coat`:
+    False leaves out what the glossy coat reflects (the diffuse base alone)."""
     light = np.asarray(light_position, dtype=np.float64)
     color = np.asarray(floor_color, dtype=np.float64)
     if light.shape != (3,) or not np.all(np.isfinite(light)) or light[1] <= 0.0:
@@ -176,8 +181,9 @@ def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[
     through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
     light_base = LIGHT_RADIANCE * diffuse_irradiance * through_coat
     ambient_base = AMBIENT_RADIANCE * np.maximum(math.pi - diffuse_irradiance, 0.0) * through_coat
-    from_light = light_base[..., None] * albedo + (LIGHT_RADIANCE * glossy)[..., None]
-    from_ambient = ambient_base[..., None] * albedo + (ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel)[..., None]
+    from_light = light_base[..., None] * albedo + coat * (LIGHT_RADIANCE * glossy)[..., None]
+    from_ambient = (ambient_base[..., None] * albedo
+                    + coat * (ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel)[..., None])
     return from_light.astype(np.float32), from_ambient.astype(np.float32)
 
 

@@ -40,6 +40,7 @@ MAX_NAME_BYTES = 255
 # Photos larger than this are downscaled while they are decoded; beyond MAX_PHOTO_PIXELS a file is
 # refused as a decompression bomb (PIL checks the header before decoding).
 MAX_PHOTO_SIDE = 4096
+MAX_TEXTURE_SIDE = 1024  # a floor texture's long side, after reducing it while decoding: one repeat is a few hundred pixels on screen
 MAX_MAP_SIDE = 8192  # widest environment map read: 8192 x 4096 floats are 400 MB while the map is reduced
 MAX_PHOTO_PIXELS = 400_000_000
 MAX_PAINT_STROKES = 10_000  # paint operations a scene holds: far more than anyone paints by hand, and few enough to parse at once

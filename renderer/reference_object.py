@@ -18,7 +18,7 @@ from scipy import ndimage
 from renderer.limits import MAX_MESH_FACES
 from renderer.paint import apply_paint
 from renderer.pipeline import object_mesh, object_voxels, painted_voxels
-from renderer.scene import OBJECT_SIZE, FloorSpec, Scene
+from renderer.scene import OBJECT_SIZE, Scene
 from renderer.surface import occupancy
 from renderer.transform import OBJECT_BOX_MIN
 from renderer.voxel_faces import exposed_faces, voxel_surface_mesh
@@ -38,10 +38,10 @@ def reference_scene(scene: Scene) -> tuple[Scene, trimesh.Trimesh]:
     if not voxel_colored(scene):
         floor_strokes = [op for op in scene.paint if op.target == "floor"]
         _, floor_color = apply_paint(np.zeros((1, 1, 1, 4), np.float32), scene.floor.color, floor_strokes)
-        return scene.with_changes(floor=FloorSpec(tuple(floor_color))), object_mesh(scene)
+        return scene.with_changes(floor=replace(scene.floor, color=tuple(floor_color))), object_mesh(scene)
     rgba, floor_color = painted_voxels(scene, object_voxels(scene))
     # The voxels hold the object color and the paint: the path tracer takes the colors from the mesh alone.
-    scene = scene.with_changes(floor=FloorSpec(tuple(floor_color)), object=replace(scene.object, color=None))
+    scene = scene.with_changes(floor=replace(scene.floor, color=tuple(floor_color)), object=replace(scene.object, color=None))
     if scene.mesh_path() is None:
         return scene, colored_voxel_faces(rgba)
     return scene, mesh_colored_from_voxels(object_mesh(scene), rgba)

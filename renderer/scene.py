@@ -63,7 +63,8 @@ SIMILARITIES = ("rgb", "perceptual")  # a region fill's color comparisons (rende
 MAX_ABS_POSITION = 100.0
 MAX_ABS_ANGLE = 36000.0  # degrees: a hundred turns, far beyond what a drag makes, far from float32's limits
 MAX_STRENGTH = 1000.0  # environment strength
-TURBIDITY_RANGE = (1.0, 10.0)  # the sky model's range (Hosek-Wilkie, as Mitsuba's sunsky)
+TURBIDITY_RANGE = (1.0, 10.0)
+MAX_TEXTURE_SCALE = 100.0  # world units a floor texture's one repeat may span (the floor is 20 across)  # the sky model's range (Hosek-Wilkie, as Mitsuba's sunsky)
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,12 @@ class ObjectSpec:
 
 @dataclass(frozen=True)
 class FloorSpec:
+    """The ground: a diffuse `color` (sRGB) under a glossy coat, or with `texture` (an image, path relative to the
+    scene file) its albedo, repeated every `texture_scale` world units (the color then stands for its mean)."""
+
     color: tuple[float, float, float] = (0.53, 0.64, 0.78)
+    texture: str | None = None
+    texture_scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -164,6 +170,10 @@ class Scene:
     def voxels_path(self) -> Path | None:
         return None if self.object.voxels is None else (self.base_dir / self.object.voxels)
 
+    def floor_texture_path(self) -> Path | None:
+        """Absolute path of the floor's texture image, or None."""
+        return None if self.floor.texture is None else (self.base_dir / self.floor.texture)
+
     def environment_path(self) -> Path | None:
         """Absolute path of the environment image, or None."""
         env = self.environment
@@ -188,7 +198,7 @@ class Scene:
         data: dict[str, Any] = {
             "version": SCENE_VERSION,
             "object": obj,
-            "floor": {"color": list(self.floor.color)},
+            "floor": _floor_to_dict(self.floor),
             "light": light,
             "camera": {"elevation_deg": self.camera.elevation_deg},
             "image_size": self.image_size,
@@ -198,6 +208,16 @@ class Scene:
         if self.paint:
             data["paint"] = [_paint_to_dict(op) for op in self.paint]
         return data
+
+
+def _floor_to_dict(floor: FloorSpec) -> dict[str, Any]:
+    """The floor's JSON form: its color, and its texture and scale only when it has one (older files stay as they
+    were)."""
+    data: dict[str, Any] = {"color": list(floor.color)}
+    if floor.texture is not None:
+        data["texture"] = floor.texture
+        data["texture_scale"] = floor.texture_scale
+    return data
 
 
 def _paint_to_dict(op: PaintOp) -> dict[str, Any]:
@@ -326,8 +346,9 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
         material=material,
     )
     f = r.section(data, "floor")
-    r.known_keys(f, ("color",), "floor.")
-    floor = FloorSpec(r.vector(f, "color", "floor.color", 3, FloorSpec().color))
+    r.known_keys(f, FLOOR_KEYS, "floor.")
+    floor = FloorSpec(r.vector(f, "color", "floor.color", 3, FloorSpec().color), r.file_path(f, "texture", "floor.texture"),
+                      r.number(f, "texture_scale", "floor.texture_scale", FloorSpec().texture_scale))
     li = r.section(data, "light")
     r.known_keys(li, ("position", "enabled"), "light.")
     light = LightSpec(r.vector(li, "position", "light.position", 3, LightSpec().position),
@@ -373,6 +394,7 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     return scene
 
 
+FLOOR_KEYS = ("color", "texture", "texture_scale")
 SCENE_KEYS = ("version", "object", "floor", "light", "camera", "image_size", "paint", "environment")
 OBJECT_KEYS = ("mesh", "up", "resolution", "color", "translation", "rotation_deg", "scale", "voxels", "material")
 MATERIAL_KEYS = ("roughness", "specular", "metallic")
@@ -415,6 +437,8 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
     for key, color in (("object.color", o.color), ("floor.color", scene.floor.color)):
         if color is not None and not all(0.0 <= c <= 1.0 for c in color):
             raise fail(key, f"sRGB values must be in [0, 1], got {list(color)}")
+    if not 0.0 < scene.floor.texture_scale <= MAX_TEXTURE_SCALE:
+        raise fail("floor.texture_scale", f"must be in (0, {MAX_TEXTURE_SCALE:g}] world units, got {scene.floor.texture_scale}")
     lx, ly, lz = scene.light.position
     if ly <= 0.0:
         raise fail("light.position", f"the light must be above the floor (y > 0), got y = {ly}")
@@ -461,6 +485,14 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
             raise fail(f"paint[{i}].similarity", f"must be one of {', '.join(SIMILARITIES)}, got {op.similarity!r}")
 
 
+def needs_environment_shading(scene: Scene) -> bool:
+    """Whether the scene holds more than the set-up the networks were trained on (an environment, the area light off,
+    an object that is not diffuse, a textured floor): the shader's environment path draws it, and no network corrects
+    it yet."""
+    return (scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
+            or scene.floor.texture is not None)
+
+
 def range_warnings(scene: Scene) -> list[str]:
     """One message per value outside the paper's training range (accepted, but the network extrapolates)."""
     out = []
@@ -474,8 +506,8 @@ def range_warnings(scene: Scene) -> list[str]:
         check(f"object.translation.{name}", v, *TRANSLATION_RANGE)
     for name, v in zip("xyz", scene.object.scale):
         check(f"object.scale.{name}", v, *SCALE_RANGE)
-    if scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only:
-        out.append("no network is trained for environments or gloss yet: NVR+ shows the shader's image")
+    if needs_environment_shading(scene):
+        out.append("no network is trained for environments, gloss or floor textures yet: NVR+ shows the shader's image")
     lx, ly, lz = scene.light.position
     check("light.position.x", lx, *LIGHT_XZ_RANGE)
     check("light.position.y", ly, *LIGHT_Y_RANGE)
@@ -489,7 +521,8 @@ def load_scene(path: str | Path) -> Scene:
 
 
 def save_scene(scene: Scene, path: str | Path) -> None:
-    """Write a scene file atomically; mesh, voxel and environment paths are rewritten relative to its folder."""
+    """Write a scene file atomically; mesh, voxel, environment and floor texture paths are rewritten relative to its
+    folder."""
     import os
 
     folder = Path(path).resolve().parent
@@ -499,5 +532,6 @@ def save_scene(scene: Scene, path: str | Path) -> None:
 
     obj, env = scene.object, scene.environment
     rebased = replace(scene, object=replace(obj, mesh=rebase(obj.mesh), voxels=rebase(obj.voxels)),
-                      environment=None if env is None else replace(env, image=rebase(env.image)))
+                      environment=None if env is None else replace(env, image=rebase(env.image)),
+                      floor=replace(scene.floor, texture=rebase(scene.floor.texture)))
     save_json(path, rebased.to_dict())

@@ -1012,6 +1012,45 @@ def test_sky_environment_image_and_material_edits_render_save_and_undo(display, 
     assert np.abs(sky - start).mean() > 0.02 and np.abs(metal - sky).mean() > 0.005
 
 
+def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path, scene_file):
+    """The Light tab's floor texture: a file that is not an image is refused and the scene stays; an image textures
+    the floor in the render panel (its mean becomes the floor color); its repeat scales; each is one undo step."""
+    from PIL import Image
+
+    tiles = np.zeros((64, 64, 3), dtype=np.uint8)
+    tiles[:32, :32] = tiles[32:, 32:] = (230, 200, 150)
+    tiles[:32, 32:] = tiles[32:, :32] = (60, 40, 30)
+    Image.fromarray(tiles).save(tmp_path / "tiles.png")
+    (tmp_path / "not_an_image.png").write_text("hello")
+    shots = {name: str(tmp_path / f"{name}.png") for name in ("plain", "tiled", "finer")}
+    saved = {name: str(tmp_path / f"{name}.json") for name in ("start", "tiled", "undone")}
+    result = run_editor(display, tmp_path, scene_file, [
+        {"action": "save", "path": saved["start"]},
+        {"action": "screenshot", "path": shots["plain"]},
+        {"action": "load_floor_texture", "path": str(tmp_path / "not_an_image.png")},
+        {"action": "load_floor_texture", "path": str(tmp_path / "tiles.png")},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": shots["tiled"]},
+        {"action": "floor_texture_scale", "scale": 0.25},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": shots["finer"]},
+        {"action": "save", "path": saved["tiled"]},
+        {"action": "undo"}, {"action": "undo"},
+        {"action": "save", "path": saved["undone"]},
+    ])
+    assert "not a readable image" in result.stderr
+    tiled = load_scene(saved["tiled"])
+    assert tiled.floor_texture_path().resolve() == (tmp_path / "tiles.png").resolve()
+    assert tiled.floor.texture_scale == 0.25
+    mean = ((np.array([230, 200, 150]) / 255.0) ** 2.2 + (np.array([60, 40, 30]) / 255.0) ** 2.2) / 2.0
+    np.testing.assert_allclose(tiled.floor.color, mean ** (1 / 2.2), atol=0.02)  # the tiles' mean, in sRGB
+    assert Path(saved["undone"]).read_text() == Path(saved["start"]).read_text()
+    plain, with_tiles, finer = (pixels(Path(shots[n]), PANELS.render_image) for n in ("plain", "tiled", "finer"))
+    assert np.abs(with_tiles - plain).mean() > 0.03 and np.abs(finer - with_tiles).mean() > 0.01
+    # Tiles of two colors make the floor's pixels far more varied than the plain floor's.
+    assert with_tiles[-40:].std() > 2.0 * plain[-40:].std()
+
+
 def test_numpad_views_f_frames_the_object_f1_lists_every_key_and_delete_says_why(display, tmp_path, scene_file):
     shots = {name: str(tmp_path / f"{name}.png") for name in ("start", "top", "framed", "help", "closed")}
     result = run_editor(display, tmp_path, scene_file, [

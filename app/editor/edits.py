@@ -13,11 +13,12 @@ from pathlib import Path
 
 from renderer.environment import environment_light
 from renderer.errors import InputError
+from renderer.floor_texture import floor_texture
 from renderer.scene import (
     FLOOR_HALF_SIZE,
+    MAX_TEXTURE_SCALE,
     CameraSpec,
     EnvironmentSpec,
-    FloorSpec,
     MaterialSpec,
     PaintOp,
     Scene,
@@ -31,6 +32,7 @@ MIN_SCALE = 0.05
 MAX_SCALE = 20.0
 MAX_POSITION = FLOOR_HALF_SIZE  # the object and the light stay over the floor's square
 MAX_STRENGTH = 20.0  # an environment's strength the editor offers
+MIN_TEXTURE_SCALE = 0.05  # world units a floor texture's repeat spans at the least (finer ones shimmer)
 
 
 def clamp(value: float, lo: float, hi: float) -> float:
@@ -80,6 +82,25 @@ def use_environment_image(scene: Scene, path: Path) -> Scene:
     return edited
 
 
+def use_floor_texture(scene: Scene, path: Path) -> Scene:
+    """The floor textured by an image (absolute path), read now so that a file that is not an image is refused here
+    in one line; the floor color becomes the texture's mean (what the viewport shows)."""
+    textured = scene.with_changes(floor=replace(scene.floor, texture=str(Path(path).resolve())))
+    texture = floor_texture(textured)
+    return textured.with_changes(floor=replace(textured.floor, color=texture.mean_srgb))
+
+
+def set_floor_texture_scale(scene: Scene, scale: float) -> Scene:
+    """World units one repeat of the floor's texture spans."""
+    (scale,) = _check("texture scale", (scale,), MIN_TEXTURE_SCALE, MAX_TEXTURE_SCALE)
+    return scene.with_changes(floor=replace(scene.floor, texture_scale=scale))
+
+
+def clear_floor_texture(scene: Scene) -> Scene:
+    """The plain floor color again (the texture's mean, which the floor took when it was loaded)."""
+    return scene.with_changes(floor=replace(scene.floor, texture=None, texture_scale=1.0))
+
+
 def set_sky(scene: Scene, elevation_deg: float, azimuth_deg: float, turbidity: float) -> Scene:
     (elevation,) = _check("sun elevation", (elevation_deg,), 0.0, 90.0)
     (turbidity,) = _check("turbidity", (turbidity,), 1.0, 10.0)
@@ -124,7 +145,7 @@ def set_elevation(scene: Scene, elevation_deg: float) -> Scene:
 
 
 def set_floor_color(scene: Scene, color: tuple[float, float, float]) -> Scene:
-    return scene.with_changes(floor=FloorSpec(_check("floor color", color, 0.0, 1.0)))
+    return scene.with_changes(floor=replace(scene.floor, color=_check("floor color", color, 0.0, 1.0)))
 
 
 def place_object(scene: Scene, translation: tuple[float, float] | None = None, rotation_deg: float | None = None,

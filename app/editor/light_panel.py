@@ -1,4 +1,5 @@
-"""The lighting of the Light & camera tab (area light, sun and sky, environment image) and the Object tab's material.
+"""The lighting and the floor of the Light & camera tab (area light, sun and sky, environment image; floor color or
+texture) and the Object tab's material.
 
 GUI functions over the Interface (app/editor/panels.py): each change previews while a slider is held and is one undo
 step when it is let go, as every field of the tools.
@@ -28,6 +29,7 @@ class Interface(Protocol):
     def browse_button(self, key: str, kind: FileKind, field_name: str) -> None: ...
 
 ENVIRONMENT_FILES = FileKind("Load an environment", "Environment maps", ("*.hdr", "*.exr", "*.png", "*.jpg", "*.jpeg"))
+TEXTURE_FILES = FileKind("Load a floor texture", "Images", ("*.png", "*.jpg", "*.jpeg"))
 LIGHTING = ("area light and ambient", "sun and sky", "environment image")
 
 
@@ -86,6 +88,28 @@ def load_environment(ui: Interface) -> None:
     if ui.app.edit(lambda s: edits.use_environment_image(s, ui.fields.environment_path)):
         ui.fields.show_environment_field = False
         ui.app.say(f"lit by {ui.app.scene.environment_path()}")
+
+
+def draw_floor(ui: Interface) -> None:
+    """The floor: its color, or a texture image repeated over it and how far one repeat spans."""
+    app, floor = ui.app, ui.app.scene.floor
+    if floor.texture is None:
+        changed, c = imgui.color_edit3("floor color", list(floor.color))
+        ui.edit_field("floor color", changed, lambda s: edits.set_floor_color(s, tuple(c)))
+    else:
+        changed, scale = imgui.slider_float("texture repeat", floor.texture_scale, edits.MIN_TEXTURE_SCALE, 10.0,
+                                            "%.2f units", imgui.SliderFlags_.logarithmic)
+        ui.edit_field("floor texture scale", changed, lambda s: edits.set_floor_texture_scale(s, scale))
+        imgui.same_line()
+        if imgui.button("No texture"):
+            app.edit(edits.clear_floor_texture)
+    imgui.set_next_item_width(200)
+    _, ui.fields.floor_texture_path = imgui.input_text("##floor texture", ui.fields.floor_texture_path)
+    ui.browse_button("floor texture", TEXTURE_FILES, "floor_texture_path")
+    imgui.same_line()
+    if imgui.button("Load floor texture") and ui.fields.floor_texture_path:
+        if app.edit(lambda s: edits.use_floor_texture(s, ui.fields.floor_texture_path)):
+            app.say(f"floor textured by {app.scene.floor_texture_path()}")
 
 
 def _area_light_position(ui: Interface) -> None:

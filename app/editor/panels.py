@@ -21,7 +21,7 @@ from app.editor.files import shipped
 from app.editor.frame_damage import Box
 from app.editor.keys import HelpWindow, view_keys
 from app.editor.layout import RIGHT_WIDTH, Layout, Rect, layout_for
-from app.editor.light_panel import draw_lighting, draw_material
+from app.editor.light_panel import draw_floor, draw_lighting, draw_material
 from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import GRAY, PhotoPanel
 from app.editor.viewport_input import ViewportInput
@@ -70,6 +70,7 @@ class Fields:
     photo_path: str = ""
     camera_path: str = ""
     environment_path: str = ""
+    floor_texture_path: str = ""
     show_environment_field: bool = False  # the environment image's path field, before an image is loaded
 
 
@@ -434,8 +435,7 @@ class Interface:
         imgui.separator()
         changed, e = imgui.slider_float("camera elevation", scene.camera.elevation_deg, 0.0, edits.MAX_ELEVATION, "%.1f deg")
         self.edit_field("elevation", changed, lambda s: edits.set_elevation(s, e))
-        changed, c = imgui.color_edit3("floor color", list(scene.floor.color))
-        self.edit_field("floor color", changed, lambda s: edits.set_floor_color(s, tuple(c)))
+        draw_floor(self)
         imgui.text_colored(GRAY, "Drag the light square in the viewport; Shift+drag sets its height.")
 
     def _paint_tab(self) -> None:

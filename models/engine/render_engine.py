@@ -94,13 +94,13 @@ from renderer.grid import (
 )
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
-from renderer.scene import Scene
+from renderer.scene import Scene, needs_environment_shading
 from renderer.shading import (
     ShadedImage,
     network_buffers,
     quality_named,
 )
-from renderer.shading.environment_shading import lighting_key, needs_environment_shading
+from renderer.shading.environment_shading import lighting_key
 from renderer.shading.staged import StagedShader
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.stage_cache import RenderReport, StageCache

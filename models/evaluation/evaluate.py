@@ -24,9 +24,8 @@ from models.renderers import renderer_entry
 from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
-from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
+from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE, needs_environment_shading
 from renderer.shading import quality_named
-from renderer.shading.environment_shading import needs_environment_shading
 
 METRICS = ("mse", "dssim", "perceptual")
 

@@ -17,8 +17,7 @@ from torch.utils.data import Dataset
 
 from renderer.errors import InputError
 from renderer.io import load_image, load_json
-from renderer.scene import Scene, scene_from_dict
-from renderer.shading.environment_shading import needs_environment_shading
+from renderer.scene import Scene, needs_environment_shading, scene_from_dict
 
 
 def read_manifest(folder: str | Path) -> dict:

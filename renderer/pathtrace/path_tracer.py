@@ -27,6 +27,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.environment import EnvironmentLight, environment_light
 from renderer.errors import InputError
+from renderer.floor_texture import FloorTexture, floor_texture
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 from renderer.pathtrace.mitsuba_object import object_shapes
 from renderer.pathtrace.mitsuba_variant import active_variant
@@ -167,7 +168,7 @@ def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera, floor: bool
     if scene.light.enabled:
         parts["light"] = _light(scene.light.position)
     if floor:
-        parts["floor"] = _floor(scene.floor.color)
+        parts["floor"] = _floor(scene.floor.color, floor_texture(scene))
     return parts
 
 
@@ -231,11 +232,18 @@ def _light(position: tuple[float, float, float]) -> dict:
     }
 
 
-def _floor(color_srgb: tuple[float, float, float]) -> dict:
-    """The plane y = 0, a square of half side FLOOR_HALF_SIZE: diffuse floor color under a thin glossy coat."""
+def _floor(color_srgb: tuple[float, float, float], texture: FloorTexture | None = None) -> dict:
+    """The plane y = 0, a square of half side FLOOR_HALF_SIZE: diffuse floor color, or `texture` repeated over it
+    (renderer/floor_texture.py says where), under a thin glossy coat."""
     import mitsuba as mi
 
     to_world = mi.ScalarTransform4f().rotate([1, 0, 0], -90).scale([FLOOR_HALF_SIZE, FLOOR_HALF_SIZE, 1.0])
+    albedo = {"type": "rgb", "value": srgb_to_linear(color_srgb).tolist()}
+    if texture is not None:
+        repeats = 2.0 * FLOOR_HALF_SIZE / texture.scale
+        albedo = {"type": "bitmap", "bitmap": mi.Bitmap(np.array(texture.albedo, dtype=np.float32)), "raw": True,
+                  "filter_type": "bilinear", "wrap_mode": "repeat",
+                  "to_uv": mi.ScalarTransform3f().scale([repeats, repeats])}
     return {
         "type": "rectangle",
         "to_world": to_world,
@@ -244,6 +252,6 @@ def _floor(color_srgb: tuple[float, float, float]) -> dict:
             "distribution": "ggx",
             "alpha": FLOOR_ROUGHNESS,
             "int_ior": FLOOR_IOR,
-            "diffuse_reflectance": {"type": "rgb", "value": srgb_to_linear(color_srgb).tolist()},
+            "diffuse_reflectance": albedo,
         },
     }

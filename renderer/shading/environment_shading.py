@@ -47,8 +47,16 @@ from renderer.floor_light import (
     coat_reflectance,
     environment_floor_terms,
 )
+from renderer.floor_texture import FloorTexture
 from renderer.resample import bilinear_at
-from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, MaterialSpec, Scene
+from renderer.scene import (
+    AMBIENT_RADIANCE,
+    LIGHT_RADIANCE,
+    LIGHT_SIZE,
+    MaterialSpec,
+    Scene,
+    needs_environment_shading,
+)
 from renderer.shading.geometry import ObjectGeometry
 from renderer.shading.lighting import (
     ShadedImage,
@@ -74,7 +82,7 @@ from renderer.shading.quality import (
     SHADOW_NORMAL_OFFSET,
     ShaderQuality,
 )
-from renderer.shading.surface import FloorReflection, VisibleSurface, floor_sky_axes
+from renderer.shading.surface import FloorReflection, VisibleSurface, camera_floor_points, floor_sky_axes
 from renderer.splat import cached_floor_mask
 
 ENVIRONMENT_LIGHTS = 8  # directional lights drawn from a map's bright parts (the sun is one more)
@@ -277,18 +285,12 @@ def _world_lights(environment: EnvironmentLight, ready: PreparedEnvironment) -> 
     return _Lights(directions[keep], irradiance[keep], spread[keep], delta[keep], small[keep])
 
 
-def needs_environment_shading(scene: Scene) -> bool:
-    """Whether the scene needs this module (an environment, the area light off, or an object that is not diffuse);
-    every other scene is shaded by lighting.py alone."""
-    return scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
-
-
 def lighting_key(scene: Scene) -> tuple:
     """Names everything of the scene that the shader's lighting stage reads besides the object and the floor color."""
     light = scene.light
     if not needs_environment_shading(scene):
         return light.position
-    return (light.position, light.enabled, scene.environment, scene.object.material)
+    return (light.position, light.enabled, scene.environment, scene.object.material, scene.floor)
 
 
 def scene_environment(scene: Scene) -> EnvironmentLight:
@@ -300,10 +302,14 @@ def scene_environment(scene: Scene) -> EnvironmentLight:
 def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
                       environment: EnvironmentLight, material: MaterialSpec = DIFFUSE,
                       reflection: FloorReflection | None = None,
-                      quality: ShaderQuality = FULL_QUALITY, floor_cones: np.ndarray | None = None) -> ShadedImage:
+                      quality: ShaderQuality = FULL_QUALITY, floor_cones: np.ndarray | None = None,
+                      floor_texture: FloorTexture | None = None) -> ShadedImage:
     """The shaded image under `environment` and, unless `light_position` is None, the area light; the object of
     `material`. `reflection`: the floor's mirror image of the object, if drawn. `floor_cones`: the sky the object
-    leaves open to each floor point, per direction (surface.floor_sky_cones), which the sky's light weighs."""
+    leaves open to each floor point, per direction (surface.floor_sky_cones), which the sky's light weighs.
+    `floor_texture`: the floor's albedo instead of `floor_color` (whose place its mean takes)."""
+    if floor_texture is not None:
+        floor_color = floor_texture.mean_srgb
     ready = prepared(environment)
     lights = _world_lights(environment, ready)
     size = surface.size
@@ -345,14 +351,31 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     if len(rows):
         background = sample_angles(environment.background, theta, phi, environment.rotation_deg)
         image[rows, cols] += background * np.float32(environment.strength) * shown[rows, cols, None]
+    floor_rows, floor_cols = _floor_pixels(geometry.elevation_deg, size)
+    shadowed = np.ones((len(per_light), len(floor_rows)), dtype=np.float32)
+    if not geometry.empty:
+        for k, maps in enumerate(suns):
+            shadowed[k] = maps.floor_visibility(surface, geometry, block)
     if len(per_light):
-        floor_rows, floor_cols = _floor_pixels(geometry.elevation_deg, size)
-        shadowed = np.ones((len(per_light), len(floor_rows)), dtype=np.float32)
-        if not geometry.empty:
-            for k, maps in enumerate(suns):
-                shadowed[k] = maps.floor_visibility(surface, geometry, block)
         add_floor_lights(image, np.stack(per_light), shadowed, floor_rows, floor_cols, *floor_terms.row_weights,
                          *floor_terms.col_weights, shown)
+    if floor_texture is not None:
+        # The texture varies the diffuse base alone: the base lit as the floor is, once more, times the texture's
+        # albedo over its mean less one, added where the floor shows (the coat reflects as it did).
+        base_terms, base_lights = environment_floor_terms(camera, light_position, floor_color, floor_sky,
+                                                          lights.directions, lights.irradiance, lights.small,
+                                                          lights.spread, coat=False)
+        base = np.zeros_like(image)
+        none = np.zeros(0, dtype=np.int64)
+        composite(base_terms.from_light, base_terms.from_ambient, *base_terms.row_weights, *base_terms.col_weights,
+                  floor, visibility, floor_occlusion, np.zeros(3, dtype=np.float32), none, none,
+                  np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32), base)
+        if len(base_lights):
+            add_floor_lights(base, np.stack(base_lights), shadowed, floor_rows, floor_cols, *base_terms.row_weights,
+                             *base_terms.col_weights, np.ones_like(shown))
+        change = _texture_change(floor_texture, camera)
+        image[floor_rows, floor_cols] += (base[floor_rows, floor_cols] * change
+                                          * shown[floor_rows, floor_cols, None]).astype(np.float32)
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
                         material, block, sky_up, floor_albedo)
@@ -399,6 +422,17 @@ def _floor_pixels(elevation_deg: float, size: int) -> tuple[np.ndarray, np.ndarr
     rows.flags.writeable = False
     cols.flags.writeable = False
     return rows, cols
+
+
+@lru_cache(maxsize=4)
+def _texture_change(texture: FloorTexture, camera: Camera) -> np.ndarray:
+    """(F, 3) float32: the texture's albedo at the floor pixels' points over its mean, less one, per texture and
+    camera (read-only)."""
+    _, points, _ = camera_floor_points(camera)
+    mean = srgb_to_linear(np.asarray(texture.mean_srgb, dtype=np.float64))
+    change = (texture.albedo_at(points) / np.maximum(mean, 1e-6) - 1.0).astype(np.float32)
+    change.flags.writeable = False
+    return change
 
 
 @njit(cache=True, parallel=True)

@@ -40,9 +40,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from renderer.floor_texture import floor_texture
 from renderer.grid import pool_voxels, shader_pool_factors
-from renderer.scene import SHADER_GRID_SIZE, Scene
-from renderer.shading.environment_shading import needs_environment_shading, scene_environment, shade_environment
+from renderer.scene import SHADER_GRID_SIZE, Scene, needs_environment_shading
+from renderer.shading.environment_shading import scene_environment, shade_environment
 from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
@@ -67,5 +68,6 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
     if needs_environment_shading(scene):
         light = scene.light.position if scene.light.enabled else None
         return shade_environment(geometry, surface, light, floor_color, scene_environment(scene),
-                                 scene.object.material, mirrored, quality, floor_sky_cones(geometry, surface))
+                                 scene.object.material, mirrored, quality, floor_sky_cones(geometry, surface),
+                                 floor_texture(scene))
     return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored, quality=quality)

@@ -13,8 +13,8 @@ This chain is the one table of the shader's stages; the standalone shader and th
     floor_sky   surface (under an environment: the sky the object leaves      the same as surface
                 open to the floor, per direction)
     lighting    colors, reflection, floor                                     any of the above
-                (under an environment or for a glossy object: colors, reflection, the light, the floor color, the
-                environment and the material; it lights the floor itself)
+                (under an environment, for a glossy object or on a textured floor: colors, reflection, the light, the
+                floor color or texture, the environment and the material; it lights the floor itself)
 
 So a light move reruns `floor` and `lighting`; a paint stroke `pool`, `colors`, `reflection` and `lighting`; an
 object move, turn or scale `placement` and the stages after it but `floor`; a camera tilt those and `floor`. The
@@ -32,9 +32,10 @@ import numpy as np
 
 from renderer.camera import Camera
 from renderer.floor_light import lit_floor_terms
+from renderer.floor_texture import floor_texture
 from renderer.grid import pool_voxels, shader_pool_factors
-from renderer.scene import SHADER_GRID_SIZE, Scene
-from renderer.shading.environment_shading import needs_environment_shading, scene_environment, shade_environment
+from renderer.scene import SHADER_GRID_SIZE, Scene, needs_environment_shading
+from renderer.shading.environment_shading import scene_environment, shade_environment
 from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
@@ -101,8 +102,10 @@ class StagedShader:
         environment = scene_environment(scene)
         light = light if scene.light.enabled else None
         cones = stage("floor_sky", (placed_key, size), lambda: floor_sky_cones(where, seen), keep)
-        return stage("lighting", (painted_key, light, floor, environment.key, o.material), lambda: shade_environment(
-            where, surface, light, floor, environment, o.material, reflection, self.quality, cones), keep)
+        texture = floor_texture(scene)
+        return stage("lighting", (painted_key, light, floor, environment.key, o.material, texture),
+                     lambda: shade_environment(where, surface, light, floor, environment, o.material, reflection,
+                                               self.quality, cones, texture), keep)
 
     def _stage(self, name: str, key: Hashable, compute: Callable, keep: bool = True):
         return self.cache(self._prefix + name, key, compute, keep)

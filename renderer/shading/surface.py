@@ -128,7 +128,7 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
     points_world, normals_world, depth = _in_world(geometry, camera, points_crop, normals_crop)
     color_spread = quality.color_spread * np.maximum(depth, 0.0) / camera.focal_px  # pixel sides at its depth
 
-    floor, floor_points, floor_extent = _floor_points(camera)
+    floor, floor_points, floor_extent = camera_floor_points(camera)
     floor_occlusion = (_floor_occlusion(geometry, floor_points, np.linalg.inv(geometry.voxel_to_world))
                        if quality.ambient_occlusion else np.ones(len(floor_points), dtype=np.float32))
     lookup = color_voxels if colors else np.full_like(color_voxels, -1)  # -1: no voxel, grey
@@ -456,7 +456,7 @@ def _half_space_blur(distance: np.ndarray, sigma: float) -> np.ndarray:
 
 
 @lru_cache(maxsize=8)
-def _floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def camera_floor_points(camera: Camera) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The floor mask, the world points (F, 3) where the floor pixels' centre rays meet y = 0, and their least and
     greatest x and z ((2, 2): [[x, z] least, [x, z] greatest]; zeros if there are none) (cached, read-only: an
     object move keeps the camera)."""
