@@ -226,7 +226,7 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
                 mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
                 lines.append(f"| {label} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} "
                              f"| {mean['perceptual']:.3f} |")
-        lines += ["", "Networks are not trained for environments or glossy materials yet: for those samples the network "
+        lines += ["", "Networks are not trained for environments, glossy materials or floor textures yet: for those samples the network "
                       "renderers show the voxel shader's image, as the editor does."]
     lines += ["", f"![{columns}]({figure.name})", "", f"Figure rows ({columns}), top to bottom:", ""]
     lines += [f"{number}. {caption}" for number, caption in enumerate(captions, 1)]

@@ -96,7 +96,7 @@ SPECULAR_ROWS = 32  # the prefiltered maps' rows
 SPECULAR_ROUGHNESS = (0.0, 0.15, 0.3, 0.5, 0.75, 1.0)  # the roughness of each prefiltered map
 SMALL_LIGHT_SPREAD = 0.1  # radians: a light this small (a sun, a lamp) the floor's coat shows as its own highlight,
 # which the object's shadow hides; a larger one (a soft box) stays in the map the coat mirrors, whose shape it keeps
-MAX_SHADOW_SPREAD = 0.15  # radians: a wider light's shadows are drawn as this wide (the maps' taps grow sparse)
+MAX_SHADOW_SPREAD = 0.25  # radians: a wider light's shadows are drawn as this wide (the maps' taps grow sparse)
 MIN_ROUGHNESS = 0.05  # as the path tracer's (renderer/pathtrace/mitsuba_object.py)
 DIELECTRIC_F0 = 0.08  # times `specular`: principled's reflectance head on
 FLOOR_COAT_ROUGHNESS = 0.32  # sqrt of the floor coat's GGX alpha (renderer.scene.FLOOR_ROUGHNESS = 0.1)
