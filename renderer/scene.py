@@ -19,6 +19,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from renderer.errors import InputError
 from renderer.io import check_path_text, load_json, save_json
 from renderer.limits import (
@@ -44,6 +46,8 @@ AMBIENT_RADIANCE = 0.2  # uniform white environment light (linear), also the bac
 FLOOR_ROUGHNESS = 0.1  # GGX alpha of the floor's clear coat: blurred but visible reflections
 FLOOR_IOR = 1.5  # coat index of refraction: 4 % reflectance head on, more at grazing angles
 FLOOR_HALF_SIZE = 10.0  # the floor is a square of side 20 centred under the scene
+FLOOR_DISK_RADIUS = 3.0  # or a disk (the paper's textured ground), its edge in view behind the object
+FLOOR_SHAPES = ("square", "disk")
 GRID_SIZE = 128  # voxels per side of the camera-aligned scene grid
 # The grid the voxel shader stands in for unless told otherwise: it merges no object voxels at scales above a half
 # (renderer.grid.shader_pool_factors), where the network's grid merges them in pairs; sharper, and on the test split
@@ -119,6 +123,13 @@ class FloorSpec:
     color: tuple[float, float, float] = (0.53, 0.64, 0.78)
     texture: str | None = None
     texture_scale: float = 1.0
+    shape: str = "square"  # one of FLOOR_SHAPES: the square FLOOR_HALF_SIZE wide, or a disk of FLOOR_DISK_RADIUS
+
+    def holds(self, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Whether the floor holds the points at world (x, z) (bool array)."""
+        if self.shape == "disk":
+            return x * x + z * z <= FLOOR_DISK_RADIUS**2
+        return (np.abs(x) <= FLOOR_HALF_SIZE) & (np.abs(z) <= FLOOR_HALF_SIZE)
 
 
 @dataclass(frozen=True)
@@ -217,6 +228,8 @@ def _floor_to_dict(floor: FloorSpec) -> dict[str, Any]:
     if floor.texture is not None:
         data["texture"] = floor.texture
         data["texture_scale"] = floor.texture_scale
+    if floor.shape != "square":
+        data["shape"] = floor.shape
     return data
 
 
@@ -348,7 +361,8 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     f = r.section(data, "floor")
     r.known_keys(f, FLOOR_KEYS, "floor.")
     floor = FloorSpec(r.vector(f, "color", "floor.color", 3, FloorSpec().color), r.file_path(f, "texture", "floor.texture"),
-                      r.number(f, "texture_scale", "floor.texture_scale", FloorSpec().texture_scale))
+                      r.number(f, "texture_scale", "floor.texture_scale", FloorSpec().texture_scale),
+                      r.string(f, "shape", "floor.shape", "square"))
     li = r.section(data, "light")
     r.known_keys(li, ("position", "enabled"), "light.")
     light = LightSpec(r.vector(li, "position", "light.position", 3, LightSpec().position),
@@ -394,7 +408,7 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     return scene
 
 
-FLOOR_KEYS = ("color", "texture", "texture_scale")
+FLOOR_KEYS = ("color", "texture", "texture_scale", "shape")
 SCENE_KEYS = ("version", "object", "floor", "light", "camera", "image_size", "paint", "environment")
 OBJECT_KEYS = ("mesh", "up", "resolution", "color", "translation", "rotation_deg", "scale", "voxels", "material")
 MATERIAL_KEYS = ("roughness", "specular", "metallic")
@@ -437,6 +451,8 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
     for key, color in (("object.color", o.color), ("floor.color", scene.floor.color)):
         if color is not None and not all(0.0 <= c <= 1.0 for c in color):
             raise fail(key, f"sRGB values must be in [0, 1], got {list(color)}")
+    if scene.floor.shape not in FLOOR_SHAPES:
+        raise fail("floor.shape", f'must be "square" or "disk", got {scene.floor.shape!r}')
     if not 0.0 < scene.floor.texture_scale <= MAX_TEXTURE_SCALE:
         raise fail("floor.texture_scale", f"must be in (0, {MAX_TEXTURE_SCALE:g}] world units, got {scene.floor.texture_scale}")
     lx, ly, lz = scene.light.position
@@ -487,10 +503,10 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
 
 def needs_environment_shading(scene: Scene) -> bool:
     """Whether the scene holds more than the set-up the networks were trained on (an environment, the area light off,
-    an object that is not diffuse, a textured floor): the shader's environment path draws it, and no network corrects
-    it yet."""
+    an object that is not diffuse, a textured or round floor): the shader's environment path draws it, and no network
+    corrects it yet."""
     return (scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
-            or scene.floor.texture is not None)
+            or scene.floor.texture is not None or scene.floor.shape != "square")
 
 
 def range_warnings(scene: Scene) -> list[str]:

@@ -1014,7 +1014,8 @@ def test_sky_environment_image_and_material_edits_render_save_and_undo(display, 
 
 def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path, scene_file):
     """The Light tab's floor texture: a file that is not an image is refused and the scene stays; an image textures
-    the floor in the render panel (its mean becomes the floor color); its repeat scales; each is one undo step."""
+    the floor in the render panel (its mean becomes the floor color); its repeat scales; the floor becomes a disk whose
+    edge shows the sky's grey above it; each is one undo step."""
     from PIL import Image
 
     tiles = np.zeros((64, 64, 3), dtype=np.uint8)
@@ -1022,7 +1023,7 @@ def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path
     tiles[:32, 32:] = tiles[32:, :32] = (60, 40, 30)
     Image.fromarray(tiles).save(tmp_path / "tiles.png")
     (tmp_path / "not_an_image.png").write_text("hello")
-    shots = {name: str(tmp_path / f"{name}.png") for name in ("plain", "tiled", "finer")}
+    shots = {name: str(tmp_path / f"{name}.png") for name in ("plain", "tiled", "finer", "disk")}
     saved = {name: str(tmp_path / f"{name}.json") for name in ("start", "tiled", "undone")}
     result = run_editor(display, tmp_path, scene_file, [
         {"action": "save", "path": saved["start"]},
@@ -1034,14 +1035,17 @@ def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path
         {"action": "floor_texture_scale", "scale": 0.25},
         {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": shots["finer"]},
+        {"action": "floor_shape", "shape": "disk"},
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": shots["disk"]},
         {"action": "save", "path": saved["tiled"]},
-        {"action": "undo"}, {"action": "undo"},
+        {"action": "undo"}, {"action": "undo"}, {"action": "undo"},
         {"action": "save", "path": saved["undone"]},
     ])
     assert "not a readable image" in result.stderr
     tiled = load_scene(saved["tiled"])
     assert tiled.floor_texture_path().resolve() == (tmp_path / "tiles.png").resolve()
-    assert tiled.floor.texture_scale == 0.25
+    assert tiled.floor.texture_scale == 0.25 and tiled.floor.shape == "disk"
     mean = ((np.array([230, 200, 150]) / 255.0) ** 2.2 + (np.array([60, 40, 30]) / 255.0) ** 2.2) / 2.0
     np.testing.assert_allclose(tiled.floor.color, mean ** (1 / 2.2), atol=0.02)  # the tiles' mean, in sRGB
     assert Path(saved["undone"]).read_text() == Path(saved["start"]).read_text()
@@ -1049,6 +1053,8 @@ def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path
     assert np.abs(with_tiles - plain).mean() > 0.03 and np.abs(finer - with_tiles).mean() > 0.01
     # Tiles of two colors make the floor's pixels far more varied than the plain floor's.
     assert with_tiles[-40:].std() > 2.0 * plain[-40:].std()
+    disk = pixels(Path(shots["disk"]), PANELS.render_image)
+    assert np.abs(disk - finer).mean() > 0.005 and np.abs(disk[-40:] - finer[-40:]).mean() < 0.01  # the near floor stays
 
 
 def test_numpad_views_f_frames_the_object_f1_lists_every_key_and_delete_says_why(display, tmp_path, scene_file):

@@ -1,5 +1,5 @@
-"""The textured floor: the scene's fields, bad input, where the path tracer and the shader put the image, and the
-shader's texture against a plain floor of the same color."""
+"""The textured and the round floor: the scene's fields, bad input, where the path tracer and the shader put the
+image and the disk's edge, and the shader's texture against a plain floor of the same color."""
 
 from __future__ import annotations
 
@@ -52,6 +52,9 @@ def test_the_floors_texture_round_trips_relative_to_the_scene_and_old_floors_sav
     assert loaded.floor.texture_scale == 0.75
     save_scene(scene_on(tmp_path, None), tmp_path / "plain.json")
     assert json.loads((tmp_path / "plain.json").read_text())["floor"] == {"color": [0.5, 0.5, 0.5]}
+    disk = scene_on(tmp_path, None)
+    save_scene(replace(disk, floor=replace(disk.floor, shape="disk")), tmp_path / "disk.json")
+    assert load_scene(tmp_path / "disk.json").floor.shape == "disk"
 
 
 @pytest.mark.parametrize(("floor", "fragment"), [
@@ -60,6 +63,7 @@ def test_the_floors_texture_round_trips_relative_to_the_scene_and_old_floors_sav
     ({"color": [0.5, 0.5, 0.5], "texture_scale": "big"}, "floor.texture_scale: must be a number"),
     ({"color": [0.5, 0.5, 0.5], "texture": 3}, "floor.texture: must be a string"),
     ({"color": [0.5, 0.5, 0.5], "textur": "a.png"}, 'floor.textur: unknown key (did you mean "texture"?)'),
+    ({"color": [0.5, 0.5, 0.5], "shape": "round"}, 'floor.shape: must be "square" or "disk"'),
 ])
 def test_bad_floor_values_are_refused_naming_the_field(floor, fragment):
     data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
@@ -128,3 +132,33 @@ def test_a_texture_of_one_color_shades_as_a_plain_floor_of_that_color(tmp_path):
     b = shade_scene(plain, cube(), plain.floor.color, 96).image
     assert np.abs(a - b).max() < 2.0 / 255
     assert floor_texture(textured).mean_srgb == pytest.approx((150 / 255, 90 / 255, 60 / 255), abs=1e-3)
+
+
+def test_a_disk_floor_ends_where_its_radius_says_in_both_renderers_and_keeps_the_squares_texture(tmp_path):
+    """Points a little inside the disk's rim show the floor; a little outside, the ambient light behind it (the
+    scene's background); inside, the textured disk shows what the textured square shows there."""
+    from renderer.pathtrace.path_tracer import render_pathtraced
+    from renderer.scene import AMBIENT_RADIANCE, FLOOR_DISK_RADIUS
+    from renderer.voxels import save_voxels
+
+    quadrant_texture(tmp_path / "tiles.png")
+    save_voxels(tmp_path / "cube.npz", cube())
+    square = replace(scene_on(tmp_path, "tiles.png"), camera=CameraSpec(30.0))
+    disk = replace(square, floor=replace(square.floor, shape="disk"))
+    far = trimesh.creation.box(extents=(0.01, 0.01, 0.01))
+    far.apply_translation((0.0, 50.0, 0.0))
+    traced = render_pathtraced(disk, far, 96, spp=16).image
+    shaded = shade_scene(disk, cube(), disk.floor.color, 96).image
+    on_square = shade_scene(square, cube(), square.floor.color, 96).image
+    camera = Camera(30.0, width=96, height=96)
+    background = ((AMBIENT_RADIANCE ** (1 / 2.4)) * 1.055 - 0.055)  # the ambient radiance in sRGB
+    for angle in (-0.6, 0.0, 0.6):  # along the far rim, which the camera sees
+        direction = np.array([np.sin(angle), 0.0, -np.cos(angle)])
+        for radius, inside in ((FLOOR_DISK_RADIUS * 0.93, True), (FLOOR_DISK_RADIUS * 1.07, False)):
+            u, v, _ = camera.project((radius * direction)[None])
+            pixel = int(v[0]), int(u[0])
+            for image in (traced, shaded):
+                off_background = np.abs(image[pixel] - background).max()
+                assert (off_background > 0.05) == inside, (angle, radius, image[pixel])
+            if inside:
+                np.testing.assert_allclose(shaded[pixel], on_square[pixel], atol=0.02)

@@ -16,6 +16,7 @@ from renderer.errors import InputError
 from renderer.floor_texture import floor_texture
 from renderer.scene import (
     FLOOR_HALF_SIZE,
+    FLOOR_SHAPES,
     MAX_TEXTURE_SCALE,
     CameraSpec,
     EnvironmentSpec,
@@ -94,6 +95,13 @@ def set_floor_texture_scale(scene: Scene, scale: float) -> Scene:
     """World units one repeat of the floor's texture spans."""
     (scale,) = _check("texture scale", (scale,), MIN_TEXTURE_SCALE, MAX_TEXTURE_SCALE)
     return scene.with_changes(floor=replace(scene.floor, texture_scale=scale))
+
+
+def set_floor_shape(scene: Scene, shape: str) -> Scene:
+    """The floor as a square (to the horizon) or a disk (the paper's ground, its edge in view)."""
+    if shape not in FLOOR_SHAPES:
+        raise InputError(f'floor shape must be one of {", ".join(FLOOR_SHAPES)}, got {shape!r}')
+    return scene.with_changes(floor=replace(scene.floor, shape=shape))
 
 
 def clear_floor_texture(scene: Scene) -> Scene:

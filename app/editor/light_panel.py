@@ -15,7 +15,7 @@ from imgui_bundle import imgui
 from app.editor import edits
 from app.editor.file_dialog import FileKind
 from app.editor.photo_panel import GRAY
-from renderer.scene import MaterialSpec, Scene
+from renderer.scene import FLOOR_SHAPES, MaterialSpec, Scene
 
 
 class Interface(Protocol):
@@ -91,7 +91,7 @@ def load_environment(ui: Interface) -> None:
 
 
 def draw_floor(ui: Interface) -> None:
-    """The floor: its color, or a texture image repeated over it and how far one repeat spans."""
+    """The floor: its color, or a texture image repeated over it and how far one repeat spans; square or disk."""
     app, floor = ui.app, ui.app.scene.floor
     if floor.texture is None:
         changed, c = imgui.color_edit3("floor color", list(floor.color))
@@ -103,6 +103,10 @@ def draw_floor(ui: Interface) -> None:
         imgui.same_line()
         if imgui.button("No texture"):
             app.edit(edits.clear_floor_texture)
+    shapes = list(FLOOR_SHAPES)
+    changed, chosen = imgui.combo("floor shape", shapes.index(floor.shape), shapes)
+    if changed and shapes[chosen] != floor.shape:
+        app.edit(lambda s: edits.set_floor_shape(s, shapes[chosen]))
     imgui.set_next_item_width(200)
     _, ui.fields.floor_texture_path = imgui.input_text("##floor texture", ui.fields.floor_texture_path)
     ui.browse_button("floor texture", TEXTURE_FILES, "floor_texture_path")

@@ -9,6 +9,7 @@ High-level actions call the same commands as the interface:
     {"action": "turn_environment", "deg": 90, "strength": 1.5} either      {"action": "area_light", "on": false}
     {"action": "load_floor_texture", "path": "wood.png"}     {"action": "floor_texture_scale", "scale": 0.5}
     {"action": "no_floor_texture"}                            the plain floor color again
+    {"action": "floor_shape", "shape": "disk"}                "square" or "disk"
     {"action": "material", "preset": "metal", "roughness": 0.2}   a preset (matte, plastic, ceramic, rubber, metal)
                                                               and/or roughness, specular, metallic
     {"action": "paint", "voxel": [i, j, k], "color": [r, g, b], "tolerance": 0.1, "similarity": "rgb"}
@@ -282,6 +283,7 @@ ACTIONS = {
     "load_floor_texture": lambda app, a: app.edit(lambda s: edits.use_floor_texture(s, a["path"])),
     "floor_texture_scale": lambda app, a: app.edit(lambda s: edits.set_floor_texture_scale(s, float(a["scale"]))),
     "no_floor_texture": lambda app, a: app.edit(edits.clear_floor_texture),
+    "floor_shape": lambda app, a: app.edit(lambda s: edits.set_floor_shape(s, a["shape"])),
     "turn_environment": lambda app, a: app.edit(lambda s: edits.turn_environment(
         s, rotation_deg=a.get("deg"), strength=a.get("strength"))),
     "area_light": lambda app, a: app.edit(lambda s: edits.switch_area_light(s, bool(a["on"]))),

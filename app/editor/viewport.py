@@ -8,7 +8,7 @@ viewport is quicker). Faces turned away from the viewer
 are dropped in the vertex shader. While the user drags, an object finer than MOTION_RESOLUTION voxels a side is
 drawn from its voxels merged in blocks (a block is occupied if any of its voxels is): the product's 200^3 voxels have
 four times the faces of 100^3, which slows a drag's frames in software OpenGL (docs/editor.md). At rest every voxel is drawn. A paint stroke or the bucket's preview rewrites only the faces'
-colors (`recolor`). The ground is the floor square with a faint grid, the light is its square seen as a glowing
+colors (`recolor`). The ground is the floor (square or disk) with a faint grid, the light is its square seen as a glowing
 rectangle with a line down to the floor, and the render camera is drawn as its viewing frustum.
 """
 
@@ -21,7 +21,7 @@ from app.editor.orbit_view import frustum_corners, view_projection
 from renderer.camera import Camera
 from renderer.environment import scene_sun_direction
 from renderer.grid import pool_voxels
-from renderer.scene import FLOOR_HALF_SIZE, LIGHT_SIZE, LOOK_AT, OBJECT_SIZE, Scene
+from renderer.scene import FLOOR_DISK_RADIUS, FLOOR_HALF_SIZE, LIGHT_SIZE, LOOK_AT, OBJECT_SIZE, Scene
 from renderer.surface import grid_from_world
 from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
 from renderer.voxel_faces import exposed_faces
@@ -97,8 +97,10 @@ _GROUND_FS = """
 in vec3 v_world;
 uniform vec3 floor_color;
 uniform vec3 light_position;
+uniform float disk_radius;  // 0: the square floor
 out vec4 frag;
 void main() {
+    if (disk_radius > 0.0 && length(v_world.xz) > disk_radius) discard;
     vec3 to_light = normalize(light_position - v_world);
     vec3 shaded = floor_color * (0.38 + 0.72 * max(to_light.y, 0.0));
     vec2 cell = abs(fract(v_world.xz * 2.0 + 0.5) - 0.5) / fwidth(v_world.xz * 2.0);
@@ -235,6 +237,7 @@ class ViewportRenderer:
         self._ground_program["view_projection"].write(vp)
         self._ground_program["floor_color"].value = tuple(float(c) for c in floor_color)
         self._ground_program["light_position"].value = light
+        self._ground_program["disk_radius"].value = FLOOR_DISK_RADIUS if scene.floor.shape == "disk" else 0.0
         self._ground_vao.render()
 
         if level is not None and level.groups:

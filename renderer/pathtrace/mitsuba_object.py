@@ -110,11 +110,18 @@ def material_bsdf(reflectance: dict, material: MaterialSpec) -> dict:
 
 def _mesh(name: str, vertices: np.ndarray, faces: np.ndarray, reflectance: dict, material: MaterialSpec,
           uv: np.ndarray | None = None, attribute: tuple[str, np.ndarray] | None = None):
-    """One Mitsuba mesh with a two-sided BSDF of `material`, its buffers filled from numpy (no files)."""
+    """One Mitsuba mesh with a two-sided BSDF of `material`."""
+    return numpy_mesh(name, vertices, faces, {"type": "twosided", "material": material_bsdf(reflectance, material)},
+                      uv, attribute)
+
+
+def numpy_mesh(name: str, vertices: np.ndarray, faces: np.ndarray, bsdf: dict, uv: np.ndarray | None = None,
+               attribute: tuple[str, np.ndarray] | None = None):
+    """One Mitsuba mesh of `bsdf` (a scene-dictionary entry), its buffers filled from numpy (no files)."""
     import mitsuba as mi
 
     props = mi.Properties()
-    props["bsdf"] = mi.load_dict({"type": "twosided", "material": material_bsdf(reflectance, material)})
+    props["bsdf"] = mi.load_dict(bsdf)
     out = mi.Mesh(name, len(vertices), len(faces), props=props, has_vertex_texcoords=uv is not None)
     params = mi.traverse(out)
     floats, ints = type(params["vertex_positions"]), type(params["faces"])  # drjit types differ per variant

@@ -29,18 +29,21 @@ from renderer.environment import EnvironmentLight, environment_light
 from renderer.errors import InputError
 from renderer.floor_texture import FloorTexture, floor_texture
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
-from renderer.pathtrace.mitsuba_object import object_shapes
+from renderer.pathtrace.mitsuba_object import numpy_mesh, object_shapes
 from renderer.pathtrace.mitsuba_variant import active_variant
 from renderer.scene import (
     AMBIENT_RADIANCE,
+    FLOOR_DISK_RADIUS,
     FLOOR_HALF_SIZE,
     FLOOR_IOR,
     FLOOR_ROUGHNESS,
     LIGHT_RADIANCE,
     LIGHT_SIZE,
+    FloorSpec,
     Scene,
 )
 
+DISK_SEGMENTS = 512  # sides of the polygon that stands for a disk floor (its edge within a hair of the circle)
 MAX_DEPTH = 6  # path segments: direct light plus up to 5 indirect bounces (Russian roulette from 5)
 GUIDE_SPP = 16  # samples per pixel of the denoiser's albedo and normal guides (first hit only: cheap)
 MAX_SAMPLES_PER_PASS = 1 << 26  # pixels x spp per Mitsuba call: sample indices stay far below 2^32
@@ -168,7 +171,7 @@ def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera, floor: bool
     if scene.light.enabled:
         parts["light"] = _light(scene.light.position)
     if floor:
-        parts["floor"] = _floor(scene.floor.color, floor_texture(scene))
+        parts["floor"] = _floor(scene.floor, floor_texture(scene))
     return parts
 
 
@@ -232,26 +235,29 @@ def _light(position: tuple[float, float, float]) -> dict:
     }
 
 
-def _floor(color_srgb: tuple[float, float, float], texture: FloorTexture | None = None) -> dict:
-    """The plane y = 0, a square of half side FLOOR_HALF_SIZE: diffuse floor color, or `texture` repeated over it
-    (renderer/floor_texture.py says where), under a thin glossy coat."""
+def _floor(floor: FloorSpec, texture: FloorTexture | None = None):
+    """The plane y = 0 under the scene: diffuse floor color, or `texture` repeated over it (renderer/floor_texture.py
+    says where), under a thin glossy coat; a square of half side FLOOR_HALF_SIZE, or a disk of FLOOR_DISK_RADIUS (a
+    mesh with the square's texture coordinates, so that the texture lies alike on both)."""
     import mitsuba as mi
 
-    to_world = mi.ScalarTransform4f().rotate([1, 0, 0], -90).scale([FLOOR_HALF_SIZE, FLOOR_HALF_SIZE, 1.0])
-    albedo = {"type": "rgb", "value": srgb_to_linear(color_srgb).tolist()}
+    albedo = {"type": "rgb", "value": srgb_to_linear(floor.color).tolist()}
     if texture is not None:
         repeats = 2.0 * FLOOR_HALF_SIZE / texture.scale
         albedo = {"type": "bitmap", "bitmap": mi.Bitmap(np.array(texture.albedo, dtype=np.float32)), "raw": True,
                   "filter_type": "bilinear", "wrap_mode": "repeat",
                   "to_uv": mi.ScalarTransform3f().scale([repeats, repeats])}
-    return {
-        "type": "rectangle",
-        "to_world": to_world,
-        "bsdf": {
-            "type": "roughplastic",
-            "distribution": "ggx",
-            "alpha": FLOOR_ROUGHNESS,
-            "int_ior": FLOOR_IOR,
-            "diffuse_reflectance": albedo,
-        },
-    }
+    bsdf = {"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
+            "diffuse_reflectance": albedo}
+    if floor.shape == "disk":
+        angles = np.linspace(0.0, 2.0 * math.pi, DISK_SEGMENTS, endpoint=False)
+        rim = np.column_stack([FLOOR_DISK_RADIUS * np.cos(angles), np.zeros(DISK_SEGMENTS),
+                               FLOOR_DISK_RADIUS * np.sin(angles)])
+        vertices = np.vstack([[0.0, 0.0, 0.0], rim])
+        k = np.arange(1, DISK_SEGMENTS + 1)
+        faces = np.column_stack([np.zeros(DISK_SEGMENTS, dtype=np.int64), k % DISK_SEGMENTS + 1, k])  # facing up
+        uv = np.column_stack([(vertices[:, 0] + FLOOR_HALF_SIZE) / (2.0 * FLOOR_HALF_SIZE),
+                              (FLOOR_HALF_SIZE - vertices[:, 2]) / (2.0 * FLOOR_HALF_SIZE)])
+        return numpy_mesh("floor", vertices, faces, bsdf, uv)
+    to_world = mi.ScalarTransform4f().rotate([1, 0, 0], -90).scale([FLOOR_HALF_SIZE, FLOOR_HALF_SIZE, 1.0])
+    return {"type": "rectangle", "to_world": to_world, "bsdf": bsdf}

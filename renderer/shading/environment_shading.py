@@ -53,6 +53,7 @@ from renderer.scene import (
     AMBIENT_RADIANCE,
     LIGHT_RADIANCE,
     LIGHT_SIZE,
+    FloorSpec,
     MaterialSpec,
     Scene,
     needs_environment_shading,
@@ -303,11 +304,12 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
                       environment: EnvironmentLight, material: MaterialSpec = DIFFUSE,
                       reflection: FloorReflection | None = None,
                       quality: ShaderQuality = FULL_QUALITY, floor_cones: np.ndarray | None = None,
-                      floor_texture: FloorTexture | None = None) -> ShadedImage:
+                      floor_texture: FloorTexture | None = None, floor_shape: str = "square") -> ShadedImage:
     """The shaded image under `environment` and, unless `light_position` is None, the area light; the object of
     `material`. `reflection`: the floor's mirror image of the object, if drawn. `floor_cones`: the sky the object
     leaves open to each floor point, per direction (surface.floor_sky_cones), which the sky's light weighs.
-    `floor_texture`: the floor's albedo instead of `floor_color` (whose place its mean takes)."""
+    `floor_texture`: the floor's albedo instead of `floor_color` (whose place its mean takes). `floor_shape`: one of
+    renderer.scene.FLOOR_SHAPES; past a disk's edge the environment shows."""
     if floor_texture is not None:
         floor_color = floor_texture.mean_srgb
     ready = prepared(environment)
@@ -326,10 +328,11 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     area = _ShadowMaps.area(geometry, light_position, quality, block) if light_position is not None else None
     suns = [_ShadowMaps.directional(geometry, d, s, block) for d, s in zip(lights.directions, lights.spread)]
 
-    floor = floor_terms.floor
+    square = floor_terms.floor  # the floor's terms, shadows and points are the square's; a disk shows part of it
+    floor, held = _shown_floor(geometry.elevation_deg, size, floor_shape)
     visibility = np.ones((size, size), dtype=np.float32)
     if area is not None and not geometry.empty:
-        visibility[floor] = area.floor_visibility(surface, geometry, block)
+        visibility[square] = area.floor_visibility(surface, geometry, block)
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
@@ -342,12 +345,12 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     if floor_cones is not None:
         open_sky = floor_cones @ _cone_sky_shares(ready, environment).astype(np.float32)
         floor_occlusion = floor_occlusion.copy()
-        floor_occlusion[floor] = np.minimum(floor_occlusion[floor],
-                                            1.0 - (1.0 - open_sky) * (1.0 - BLOCKED_SKY_LIGHT))
+        floor_occlusion[square] = np.minimum(floor_occlusion[square],
+                                             1.0 - (1.0 - open_sky) * (1.0 - BLOCKED_SKY_LIGHT))
     composite(floor_terms.from_light, floor_terms.from_ambient, *floor_terms.row_weights, *floor_terms.col_weights,
               floor, visibility, floor_occlusion, np.zeros(3, dtype=np.float32), r, c, radiance, cover, image)
     shown = 1.0 - surface.coverage
-    rows, cols, theta, phi = _background_rays(geometry.elevation_deg, size)
+    rows, cols, theta, phi = _background_rays(geometry.elevation_deg, size, floor_shape)
     if len(rows):
         background = sample_angles(environment.background, theta, phi, environment.rotation_deg)
         image[rows, cols] += background * np.float32(environment.strength) * shown[rows, cols, None]
@@ -356,6 +359,8 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     if not geometry.empty:
         for k, maps in enumerate(suns):
             shadowed[k] = maps.floor_visibility(surface, geometry, block)
+    if held is not None:
+        floor_rows, floor_cols, shadowed = floor_rows[held], floor_cols[held], np.ascontiguousarray(shadowed[:, held])
     if len(per_light):
         add_floor_lights(image, np.stack(per_light), shadowed, floor_rows, floor_cols, *floor_terms.row_weights,
                          *floor_terms.col_weights, shown)
@@ -374,11 +379,12 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
             add_floor_lights(base, np.stack(base_lights), shadowed, floor_rows, floor_cols, *base_terms.row_weights,
                              *base_terms.col_weights, np.ones_like(shown))
         change = _texture_change(floor_texture, camera)
+        change = change if held is None else change[held]
         image[floor_rows, floor_cols] += (base[floor_rows, floor_cols] * change
                                           * shown[floor_rows, floor_cols, None]).astype(np.float32)
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
-                        material, block, sky_up, floor_albedo)
+                        material, block, sky_up, floor_albedo, floor)
     visibility[r, c] = seen
     images = surface.images
     return ShadedImage(image=linear_to_srgb(np.maximum(image, 0.0)), coverage=surface.coverage, albedo=images.albedo,
@@ -403,10 +409,28 @@ COAT_SAMPLE_BLUR = 0.3  # texels of the lighting map: the blur of the map the fl
 
 
 @lru_cache(maxsize=8)
-def _background_rays(elevation_deg: float, size: int) -> tuple[np.ndarray, ...]:
-    """The pixels that show no floor and the angles of their rays (direction_angles), per camera (read-only)."""
+def _shown_floor(elevation_deg: float, size: int, shape: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """The pixels that show a floor of `shape` (H, W), and which of the square floor's pixels (row-major) they are
+    (None for the square itself), per camera (read-only)."""
     camera = Camera(elevation_deg, width=size, height=size)
-    rows, cols = np.nonzero(~cached_floor_mask(camera))
+    square = cached_floor_mask(camera)
+    if shape == "square":
+        return square, None
+    _, points, _ = camera_floor_points(camera)
+    held = FloorSpec(shape=shape).holds(points[:, 0], points[:, 2])
+    shown = np.zeros_like(square)
+    shown[square] = held
+    shown.flags.writeable = False
+    held.flags.writeable = False
+    return shown, held
+
+
+@lru_cache(maxsize=8)
+def _background_rays(elevation_deg: float, size: int, shape: str = "square") -> tuple[np.ndarray, ...]:
+    """The pixels that show no floor of `shape` and the angles of their rays (direction_angles), per camera
+    (read-only)."""
+    camera = Camera(elevation_deg, width=size, height=size)
+    rows, cols = np.nonzero(~_shown_floor(elevation_deg, size, shape)[0])
     _, rays = camera.pixel_rays(cols + 0.5, rows + 0.5)
     out = (rows, cols, *direction_angles(rays))
     for array in out:
@@ -620,9 +644,10 @@ def _split_sum(cos_view: np.ndarray, roughness: float) -> tuple[np.ndarray, np.n
 def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection, camera: Camera,
                     light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps], lights: _Lights,
                     ready: PreparedEnvironment, environment: EnvironmentLight, material: MaterialSpec, block: float,
-                    sky_up: np.ndarray, floor_albedo: np.ndarray) -> None:
-    """The floor's reflection of the object, where the coat mirrored the environment: the object's points lit and
-    seen from the camera mirrored below the floor, less the environment the coat showed there."""
+                    sky_up: np.ndarray, floor_albedo: np.ndarray, floor: np.ndarray) -> None:
+    """The floor's reflection of the object at the pixels that show the `floor`, where the coat mirrored the
+    environment: the object's points lit and seen from the camera mirrored below the floor, less the environment the
+    coat showed there."""
     mirror_camera = Camera(camera.elevation_deg, width=reflection.side, height=reflection.side)
     below = mirror_camera.position * np.array([1.0, -1.0, 1.0])
     radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
@@ -632,4 +657,4 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
     theta, phi = direction_angles(rays * np.array([1.0, -1.0, 1.0]))
     replaced = (sample_angles(ready.coat_specular.at(FLOOR_COAT_ROUGHNESS), theta, phi, environment.rotation_deg)
                 * environment.strength)
-    add_reflection_change(image, surface, reflection, radiance - replaced)
+    add_reflection_change(image, surface, reflection, radiance - replaced, floor)

@@ -190,9 +190,10 @@ def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: Floo
 
 
 def add_reflection_change(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection,
-                          change: np.ndarray) -> None:
+                          change: np.ndarray, floor: np.ndarray | None = None) -> None:
     """Adds to the linear `image` the reflection's `change` (N, 3) of what the floor's coat mirrors, weighted by the
-    coat, blurred (the coat's roughness) and upsampled bilinearly over the box the reflection's pixels reach."""
+    coat, blurred (the coat's roughness) and upsampled bilinearly over the box the reflection's pixels reach, at the
+    pixels that show the `floor` (default: the surface's)."""
     margin = math.ceil(REFLECTION_BLUR * BLUR_TRUNCATE) + 1
     (r0, c0), (r1, c1) = reflection.pixels.min(axis=0) - margin, reflection.pixels.max(axis=0) + 1 + margin
     box = np.zeros((r1 - r0, c1 - c0, 3), dtype=np.float32)
@@ -209,7 +210,8 @@ def add_reflection_change(image: np.ndarray, surface: VisibleSurface, reflection
     first_row, first_col = max(top, 0), max(left, 0)
     rows = [w[first_row - top:min(bottom, surface.size) - top] for w in rows]
     cols = [w[first_col - left:min(right, surface.size) - left] for w in cols]
-    add_upsampled(image, box, *rows, *cols, first_row, first_col, surface.floor, surface.coverage)
+    add_upsampled(image, box, *rows, *cols, first_row, first_col, surface.floor if floor is None else floor,
+                  surface.coverage)
 
 
 # --- compiled loops (numba, cached on disk) ---------------------------------------------------------

@@ -69,5 +69,5 @@ def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | 
         light = scene.light.position if scene.light.enabled else None
         return shade_environment(geometry, surface, light, floor_color, scene_environment(scene),
                                  scene.object.material, mirrored, quality, floor_sky_cones(geometry, surface),
-                                 floor_texture(scene))
+                                 floor_texture(scene), scene.floor.shape)
     return shade(geometry, surface, scene.light.position, floor_color, reflection=mirrored, quality=quality)

@@ -103,9 +103,10 @@ class StagedShader:
         light = light if scene.light.enabled else None
         cones = stage("floor_sky", (placed_key, size), lambda: floor_sky_cones(where, seen), keep)
         texture = floor_texture(scene)
-        return stage("lighting", (painted_key, light, floor, environment.key, o.material, texture),
+        shape = scene.floor.shape
+        return stage("lighting", (painted_key, light, floor, environment.key, o.material, texture, shape),
                      lambda: shade_environment(where, surface, light, floor, environment, o.material, reflection,
-                                               self.quality, cones, texture), keep)
+                                               self.quality, cones, texture, shape), keep)
 
     def _stage(self, name: str, key: Hashable, compute: Callable, keep: bool = True):
         return self.cache(self._prefix + name, key, compute, keep)
