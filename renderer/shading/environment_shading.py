@@ -579,8 +579,9 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
         a, b = _split_sum(cos_view, roughness)
         above = _above_horizon(reflected, roughness)
         floor_seen = _floor_seen(reflected, floor_albedo, floor_lit, ready, environment, roughness)
-        seen_around = (_specular(ready, environment, reflected, roughness) * above * occlusion[:, None]
-                       + floor_seen * (1.0 - above))
+        # The floor near the point is shaded by the object as its sky is: both take its occlusion.
+        seen_around = (_specular(ready, environment, reflected, roughness) * above
+                       + floor_seen * (1.0 - above)) * occlusion[:, None]
         radiance = radiance + seen_around * (f0 * a[:, None] + b[:, None]) + specular
     return radiance.astype(np.float32), seen.astype(np.float32)
 
