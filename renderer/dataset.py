@@ -193,6 +193,33 @@ def sample_lighting(rng: np.random.Generator, lighting: str, split: str) -> tupl
     return Lighting(mode == "both", environment), (kind, seed)
 
 
+GROUND_SCALE_RANGE = (1.0, 3.0)  # world units a textured ground repeats over
+GROUND_TILE_PIXELS = 512  # a ground image's side: 2 to 5 millimetres of ground a pixel, finer than the images see
+DISK_SHARE = 0.5  # of textured grounds, the share that are disks (the paper's), the rest squares
+
+
+def sample_ground(rng: np.random.Generator, split: str) -> tuple[np.ndarray, float, str, str]:
+    """A textured ground: its image (sRGB uint8, GROUND_TILE_PIXELS square), the world units it repeats over, the
+    floor's shape and the texture's family (the split's own: renderer/objects/textures.py)."""
+    from renderer.objects.textures import draw_texture
+
+    family, texture = draw_texture(rng, split)
+    scale = float(rng.uniform(*GROUND_SCALE_RANGE))
+    shape = "disk" if rng.random() < DISK_SHARE else "square"
+    return ground_tile(texture, scale, GROUND_TILE_PIXELS), scale, shape, family
+
+
+def ground_tile(texture, span: float, pixels: int) -> np.ndarray:
+    """`texture` (object-unit coordinates -> sRGB) over half of `span` world units, mirrored into a 2 x 2 tile of
+    `pixels` a side: the tile repeats without seams (the textures themselves do not repeat)."""
+    half = pixels // 2
+    centres = (np.arange(half) + 0.5) * (span / pixels)
+    u, v = np.meshgrid(centres, centres)
+    quarter = np.clip(texture(np.column_stack([u.ravel(), v.ravel()])), 0.0, 1.0).reshape(half, half, 3)
+    top = np.concatenate([quarter, quarter[:, ::-1]], axis=1)
+    return np.round(np.concatenate([top, top[::-1]], axis=0) * 255.0).astype(np.uint8)
+
+
 def sample_material(rng: np.random.Generator) -> MaterialSpec:
     """An object's material: matte (a third), plastic or ceramic of any gloss, or metal (a fifth)."""
     pick = rng.random()
@@ -253,7 +280,7 @@ def prepare_folder(out: Path, config: DataConfig) -> None:
     if out.exists() and not out.is_dir():
         raise InputError("not a folder", out)
     try:
-        for sub in ("objects", "images", "splats", "records", "environments"):
+        for sub in ("objects", "images", "splats", "records", "environments", "grounds"):
             (out / sub).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
@@ -323,6 +350,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     sampler = sample_train_views if config.split == "train" else sample_test_sequence
     material = sample_material(object_rng(config, index, 3)) if config.materials else MaterialSpec()
     light_rng = object_rng(config, index, 4)
+    ground_rng = object_rng(config, index, 5)
     samples = []
     for v, view in enumerate(sampler(object_rng(config, index, 2), config.views)):
         sample_id = f"{name}_v{v:02d}"
@@ -331,6 +359,10 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
             write_environment_map(out, *made_map)
         scene = replace(view_scene(view, voxel_file, floor_color, config.size, single_color, lighting, material),
                         base_dir=out)
+        if config.grounds == "textured":
+            tile, scale, shape, _ = sample_ground(ground_rng, config.split)
+            save_png(out / f"grounds/{sample_id}.png", tile)
+            scene = replace(scene, floor=FloorSpec(floor_color, f"grounds/{sample_id}.png", scale, shape))
         target = render_pathtraced(scene, mesh, spp=config.spp, seed=index * 1000 + v, denoise=config.denoise)
         save_png(out / f"images/{sample_id}.png", target.image)
         save_png(out / f"splats/{sample_id}.png", splat_scene(scene, rgba, floor_color))
@@ -557,6 +589,7 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
     if redrawn:
         save_voxels(out / obj["voxels"], rgba)
     links = [s["target"] for s in record["samples"]]
+    links += sorted(set(_scene_files(record["samples"])))  # environment maps and ground images the scenes name
     links += [] if photos is not None else [obj["source_image"], obj["source_camera"]]
     links += [] if redrawn else [obj["voxels"]] + [s["splat"] for s in record["samples"]]
     for rel in links:
@@ -567,6 +600,17 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
             save_png(out / sample["splat"], splat_scene(scene, rgba, floor_color))
     save_json(out / "records" / f"{name}.json", record)
     return int(obj["index"])
+
+
+def _scene_files(samples: list[dict]) -> list[str]:
+    """The data folder's files (relative) that the samples' scenes name besides the object: environment images
+    and ground textures."""
+    found = []
+    for sample in samples:
+        scene = sample["scene"]
+        found += [part[key] for part, key in ((scene.get("environment") or {}, "image"), (scene.get("floor") or {}, "texture"))
+                  if part.get(key)]
+    return found
 
 
 def _link_or_copy(source: Path, target: Path) -> None:

@@ -17,6 +17,7 @@ from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.io import load_image
 from renderer.limits import MAX_TEXTURE_SIDE
+from renderer.resample import resized
 from renderer.scene import FLOOR_HALF_SIZE, Scene
 
 TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -34,19 +35,50 @@ class FloorTexture:
         """The texture's mean albedo as an sRGB color: the floor's color for light it bounces, and for previews."""
         return tuple(float(c) for c in linear_to_srgb(self.albedo.reshape(-1, 3).mean(axis=0)))
 
-    def albedo_at(self, points: np.ndarray) -> np.ndarray:
-        """(N, 3) linear albedo at world floor points (N, 3) (y ignored): bilinear between texel centres, wrapping."""
-        h, w = self.albedo.shape[:2]
-        u = (points[:, 0] + FLOOR_HALF_SIZE) / self.scale * w - 0.5
-        v = (FLOOR_HALF_SIZE - points[:, 2]) / self.scale * h - 0.5
-        u0, v0 = np.floor(u), np.floor(v)
-        fu, fv = (u - u0)[:, None], (v - v0)[:, None]
-        c0, r0 = u0.astype(np.int64) % w, v0.astype(np.int64) % h
-        c1, r1 = (c0 + 1) % w, (r0 + 1) % h
-        a = self.albedo
-        top = a[r0, c0] * (1.0 - fu) + a[r0, c1] * fu
-        bottom = a[r1, c0] * (1.0 - fu) + a[r1, c1] * fu
-        return (top * (1.0 - fv) + bottom * fv).astype(np.float32)
+    def albedo_at(self, points: np.ndarray, footprint: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3) linear albedo at world floor points (N, 3) (y ignored), averaged over `footprint` (N,) world units
+        around each (a pixel's width on the floor; None: a point): bilinear in the mip level whose texels are that
+        wide, blended with the next (trilinear), so that a fine texture far away shows its mean, not moire."""
+        if footprint is None:
+            return _bilinear(self.albedo, points, self.scale)
+        levels = self.mip_levels()
+        texel = self.scale / self.albedo.shape[1]
+        at = np.clip(np.log2(np.maximum(footprint, 1e-12) / texel), 0.0, len(levels) - 1.0)
+        low = np.minimum(at.astype(np.int64), len(levels) - 2) if len(levels) > 1 else np.zeros(len(at), np.int64)
+        out = np.empty((len(points), 3), dtype=np.float32)
+        for level in np.unique(low):
+            chosen = low == level
+            here = _bilinear(levels[level], points[chosen], self.scale)
+            if level + 1 < len(levels):
+                weight = (at[chosen] - level)[:, None]
+                here = here * (1.0 - weight) + _bilinear(levels[level + 1], points[chosen], self.scale) * weight
+            out[chosen] = here
+        return out
+
+    def mip_levels(self) -> list[np.ndarray]:
+        """The albedo and its box-filtered halvings down to one texel (made on first use, kept)."""
+        if not hasattr(self, "_levels"):
+            levels = [self.albedo]
+            while max(levels[-1].shape[:2]) > 1:
+                h, w = levels[-1].shape[:2]
+                levels.append(resized(levels[-1], (max(1, w // 2), max(1, h // 2))))
+            object.__setattr__(self, "_levels", levels)
+        return self._levels
+
+
+def _bilinear(albedo: np.ndarray, points: np.ndarray, scale: float) -> np.ndarray:
+    """(N, 3): `albedo` (one repeat over `scale` world units, placed as the module says) at world floor points,
+    bilinear between texel centres, wrapping."""
+    h, w = albedo.shape[:2]
+    u = (points[:, 0] + FLOOR_HALF_SIZE) / scale * w - 0.5
+    v = (FLOOR_HALF_SIZE - points[:, 2]) / scale * h - 0.5
+    u0, v0 = np.floor(u), np.floor(v)
+    fu, fv = (u - u0)[:, None], (v - v0)[:, None]
+    c0, r0 = u0.astype(np.int64) % w, v0.astype(np.int64) % h
+    c1, r1 = (c0 + 1) % w, (r0 + 1) % h
+    top = albedo[r0, c0] * (1.0 - fu) + albedo[r0, c1] * fu
+    bottom = albedo[r1, c0] * (1.0 - fu) + albedo[r1, c1] * fu
+    return (top * (1.0 - fv) + bottom * fv).astype(np.float32)
 
 
 def floor_texture(scene: Scene) -> FloorTexture | None:

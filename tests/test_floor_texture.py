@@ -162,3 +162,42 @@ def test_a_disk_floor_ends_where_its_radius_says_in_both_renderers_and_keeps_the
                 assert (off_background > 0.05) == inside, (angle, radius, image[pixel])
             if inside:
                 np.testing.assert_allclose(shaded[pixel], on_square[pixel], atol=0.02)
+
+
+def test_a_fine_texture_far_away_shades_as_its_mean_color_not_moire(tmp_path):
+    """One-texel checks a hundredth of a unit wide: every pixel's footprint covers many, so the shader's floor (mip
+    levels by footprint) must look like a plain floor of the checks' mean, as the path tracer's samples average it."""
+    from renderer.voxels import save_voxels
+
+    save_voxels(tmp_path / "cube.npz", cube())
+    checks = (np.indices((64, 64)).sum(axis=0) % 2 * 255).astype(np.uint8)
+    Image.fromarray(np.repeat(checks[..., None], 3, axis=2)).save(tmp_path / "checks.png")
+    textured = replace(scene_on(tmp_path, "checks.png", 0.64), camera=CameraSpec(30.0))
+    mean = floor_texture(textured).mean_srgb
+    plain = replace(textured, floor=FloorSpec(mean, shape="square"),
+                    object=replace(textured.object, material=replace(textured.object.material, specular=1e-6)))
+    a = shade_scene(textured, cube(), textured.floor.color, 96)
+    b = shade_scene(plain, cube(), plain.floor.color, 96)
+    floor = b.coverage == 0.0
+    assert np.abs(a.image - b.image)[floor].mean() < 0.01 and np.abs(a.image - b.image)[floor].max() < 0.08
+
+
+def test_textured_grounds_in_a_data_set_repeat_without_seams_and_come_from_the_splits_families(tmp_path):
+    from renderer.dataset import DataConfig, generate_dataset, sample_ground
+    from renderer.objects.textures import FAMILIES
+
+    tiles = [sample_ground(np.random.default_rng(seed), "test") for seed in range(6)]
+    for tile, scale, shape, family in tiles:
+        assert tile.shape == (512, 512, 3) and shape in ("square", "disk") and 1.0 <= scale <= 3.0
+        assert family in FAMILIES["test"] and family not in FAMILIES["train"]
+        # Mirrored: the tile's last row and column meet its first where it repeats.
+        assert np.array_equal(tile[0], tile[-1]) and np.array_equal(tile[:, 0], tile[:, -1])
+    assert {shape for _, _, shape, _ in tiles} == {"square", "disk"}
+    config = DataConfig(setting="single", split="test", objects=1, views=3, size=32, spp=2, denoise=False,
+                        resolution=32, lighting="environment", grounds="textured", seed=2)
+    generate_dataset(tmp_path / "set", config, progress=False)
+    manifest = json.loads((tmp_path / "set" / "manifest.json").read_text())
+    for sample in manifest["samples"]:
+        scene = scene_from_dict(sample["scene"], tmp_path / "set" / "manifest.json")
+        assert scene.floor_texture_path().is_file() and floor_texture(scene).albedo.shape == (512, 512, 3)
+    assert manifest["config"]["grounds"] == "textured"

@@ -144,7 +144,9 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
             values["sample"] = f"{folder.name}/{item.get('id', index)}"
             values["index"] = index
             values["ground_share"] = _ground_share(prediction[0], sample["target"], sample["splat"], dataset.scene(index))
-            values["lighting"], values["material"] = lighting_label(dataset.scene(index)), material_label(dataset.scene(index))
+            scene = dataset.scene(index)
+            values["lighting"], values["material"] = lighting_label(scene), material_label(scene)
+            values["ground"] = ground_label(scene)
             scores[dataset.settings[index]].append(values)
         # The figure: each setting's typical view (median MSE) and its worst, drawn again (a few samples, not all kept).
         rows, captions = [], []
@@ -172,6 +174,12 @@ def lighting_label(scene) -> str:
 def material_label(scene) -> str:
     material = scene.object.material
     return "matte" if material.diffuse_only else ("metal" if material.metallic >= 0.5 else "glossy")
+
+
+def ground_label(scene) -> str:
+    """The test scene's ground: plain or textured, square or disk."""
+    floor = scene.floor
+    return f"{'plain' if floor.texture is None else 'textured'} {floor.shape}"
 
 
 def _figure_samples(values: list[dict]) -> list[tuple[str, dict]]:
@@ -218,8 +226,8 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
         lines.append(f"| {setting} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} "
                      f"| {100 * ground:.0f} % |")
     every = [v for values in scores.values() for v in values]
-    if any(v["lighting"] != "area light" or v["material"] != "matte" for v in every):
-        for key in ("lighting", "material"):
+    if any(v["lighting"] != "area light" or v["material"] != "matte" or v["ground"] != "plain square" for v in every):
+        for key in ("lighting", "material", "ground"):
             lines += ["", f"| {key} | samples | MSE (0-255) | DSSIM | perceptual |", "|---|---:|---:|---:|---:|"]
             for label in sorted({v[key] for v in every}):
                 values = [v for v in every if v[key] == label]

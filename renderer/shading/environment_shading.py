@@ -450,11 +450,19 @@ def _floor_pixels(elevation_deg: float, size: int) -> tuple[np.ndarray, np.ndarr
 
 @lru_cache(maxsize=4)
 def _texture_change(texture: FloorTexture, camera: Camera) -> np.ndarray:
-    """(F, 3) float32: the texture's albedo at the floor pixels' points over its mean, less one, per texture and
-    camera (read-only)."""
-    _, points, _ = camera_floor_points(camera)
+    """(F, 3) float32: the texture's albedo over each floor pixel (FloorTexture.albedo_at, the pixel's footprint) over
+    its mean, less one, per texture and camera (read-only)."""
+    floor, points, _ = camera_floor_points(camera)
+    rows, cols = np.nonzero(floor)
+    # A pixel's footprint on the floor: how far the floor point moves to the next pixel across and down.
+    footprint = np.zeros(len(points))
+    for du, dv in ((1.0, 0.0), (0.0, 1.0)):
+        origin, dirs = camera.pixel_rays(cols + 0.5 + du, rows + 0.5 + dv)
+        dirs[:, 1] = np.minimum(dirs[:, 1], -1e-6)
+        step = origin + (-origin[1] / dirs[:, 1])[:, None] * dirs - points
+        footprint = np.maximum(footprint, np.linalg.norm(step, axis=1))
     mean = srgb_to_linear(np.asarray(texture.mean_srgb, dtype=np.float64))
-    change = (texture.albedo_at(points) / np.maximum(mean, 1e-6) - 1.0).astype(np.float32)
+    change = (texture.albedo_at(points, footprint) / np.maximum(mean, 1e-6) - 1.0).astype(np.float32)
     change.flags.writeable = False
     return change
 
