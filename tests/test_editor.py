@@ -1057,6 +1057,37 @@ def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path
     assert np.abs(disk - finer).mean() > 0.005 and np.abs(disk[-40:] - finer[-40:]).mean() < 0.01  # the near floor stays
 
 
+LIGHT_TAB, SUN_WIDGET_CENTRE = _tools_point(105, 39), _tools_point(83, 204)  # under a sky, the area light on
+
+
+def test_the_sun_is_dragged_on_its_hemisphere_in_one_undo_step(display, tmp_path, scene_file):
+    """The Light tab's hemisphere (the sky from above, the camera's side down): dragging the sun from behind on the
+    right to the front on the left brings it to the camera's left and lower, and one undo puts it back."""
+    saved = {name: str(tmp_path / f"{name}.json") for name in ("before", "after", "undone")}
+    cx, cy = SUN_WIDGET_CENTRE
+    start = [cx + 35.0, cy - 21.0]  # where the sun at 35 degrees up, azimuth 120 shows (radius 67)
+    run_editor(display, tmp_path, scene_file, [
+        {"action": "use_sky"},
+        {"action": "set_sky", "elevation": 35, "azimuth": 120, "turbidity": 3},
+        {"action": "mouse_move", "pos": LIGHT_TAB}, {"action": "mouse_down", "button": 0},
+        {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0}, {"action": "wait", "frames": 3},
+        {"action": "save", "path": saved["before"]},
+        {"action": "mouse_move", "pos": start}, {"action": "wait", "frames": 2},
+        {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
+        {"action": "mouse_move", "pos": [cx - 10.0, cy + 10.0]}, {"action": "wait", "frames": 2},
+        {"action": "mouse_move", "pos": [cx - 38.0, cy + 31.0]}, {"action": "wait", "frames": 2},
+        {"action": "mouse_up", "button": 0}, {"action": "wait", "frames": 3},
+        {"action": "save", "path": saved["after"]},
+        {"action": "undo"},
+        {"action": "save", "path": saved["undone"]},
+    ])
+    before, after = (load_scene(saved[n]).environment.sky for n in ("before", "after"))
+    assert (before.sun_elevation_deg, before.sun_azimuth_deg) == (35.0, 120.0)
+    # 49 px from the centre of a 67 px horizon, down and to the left: about 24 degrees up, azimuth about -51.
+    assert abs(after.sun_elevation_deg - 24.1) < 4.0 and abs(after.sun_azimuth_deg + 50.8) < 5.0
+    assert Path(saved["undone"]).read_text() == Path(saved["before"]).read_text()
+
+
 def test_numpad_views_f_frames_the_object_f1_lists_every_key_and_delete_says_why(display, tmp_path, scene_file):
     shots = {name: str(tmp_path / f"{name}.png") for name in ("start", "top", "framed", "help", "closed")}
     result = run_editor(display, tmp_path, scene_file, [

@@ -589,3 +589,15 @@ def test_the_file_browser_lists_folders_first_then_the_kinds_files_without_hidde
     assert entries(tmp_path, ("*.obj", "*.ply")) == (["Alpha", "zeta"], ["A.OBJ", "b.obj", "c.ply"])
     with pytest.raises(OSError):
         entries(tmp_path / "missing", ("*.obj",))
+
+
+def test_the_suns_hemisphere_maps_elevation_to_radius_and_azimuth_to_the_compass_with_the_camera_down():
+    from app.editor.light_panel import sun_from_widget, sun_on_widget
+
+    assert sun_on_widget(90.0, 37.0, 60.0) == pytest.approx((0.0, 0.0))  # overhead: the centre
+    assert sun_on_widget(0.0, 0.0, 60.0) == pytest.approx((0.0, 60.0))  # on the horizon towards the camera: bottom
+    assert sun_on_widget(45.0, 90.0, 60.0) == pytest.approx((30.0, 0.0))  # towards +x: right, half way out
+    assert sun_from_widget(0.0, -60.0, 60.0) == pytest.approx((0.0, 180.0))  # the top of the rim: behind the object
+    assert sun_from_widget(500.0, 0.0, 60.0)[0] == 0.0  # past the rim: the horizon
+    for elevation, azimuth in ((10.0, -170.0), (33.0, 20.0), (80.0, 95.0)):
+        assert sun_from_widget(*sun_on_widget(elevation, azimuth, 75.0), 75.0) == pytest.approx((elevation, azimuth))

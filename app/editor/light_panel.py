@@ -7,6 +7,7 @@ step when it is let go, as every field of the tools.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
@@ -15,7 +16,7 @@ from imgui_bundle import imgui
 from app.editor import edits
 from app.editor.file_dialog import FileKind
 from app.editor.photo_panel import GRAY
-from renderer.scene import FLOOR_SHAPES, MaterialSpec, Scene
+from renderer.scene import FLOOR_SHAPES, MaterialSpec, Scene, SkySpec
 
 
 class Interface(Protocol):
@@ -31,6 +32,7 @@ class Interface(Protocol):
 ENVIRONMENT_FILES = FileKind("Load an environment", "Environment maps", ("*.hdr", "*.exr", "*.png", "*.jpg", "*.jpeg"))
 TEXTURE_FILES = FileKind("Load a floor texture", "Images", ("*.png", "*.jpg", "*.jpeg"))
 LIGHTING = ("area light and ambient", "sun and sky", "environment image")
+SUN_WIDGET_SIDE = 150  # pixels: the sun's hemisphere seen from above
 
 
 def draw_lighting(ui: Interface) -> None:
@@ -61,6 +63,7 @@ def draw_lighting(ui: Interface) -> None:
             _area_light_position(ui)
     if env is not None and env.sky is not None:
         sky = env.sky
+        _sun_hemisphere(ui, sky)
         changed, elevation = imgui.slider_float("sun elevation", sky.sun_elevation_deg, 0.0, 90.0, "%.1f deg")
         ui.edit_field("sun elevation", changed, lambda s: edits.set_sky(s, elevation, sky.sun_azimuth_deg, sky.turbidity))
         changed, azimuth = imgui.slider_float("sun azimuth", sky.sun_azimuth_deg, -180.0, 180.0, "%.1f deg")
@@ -82,6 +85,50 @@ def draw_lighting(ui: Interface) -> None:
         changed, strength = imgui.slider_float("strength", env.strength, 0.0, edits.MAX_STRENGTH, "%.2f",
                                                imgui.SliderFlags_.logarithmic)
         ui.edit_field("environment strength", changed, lambda s: edits.turn_environment(s, strength=strength))
+
+
+def sun_on_widget(elevation_deg: float, azimuth_deg: float, radius: float) -> tuple[float, float]:
+    """Where the sun shows on the hemisphere widget, from its centre in pixels (x right, y down): the sky seen from
+    above with the camera's side (+z) down and +x right; the zenith at the centre, the horizon on the rim."""
+    r = radius * (90.0 - elevation_deg) / 90.0
+    a = math.radians(azimuth_deg)
+    return r * math.sin(a), r * math.cos(a)
+
+
+def sun_from_widget(dx: float, dy: float, radius: float) -> tuple[float, float]:
+    """The sun's elevation and azimuth (degrees) at widget offset (dx, dy) pixels from its centre (the rim and past
+    it: the horizon)."""
+    r = min(math.hypot(dx, dy) / max(radius, 1e-9), 1.0)
+    return 90.0 * (1.0 - r), math.degrees(math.atan2(dx, dy))
+
+
+def _sun_hemisphere(ui: Interface, sky: SkySpec) -> None:
+    """The sun on its hemisphere, seen from above: drag it (a preview on the way, one undo step on release)."""
+    side = SUN_WIDGET_SIDE
+    corner = imgui.get_cursor_screen_pos()
+    imgui.invisible_button("sun hemisphere", imgui.ImVec2(side, side))
+    centre = imgui.ImVec2(corner.x + side / 2, corner.y + side / 2)
+    radius = side / 2 - 8
+    draw = imgui.get_window_draw_list()
+    line = imgui.get_color_u32(imgui.ImVec4(0.6, 0.6, 0.65, 1.0))
+    draw.add_circle_filled(centre, radius, imgui.get_color_u32(imgui.ImVec4(0.18, 0.24, 0.34, 1.0)), 48)
+    for ring in (1.0, 2.0 / 3.0, 1.0 / 3.0):  # the horizon, 30 and 60 degrees up
+        draw.add_circle(centre, radius * ring, line, 48)
+    draw.add_line(imgui.ImVec2(centre.x - radius, centre.y), imgui.ImVec2(centre.x + radius, centre.y), line)
+    draw.add_line(imgui.ImVec2(centre.x, centre.y - radius), imgui.ImVec2(centre.x, centre.y + radius), line)
+    draw.add_text(imgui.ImVec2(centre.x - 20, centre.y + radius - 2), line, "camera")
+    x, y = sun_on_widget(sky.sun_elevation_deg, sky.sun_azimuth_deg, radius)
+    draw.add_circle_filled(imgui.ImVec2(centre.x + x, centre.y + y), 6.0,
+                           imgui.get_color_u32(imgui.ImVec4(1.0, 0.75, 0.2, 1.0)))
+    if imgui.is_item_active():
+        mouse = imgui.get_mouse_pos()
+        elevation, azimuth = sun_from_widget(mouse.x - centre.x, mouse.y - centre.y, radius)
+        if (elevation, azimuth) != (sky.sun_elevation_deg, sky.sun_azimuth_deg):
+            ui.app.edit(lambda s: edits.set_sky(s, elevation, azimuth, sky.turbidity), preview=True)
+    if imgui.is_item_deactivated():
+        ui.app.commit_preview()
+    if imgui.is_item_hovered():
+        imgui.set_tooltip("The sky from above, the camera's side down: drag the sun (centre: overhead; rim: horizon)")
 
 
 def load_environment(ui: Interface) -> None:
