@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
-from renderer.color import srgb_to_linear
+from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.errors import InputError
 from renderer.io import load_image
 from renderer.limits import MAX_MAP_SIDE
@@ -325,6 +325,22 @@ def sky_exposure() -> float:
     from_sky = np.sum(luminance(sky_map) * up * texel_solid_angles(h, w))
     from_sun = luminance(sun) * math.sin(math.radians(REFERENCE_SKY.sun_elevation_deg))
     return REFERENCE_IRRADIANCE / float(from_sky + from_sun)
+
+
+THUMBNAIL_WIDTH = 192  # the Light tab's picture of the environment
+
+
+def environment_thumbnail(environment: EnvironmentLight, width: int = THUMBNAIL_WIDTH) -> np.ndarray:
+    """(width / 2, width, 3) float32 sRGB: the environment around the scene, turned and scaled as it lights it, in
+    the maps' layout (the middle column looks from behind the camera, the top row is overhead), tone-mapped as
+    x / (1 + x) so that a bright sky keeps its shape; the sun, which no map holds, a yellow dot."""
+    directions = map_directions(width // 2, width)
+    radiance = np.maximum(environment.radiance(directions, sharp=True), 0.0)
+    image = linear_to_srgb(radiance / (1.0 + radiance)).astype(np.float32)
+    if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
+        row, col = np.unravel_index(np.argmax(directions @ environment.sun_direction), directions.shape[:2])
+        image[max(row - 1, 0):row + 2, max(col - 1, 0):col + 2] = (1.0, 0.85, 0.2)
+    return image
 
 
 def luminance(rgb: np.ndarray) -> np.ndarray:

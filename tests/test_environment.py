@@ -534,3 +534,26 @@ def test_info_and_range_warnings_say_what_lights_the_scene_and_that_no_network_i
     assert info.returncode == 0, info.stderr
     assert "sun at 20 deg elevation" in info.stdout and "strength 2" in info.stdout
     assert "roughness 0.2, specular 0.5, metallic 0" in info.stdout
+
+
+def test_the_light_tabs_picture_shows_the_environment_turned_scaled_and_its_sun_where_it_lights_from():
+    from renderer.environment import environment_thumbnail
+
+    radiance = np.full((32, 64, 3), 0.2, dtype=np.float32)
+    radiance[8, 16] = 50.0  # one bright texel, up and to one side in the map's own frame
+    turned = (0.0, 90.0)
+    spots = []
+    for rotation in turned:
+        light = replace(uniform_environment(0.0), background=radiance, rotation_deg=rotation, strength=2.0)
+        picture = environment_thumbnail(light, 64)
+        assert picture.shape == (32, 64, 3) and 0.0 <= picture.min() and picture.max() <= 1.0
+        spots.append(np.unravel_index(np.argmax(picture.sum(axis=2)), picture.shape[:2]))
+    # A quarter turn moves the bright texel a quarter of the picture's width, in the map's own row.
+    assert spots[0] == (8, 16) and spots[1][0] == 8 and (spots[1][1] - spots[0][1]) % 64 in (15, 16, 17, 47, 48, 49)
+    sky = environment_light(Scene(environment=EnvironmentSpec(sky=SkySpec(30.0, 60.0, 3.0))))
+    picture = environment_thumbnail(sky, 64)
+    dot = np.all(np.isclose(picture, (1.0, 0.85, 0.2)), axis=2)
+    assert dot.any()
+    row, col = np.unravel_index(np.argmax(dot), picture.shape[:2])
+    up = map_directions(32, 64)[row, col]
+    assert np.degrees(np.arccos(np.clip(up @ sky.sun_direction, -1, 1))) < 8.0  # the dot where the sun is

@@ -11,11 +11,15 @@ import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
+import moderngl
 from imgui_bundle import imgui
 
 from app.editor import edits
 from app.editor.file_dialog import FileKind
 from app.editor.photo_panel import GRAY
+from app.editor.window import upload_image
+from renderer.environment import environment_light, environment_thumbnail
+from renderer.errors import InputError
 from renderer.scene import FLOOR_SHAPES, MaterialSpec, Scene, SkySpec
 
 
@@ -24,6 +28,7 @@ class Interface(Protocol):
 
     app: Any  # the EditorApp
     fields: Any  # the path fields (panels.Fields)
+    environment_preview: EnvironmentPreview
 
     def edit_field(self, key: str, changed: bool, make_scene: Callable[[Scene], Scene]) -> None: ...
 
@@ -64,6 +69,8 @@ def draw_lighting(ui: Interface) -> None:
     if env is not None and env.sky is not None:
         sky = env.sky
         _sun_hemisphere(ui, sky)
+        imgui.same_line()
+        ui.environment_preview.draw(ui)
         changed, elevation = imgui.slider_float("sun elevation", sky.sun_elevation_deg, 0.0, 90.0, "%.1f deg")
         ui.edit_field("sun elevation", changed, lambda s: edits.set_sky(s, elevation, sky.sun_azimuth_deg, sky.turbidity))
         changed, azimuth = imgui.slider_float("sun azimuth", sky.sun_azimuth_deg, -180.0, 180.0, "%.1f deg")
@@ -80,6 +87,8 @@ def draw_lighting(ui: Interface) -> None:
             load_environment(ui)
         imgui.text_colored(GRAY, ".hdr and .exr are linear light; .png and .jpg are read as sRGB (no highlights).")
     if env is not None:
+        if env.sky is None:  # a sky's is beside its sun
+            ui.environment_preview.draw(ui)
         changed, rotation = imgui.slider_float("turn environment", env.rotation_deg, -180.0, 180.0, "%.1f deg")
         ui.edit_field("environment turn", changed, lambda s: edits.turn_environment(s, rotation_deg=rotation))
         changed, strength = imgui.slider_float("strength", env.strength, 0.0, edits.MAX_STRENGTH, "%.2f",
@@ -129,6 +138,38 @@ def _sun_hemisphere(ui: Interface, sky: SkySpec) -> None:
         ui.app.commit_preview()
     if imgui.is_item_hovered():
         imgui.set_tooltip("The sky from above, the camera's side down: drag the sun (centre: overhead; rim: horizon)")
+
+
+class EnvironmentPreview:
+    """The Light tab's picture of the environment (renderer.environment.environment_thumbnail), its texture made
+    again only when the scene's environment changes."""
+
+    def __init__(self) -> None:
+        self.texture: moderngl.Texture | None = None
+        self._shown: tuple | None = None
+
+    def draw(self, ui: Interface) -> None:
+        scene = ui.app.scene
+        key = (scene.environment, scene.base_dir)
+        if scene.environment is None:
+            return
+        if self.texture is None or self._shown != key:
+            try:
+                light = environment_light(scene)
+            except InputError:
+                return  # the environment's own edit says why
+            self.texture = upload_image(ui.app.window.ctx, self.texture, environment_thumbnail(light))
+            self._shown = key
+        w, h = self.texture.size
+        imgui.image(imgui.ImTextureRef(self.texture.glo), imgui.ImVec2(w, h))
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("The environment all around the scene, as it lights it (turned, scaled; the sun a dot):\n"
+                              "the middle looks from behind the camera, the top is overhead.")
+
+    def close(self) -> None:
+        if self.texture is not None:
+            self.texture.release()
+            self.texture = None
 
 
 def load_environment(ui: Interface) -> None:

@@ -21,7 +21,7 @@ from app.editor.files import shipped
 from app.editor.frame_damage import Box
 from app.editor.keys import HelpWindow, view_keys
 from app.editor.layout import RIGHT_WIDTH, Layout, Rect, layout_for
-from app.editor.light_panel import draw_floor, draw_lighting, draw_material
+from app.editor.light_panel import EnvironmentPreview, draw_floor, draw_lighting, draw_material
 from app.editor.orbit_view import viewport_camera
 from app.editor.photo_panel import GRAY, PhotoPanel
 from app.editor.viewport_input import ViewportInput
@@ -91,6 +91,7 @@ class Interface:
         self._border_drag = False
         self.border_hot = False  # the mouse is on the column border, or drags it
         self.photo_panel = PhotoPanel(app)
+        self.environment_preview = EnvironmentPreview()
         self.underlay = None
         self.images = ()  # where the viewport and the render appear, with their versions (see Window.end_frame)
         self._popup_title: str | None = None
@@ -536,10 +537,11 @@ class Interface:
                 then(dialog.path)
 
     def close(self) -> None:
-        """Close a file dialog left open; release the photo's texture."""
+        """Close a file dialog left open; release the photo's and the environment's textures."""
         if self._file_dialog is not None:
             self._file_dialog[0].close()
         self.photo_panel.close()
+        self.environment_preview.close()
 
     # --- the reference render -------------------------------------------------------------
 
