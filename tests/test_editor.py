@@ -1053,6 +1053,9 @@ def test_a_floor_texture_loads_scales_renders_saves_and_undoes(display, tmp_path
     assert np.abs(with_tiles - plain).mean() > 0.03 and np.abs(finer - with_tiles).mean() > 0.01
     # Tiles of two colors make the floor's pixels far more varied than the plain floor's.
     assert with_tiles[-40:].std() > 2.0 * plain[-40:].std()
+    # The viewport's floor shows the tiles too (its lower part is floor in both shots).
+    plain_floor, tiled_floor = (pixels(Path(shots[n]), PANELS.viewport)[-150:] for n in ("plain", "tiled"))
+    assert tiled_floor.std() > 2.0 * plain_floor.std()
     disk = pixels(Path(shots["disk"]), PANELS.render_image)
     assert np.abs(disk - finer).mean() > 0.005 and np.abs(disk[-40:] - finer[-40:]).mean() < 0.01  # the near floor stays
 

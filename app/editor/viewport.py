@@ -8,7 +8,7 @@ viewport is quicker). Faces turned away from the viewer
 are dropped in the vertex shader. While the user drags, an object finer than MOTION_RESOLUTION voxels a side is
 drawn from its voxels merged in blocks (a block is occupied if any of its voxels is): the product's 200^3 voxels have
 four times the faces of 100^3, which slows a drag's frames in software OpenGL (docs/editor.md). At rest every voxel is drawn. A paint stroke or the bucket's preview rewrites only the faces'
-colors (`recolor`). The ground is the floor (square or disk) with a faint grid, the light is its square seen as a glowing
+colors (`recolor`). The ground is the floor (square or disk, its color or texture) with a faint grid, the light is its square seen as a glowing
 rectangle with a line down to the floor, and the render camera is drawn as its viewing frustum.
 """
 
@@ -19,7 +19,10 @@ import numpy as np
 
 from app.editor.orbit_view import frustum_corners, view_projection
 from renderer.camera import Camera
+from renderer.color import linear_to_srgb, to_uint8
 from renderer.environment import scene_sun_direction
+from renderer.errors import InputError
+from renderer.floor_texture import FloorTexture, floor_texture
 from renderer.grid import pool_voxels
 from renderer.scene import FLOOR_DISK_RADIUS, FLOOR_HALF_SIZE, LIGHT_SIZE, LOOK_AT, OBJECT_SIZE, Scene
 from renderer.surface import grid_from_world
@@ -98,11 +101,17 @@ in vec3 v_world;
 uniform vec3 floor_color;
 uniform vec3 light_position;
 uniform float disk_radius;  // 0: the square floor
+uniform sampler2D floor_texture;
+uniform float texture_repeat;  // world units one repeat spans; 0: the plain color
+uniform float half_size;
 out vec4 frag;
 void main() {
     if (disk_radius > 0.0 && length(v_world.xz) > disk_radius) discard;
     vec3 to_light = normalize(light_position - v_world);
-    vec3 shaded = floor_color * (0.38 + 0.72 * max(to_light.y, 0.0));
+    vec3 albedo = floor_color;
+    if (texture_repeat > 0.0)  // placed as renderer/floor_texture.py places it
+        albedo = texture(floor_texture, vec2(v_world.x + half_size, half_size - v_world.z) / texture_repeat).rgb;
+    vec3 shaded = albedo * (0.38 + 0.72 * max(to_light.y, 0.0));
     vec2 cell = abs(fract(v_world.xz * 2.0 + 0.5) - 0.5) / fwidth(v_world.xz * 2.0);
     float line = 1.0 - min(min(cell.x, cell.y), 1.0);
     frag = vec4(mix(shaded, shaded * 0.8, line * 0.6), 1.0);
@@ -144,9 +153,28 @@ class ViewportRenderer:
         self._lines = ctx.buffer(reserve=4096)
         self._lines_vao = ctx.vertex_array(self._flat_program, [(self._lines, "3f", "position")])
         self._fbo: moderngl.Framebuffer | None = None
+        self._ground_texture: tuple[FloorTexture, moderngl.Texture] | None = None  # the floor's, and its GL copy
         self._voxels_version = 0
         self._drawn = None  # what the framebuffer shows; an unchanged frame is not drawn again
         self.version = 0  # counts the frames drawn into the framebuffer, so the window knows when it changed
+
+    def _floor_texture_of(self, scene: Scene) -> moderngl.Texture | None:
+        """The scene's floor texture as a mip-mapped GL texture (uploaded when it changes), or None."""
+        try:
+            texture = floor_texture(scene)
+        except InputError:
+            texture = None  # the edit that named it said why
+        if texture is None:
+            return None
+        if self._ground_texture is None or self._ground_texture[0] is not texture:
+            if self._ground_texture is not None:
+                self._ground_texture[1].release()
+            pixels = to_uint8(linear_to_srgb(texture.albedo))
+            gl = self.ctx.texture((pixels.shape[1], pixels.shape[0]), 3, np.ascontiguousarray(pixels).tobytes())
+            gl.build_mipmaps()
+            gl.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            self._ground_texture = (texture, gl)
+        return self._ground_texture[1]
 
     def set_voxels(self, rgba: np.ndarray) -> int:
         """Upload the object's visible faces, one group per face direction (and those of its merged blocks, drawn in
@@ -238,6 +266,12 @@ class ViewportRenderer:
         self._ground_program["floor_color"].value = tuple(float(c) for c in floor_color)
         self._ground_program["light_position"].value = light
         self._ground_program["disk_radius"].value = FLOOR_DISK_RADIUS if scene.floor.shape == "disk" else 0.0
+        self._ground_program["half_size"].value = FLOOR_HALF_SIZE
+        texture = self._floor_texture_of(scene)
+        self._ground_program["texture_repeat"].value = 0.0 if texture is None else float(scene.floor.texture_scale)
+        if texture is not None:
+            texture.use(0)
+            self._ground_program["floor_texture"].value = 0
         self._ground_vao.render()
 
         if level is not None and level.groups:
