@@ -590,7 +590,10 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
         # The floor near the point is shaded by the object as its sky is: both take its occlusion.
         seen_around = (_specular(ready, environment, reflected, roughness) * above
                        + floor_seen * (1.0 - above)) * occlusion[:, None]
-        radiance = radiance + seen_around * (f0 * a[:, None] + b[:, None]) + specular
+        # What a rough lobe loses to single scattering comes back, in the lobe's own color (Fdez-Aguera's
+        # multiple-scattering term on the split sum): rough metal is otherwise darker than the path tracer's.
+        energy = 1.0 + f0 * (1.0 / np.maximum(a + b, 0.05) - 1.0)[:, None]
+        radiance = radiance + seen_around * (f0 * a[:, None] + b[:, None]) * energy + specular
     return radiance.astype(np.float32), seen.astype(np.float32)
 
 
