@@ -4,9 +4,11 @@ The environment (renderer/environment.py) is split in two (prepare_environment, 
 bright parts, and the sun, become at most ENVIRONMENT_LIGHTS directional lights, each shadowed through shadow maps
 seen from a point LIGHT_DISTANCE away as the area light's points are; the rest (the residual sky) lights the object
 through an irradiance map times its ambient occlusion, and its glossy reflections through maps prefiltered by GGX
-roughness. The floor takes the residual sky times its occlusion, the lights times their shadows, and mirrors the
-environment in its coat; the background past the floor is the environment itself. The area light, when on, is drawn
-as lighting.py draws it, with a GGX highlight on glossy objects.
+roughness (the sky's alone; below the horizon a lobe sees the floor). The floor takes the residual sky through the
+object's cones (surface.floor_sky_cones), each weighed by the sky's light from its side; the lights times their
+shadows, the small ones (a sun, a lamp) with their highlight on its coat; and its coat mirrors the rest of the
+environment. A floor texture varies its diffuse base; past a disk floor's rim, and past the floor, the environment
+itself shows. The area light, when on, is drawn as lighting.py draws it, with a GGX highlight on glossy objects.
 
 The material (renderer.scene.MaterialSpec) follows Disney's principled BSDF as the path tracer draws it: diffuse
 albedo * (1 - metallic), and a GGX lobe of reflectance F0 = 0.08 * specular for the dielectric, the albedo for the
