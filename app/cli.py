@@ -226,7 +226,10 @@ def cmd_info(args: argparse.Namespace) -> None:
     print(f"  placed   translation {list(o.translation)}, rotation {o.rotation_deg:g} deg, scale {list(o.scale)}")
     m = o.material
     print(f"  material {'matte' if m.diffuse_only else f'roughness {m.roughness:g}, specular {m.specular:g}, metallic {m.metallic:g}'}")
-    print(f"floor      color {list(scene.floor.color)}")
+    floor = scene.floor
+    look = (f"color {list(floor.color)}" if floor.texture is None
+            else f"texture {scene.floor_texture_path()} repeated every {floor.texture_scale:g} units")
+    print(f"floor      {look}; {floor.shape}")
     print(f"light      position {list(scene.light.position)}{'' if scene.light.enabled else ' (off)'}")
     env = scene.environment
     if env is None:

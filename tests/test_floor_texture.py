@@ -201,3 +201,17 @@ def test_textured_grounds_in_a_data_set_repeat_without_seams_and_come_from_the_s
         scene = scene_from_dict(sample["scene"], tmp_path / "set" / "manifest.json")
         assert scene.floor_texture_path().is_file() and floor_texture(scene).albedo.shape == (512, 512, 3)
     assert manifest["config"]["grounds"] == "textured"
+
+
+def test_info_says_what_the_floor_is_and_that_no_network_corrects_a_textured_one(tmp_path):
+    quadrant_texture(tmp_path / "tiles.png")
+    data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
+    data["object"]["mesh"] = str(ROOT / "assets" / "demo" / "chair.obj")
+    data["floor"] = {"color": [0.5, 0.5, 0.5], "texture": "tiles.png", "texture_scale": 0.5, "shape": "disk"}
+    (tmp_path / "scene.json").write_text(json.dumps(data))
+    info = subprocess.run([sys.executable, "-m", "app.cli", "info", str(tmp_path / "scene.json")], capture_output=True,
+                          text=True, cwd=ROOT)
+    assert info.returncode == 0, info.stderr
+    floor = next(line for line in info.stdout.splitlines() if line.startswith("floor"))
+    assert "tiles.png repeated every 0.5 units; disk" in floor
+    assert "floor textures yet" in info.stdout
