@@ -127,49 +127,73 @@ def _coat_samples(view: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     return polar, azimuth, np.where(above, weight, 0.0)
 
 
+@dataclass(frozen=True)
+class EnvironmentFloor:
+    """The empty floor under an environment (environment_floor_terms): its FloorTerms and per directional light its
+    coarse (h, w, 3) radiance, unshadowed; and, if asked for, the same of its diffuse base alone (what a texture
+    varies; the coat reflects as it does)."""
+
+    terms: FloorTerms
+    per_light: list[np.ndarray]
+    base_terms: FloorTerms | None = None
+    base_per_light: list[np.ndarray] | None = None
+
+
 def environment_floor_terms(camera: Camera, light_position, floor_color, sky: FloorSky, directions: np.ndarray,
-                            irradiance: np.ndarray, glossy: np.ndarray,
-                            spread: np.ndarray | None = None, coat: bool = True,
-                            ) -> tuple[FloorTerms, list[np.ndarray]]:
+                            irradiance: np.ndarray, glossy: np.ndarray, spread: np.ndarray | None = None,
+                            with_base: bool = False) -> EnvironmentFloor:
     """The empty floor under an environment: FloorTerms whose `from_light` is the area light's (zero when
     `light_position` is None) and whose `from_ambient` is the sky's, and per directional light (unit world
-    `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its coarse (h, w, 3) radiance, unshadowed,
-    with the coat's highlight where `glossy` says (a light the mirrored sky does not hold already), widened by the
-    light's angular radius `spread` (K,) radians (default 0: a point). `coat`: False leaves out all the coat
-    reflects (the diffuse base alone, which a texture varies)."""
+    `directions` (K, 3) towards it, rgb `irradiance` (K, 3) facing it) its radiance, with the coat's highlight where
+    `glossy` says (a light the mirrored sky does not hold already), widened by the light's angular radius `spread`
+    (K,) radians (default 0: a point). `with_base`: the diffuse base alone too, from the same pass."""
     geometry = _coarse_geometry(camera)
     albedo = srgb_to_linear(np.asarray(floor_color, dtype=np.float64)).astype(np.float32)
     through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
     if light_position is None:
-        from_light = np.zeros((*geometry.cos_view.shape, 3), dtype=np.float32)
+        light_base = light_coat = np.zeros((*geometry.cos_view.shape, 3), dtype=np.float32)
     else:
-        from_light, _ = _coarse_radiance(geometry, light_position, floor_color, coat)
+        light_base, light_coat, _, _ = _coarse_radiance_parts(geometry, light_position, floor_color)
     view = geometry.view
-    from_sky = through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo
-    if coat:
-        from_sky = from_sky + coat_reflection(geometry, sky)
-    per_light = []
+    sky_base = (through_coat[..., None] * np.asarray(sky.irradiance, dtype=np.float32) * albedo).astype(np.float32)
+    sky_coat = coat_reflection(geometry, sky)
+    per_light, base_per_light = [], []
     spread = np.zeros(len(glossy)) if spread is None else spread
     for direction, power, gloss, radius in zip(np.asarray(directions, dtype=np.float64),
                                                np.asarray(irradiance, dtype=np.float64), glossy, spread):
         cos_in = max(float(direction[1]), 0.0)
+        power = power.astype(np.float32)
+        base = (cos_in * through_coat[..., None] * albedo * power).astype(np.float32)
+        base_per_light.append(base)
+        if not gloss:
+            per_light.append(base)
+            continue
         half = view + direction.astype(np.float32)
         half /= np.maximum(np.linalg.norm(half, axis=-1, keepdims=True), 1e-12)
         cos_half = np.clip(half[..., 1], 0.0, 1.0)
         cos_in_half = np.clip(np.sum(half * direction.astype(np.float32), axis=-1), 0.0, 1.0)
-        glossy = (coat_reflectance(cos_in_half) * _ggx_widened(cos_half, 0.5 * float(radius))
-                  * _smith_g1(max(cos_in, 1e-4)) * geometry.view_masking / (4.0 * geometry.cos_view))
-        term = cos_in * through_coat[..., None] * albedo + (glossy[..., None] if gloss and coat else 0.0)
-        per_light.append((term * power.astype(np.float32)).astype(np.float32))
-    terms = FloorTerms(from_light, from_sky.astype(np.float32), geometry.floor, geometry.row_weights,
-                       geometry.col_weights)
-    return terms, per_light
+        highlight = (coat_reflectance(cos_in_half) * _ggx_widened(cos_half, 0.5 * float(radius))
+                     * _smith_g1(max(cos_in, 1e-4)) * geometry.view_masking / (4.0 * geometry.cos_view))
+        per_light.append((base + highlight[..., None] * power).astype(np.float32))
+
+    def floor_terms(from_light: np.ndarray, from_sky: np.ndarray) -> FloorTerms:
+        return FloorTerms(from_light.astype(np.float32), from_sky.astype(np.float32), geometry.floor,
+                          geometry.row_weights, geometry.col_weights)
+
+    terms = floor_terms(light_base + light_coat, sky_base + sky_coat)
+    if not with_base:
+        return EnvironmentFloor(terms, per_light)
+    return EnvironmentFloor(terms, per_light, floor_terms(light_base, sky_base), base_per_light)
 
 
-def _coarse_radiance(geometry: _Geometry, light_position, floor_color,
-                     coat: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """Linear radiance (h, w, 3) of the coarse floor points: from the area light, from the ambient light; `coat`:
-    False leaves out what the glossy coat reflects (the diffuse base alone)."""
+def _coarse_radiance(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, np.ndarray]:
+    """Linear radiance (h, w, 3) of the coarse floor points: from the area light, from the ambient light."""
+    light_base, light_coat, ambient_base, ambient_coat = _coarse_radiance_parts(geometry, light_position, floor_color)
+    return (light_base + light_coat).astype(np.float32), (ambient_base + ambient_coat).astype(np.float32)
+
+
+def _coarse_radiance_parts(geometry: _Geometry, light_position, floor_color) -> tuple[np.ndarray, ...]:
+    """_coarse_radiance split: the area light's through the coat and off it, the ambient light's likewise."""
     light = np.asarray(light_position, dtype=np.float64)
     color = np.asarray(floor_color, dtype=np.float64)
     if light.shape != (3,) or not np.all(np.isfinite(light)) or light[1] <= 0.0:
@@ -181,10 +205,8 @@ def _coarse_radiance(geometry: _Geometry, light_position, floor_color,
     through_coat = (DIFFUSE_SCALE - DIFFUSE_FRESNEL_LOSS * geometry.view_fresnel) / math.pi
     light_base = LIGHT_RADIANCE * diffuse_irradiance * through_coat
     ambient_base = AMBIENT_RADIANCE * np.maximum(math.pi - diffuse_irradiance, 0.0) * through_coat
-    from_light = light_base[..., None] * albedo + coat * (LIGHT_RADIANCE * glossy)[..., None]
-    from_ambient = (ambient_base[..., None] * albedo
-                    + coat * (ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel)[..., None])
-    return from_light.astype(np.float32), from_ambient.astype(np.float32)
+    return (light_base[..., None] * albedo, (LIGHT_RADIANCE * glossy)[..., None], ambient_base[..., None] * albedo,
+            (ENVIRONMENT_SCALE * AMBIENT_RADIANCE * geometry.view_fresnel)[..., None])
 
 
 # --- per-camera geometry (cached: the editor lights many frames with one camera) ------------
@@ -195,24 +217,13 @@ class _Geometry:
 
     def __init__(self, camera: Camera):
         self.floor = cached_floor_mask(camera)
-        rows = np.arange(0.5, camera.height, COARSE_STEP)
-        cols = np.arange(0.5, camera.width, COARSE_STEP)
-        # Coarse samples cover the image's corners so interpolation never extrapolates.
-        rows = np.append(rows, camera.height - 0.5) if rows[-1] < camera.height - 0.5 else rows
-        cols = np.append(cols, camera.width - 0.5) if cols[-1] < camera.width - 0.5 else cols
-        v, u = np.meshgrid(rows, cols, indexing="ij")
-        origin, dirs = camera.pixel_rays(u, v)
-        dirs[..., 1] = np.minimum(dirs[..., 1], HORIZON_DIRECTION_Y)
-        t = -origin[1] / dirs[..., 1]
-        points = origin + t[..., None] * dirs  # (h, w, 3), y = 0
-        to_camera = origin - points
+        points, self.row_weights, self.col_weights = coarse_floor_grid(camera, COARSE_STEP)
+        to_camera = camera.position - points
         self.points = points.astype(np.float32)
         self.view = (to_camera / np.linalg.norm(to_camera, axis=-1, keepdims=True)).astype(np.float32)
         self.cos_view = np.clip(self.view[..., 1], 1e-4, 1.0)
         self.view_fresnel = coat_reflectance(self.cos_view)
         self.view_masking = _smith_g1(self.cos_view)
-        self.row_weights = linear_weights(rows, camera.height)
-        self.col_weights = linear_weights(cols, camera.width)
         for array in (self.floor, self.points, self.view):
             array.flags.writeable = False
         self._coat = None
@@ -222,6 +233,22 @@ class _Geometry:
         if self._coat is None:
             self._coat = _coat_samples(self.view)
         return self._coat
+
+
+def coarse_floor_grid(camera: Camera, step: int) -> tuple[np.ndarray, tuple, tuple]:
+    """Where the rays of pixel centres `step` pixels apart (and at the image's last row and column, so that
+    interpolation never extrapolates) meet the floor, (h, w, 3), rays at or above the horizon bent down to
+    HORIZON_DIRECTION_Y; and the weights that interpolate values there to every pixel (linear_weights of the rows,
+    of the columns)."""
+    rows = np.arange(0.5, camera.height, step)
+    cols = np.arange(0.5, camera.width, step)
+    rows = np.append(rows, camera.height - 0.5) if rows[-1] < camera.height - 0.5 else rows
+    cols = np.append(cols, camera.width - 0.5) if cols[-1] < camera.width - 0.5 else cols
+    v, u = np.meshgrid(rows, cols, indexing="ij")
+    origin, dirs = camera.pixel_rays(u, v)
+    dirs[..., 1] = np.minimum(dirs[..., 1], HORIZON_DIRECTION_Y)
+    points = origin + (-origin[1] / dirs[..., 1])[..., None] * dirs  # y = 0
+    return points, linear_weights(rows, camera.height), linear_weights(cols, camera.width)
 
 
 @lru_cache(maxsize=8)

@@ -8,7 +8,7 @@ where Mitsuba's rectangle puts the uv coordinates of renderer/pathtrace/path_tra
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cached_property, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +30,7 @@ class FloorTexture:
     albedo: np.ndarray  # (h, w, 3) float32 linear, read-only
     scale: float
 
-    @property
+    @cached_property
     def mean_srgb(self) -> tuple[float, float, float]:
         """The texture's mean albedo as an sRGB color: the floor's color for light it bounces, and for previews."""
         return tuple(float(c) for c in linear_to_srgb(self.albedo.reshape(-1, 3).mean(axis=0)))
@@ -41,7 +41,7 @@ class FloorTexture:
         wide, blended with the next (trilinear), so that a fine texture far away shows its mean, not moire."""
         if footprint is None:
             return _bilinear(self.albedo, points, self.scale)
-        levels = self.mip_levels()
+        levels = self.mip_levels
         texel = self.scale / self.albedo.shape[1]
         at = np.clip(np.log2(np.maximum(footprint, 1e-12) / texel), 0.0, len(levels) - 1.0)
         low = np.minimum(at.astype(np.int64), len(levels) - 2) if len(levels) > 1 else np.zeros(len(at), np.int64)
@@ -55,23 +55,29 @@ class FloorTexture:
             out[chosen] = here
         return out
 
+    @cached_property
     def mip_levels(self) -> list[np.ndarray]:
-        """The albedo and its box-filtered halvings down to one texel (made on first use, kept)."""
-        if not hasattr(self, "_levels"):
-            levels = [self.albedo]
-            while max(levels[-1].shape[:2]) > 1:
-                h, w = levels[-1].shape[:2]
-                levels.append(resized(levels[-1], (max(1, w // 2), max(1, h // 2))))
-            object.__setattr__(self, "_levels", levels)
-        return self._levels
+        """The albedo and its box-filtered halvings down to one texel."""
+        levels = [self.albedo]
+        while max(levels[-1].shape[:2]) > 1:
+            h, w = levels[-1].shape[:2]
+            levels.append(resized(levels[-1], (max(1, w // 2), max(1, h // 2))))
+        return levels
+
+
+def square_uv(x: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where world floor points (x, z) lie in the unit square the whole floor's square spans (0 at x =
+    -FLOOR_HALF_SIZE and z = +FLOOR_HALF_SIZE), as Mitsuba's rectangle gives its uv: the texture is placed in it."""
+    return (x + FLOOR_HALF_SIZE) / (2.0 * FLOOR_HALF_SIZE), (FLOOR_HALF_SIZE - z) / (2.0 * FLOOR_HALF_SIZE)
 
 
 def _bilinear(albedo: np.ndarray, points: np.ndarray, scale: float) -> np.ndarray:
     """(N, 3): `albedo` (one repeat over `scale` world units, placed as the module says) at world floor points,
     bilinear between texel centres, wrapping."""
     h, w = albedo.shape[:2]
-    u = (points[:, 0] + FLOOR_HALF_SIZE) / scale * w - 0.5
-    v = (FLOOR_HALF_SIZE - points[:, 2]) / scale * h - 0.5
+    repeats = 2.0 * FLOOR_HALF_SIZE / scale
+    u, v = square_uv(points[:, 0], points[:, 2])
+    u, v = u * repeats * w - 0.5, v * repeats * h - 0.5
     u0, v0 = np.floor(u), np.floor(v)
     fu, fv = (u - u0)[:, None], (v - v0)[:, None]
     c0, r0 = u0.astype(np.int64) % w, v0.astype(np.int64) % h

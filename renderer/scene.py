@@ -67,8 +67,8 @@ SIMILARITIES = ("rgb", "perceptual")  # a region fill's color comparisons (rende
 MAX_ABS_POSITION = 100.0
 MAX_ABS_ANGLE = 36000.0  # degrees: a hundred turns, far beyond what a drag makes, far from float32's limits
 MAX_STRENGTH = 1000.0  # environment strength
-TURBIDITY_RANGE = (1.0, 10.0)
-MAX_TEXTURE_SCALE = 100.0  # world units a floor texture's one repeat may span (the floor is 20 across)  # the sky model's range (Hosek-Wilkie, as Mitsuba's sunsky)
+TURBIDITY_RANGE = (1.0, 10.0)  # the sky model's range (Hosek-Wilkie, as Mitsuba's sunsky)
+MAX_TEXTURE_SCALE = 100.0  # world units a floor texture's one repeat may span (the floor is 20 across)
 
 
 @dataclass(frozen=True)
@@ -118,7 +118,8 @@ class ObjectSpec:
 @dataclass(frozen=True)
 class FloorSpec:
     """The ground: a diffuse `color` (sRGB) under a glossy coat, or with `texture` (an image, path relative to the
-    scene file) its albedo, repeated every `texture_scale` world units (the color then stands for its mean)."""
+    scene file) the image's albedo instead, repeated every `texture_scale` world units (renderers take the image's
+    mean where they need one color; the editor sets `color` to it when a texture is loaded)."""
 
     color: tuple[float, float, float] = (0.53, 0.64, 0.78)
     texture: str | None = None

@@ -18,8 +18,9 @@ import moderngl
 import numpy as np
 
 from app.editor.orbit_view import frustum_corners, view_projection
+from app.editor.window import upload_image
 from renderer.camera import Camera
-from renderer.color import linear_to_srgb, to_uint8
+from renderer.color import linear_to_srgb
 from renderer.environment import scene_sun_direction
 from renderer.errors import InputError
 from renderer.floor_texture import FloorTexture, floor_texture
@@ -169,8 +170,7 @@ class ViewportRenderer:
         if self._ground_texture is None or self._ground_texture[0] is not texture:
             if self._ground_texture is not None:
                 self._ground_texture[1].release()
-            pixels = to_uint8(linear_to_srgb(texture.albedo))
-            gl = self.ctx.texture((pixels.shape[1], pixels.shape[0]), 3, np.ascontiguousarray(pixels).tobytes())
+            gl = upload_image(self.ctx, None, linear_to_srgb(texture.albedo))
             gl.build_mipmaps()
             gl.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
             self._ground_texture = (texture, gl)

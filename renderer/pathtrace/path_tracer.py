@@ -27,7 +27,7 @@ from renderer.camera import Camera
 from renderer.color import linear_to_srgb, srgb_to_linear
 from renderer.environment import EnvironmentLight, environment_light
 from renderer.errors import InputError
-from renderer.floor_texture import FloorTexture, floor_texture
+from renderer.floor_texture import FloorTexture, floor_texture, square_uv
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 from renderer.pathtrace.mitsuba_object import numpy_mesh, object_shapes
 from renderer.pathtrace.mitsuba_variant import active_variant
@@ -256,8 +256,7 @@ def _floor(floor: FloorSpec, texture: FloorTexture | None = None):
         vertices = np.vstack([[0.0, 0.0, 0.0], rim])
         k = np.arange(1, DISK_SEGMENTS + 1)
         faces = np.column_stack([np.zeros(DISK_SEGMENTS, dtype=np.int64), k % DISK_SEGMENTS + 1, k])  # facing up
-        uv = np.column_stack([(vertices[:, 0] + FLOOR_HALF_SIZE) / (2.0 * FLOOR_HALF_SIZE),
-                              (FLOOR_HALF_SIZE - vertices[:, 2]) / (2.0 * FLOOR_HALF_SIZE)])
+        uv = np.column_stack(square_uv(vertices[:, 0], vertices[:, 2]))
         return numpy_mesh("floor", vertices, faces, bsdf, uv)
     to_world = mi.ScalarTransform4f().rotate([1, 0, 0], -90).scale([FLOOR_HALF_SIZE, FLOOR_HALF_SIZE, 1.0])
     return {"type": "rectangle", "to_world": to_world, "bsdf": bsdf}

@@ -323,8 +323,9 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     # blurred by about as much, so that a small bright source shows as a highlight, not as streaks of samples.
     sky_up = ready.sky_up * environment.strength  # the residual sky's irradiance on the floor
     floor_sky = FloorSky(sky_up, ready.blurred, environment.rotation_deg, environment.strength)
-    floor_terms, per_light = environment_floor_terms(camera, light_position, floor_color, floor_sky, lights.directions,
-                                                     lights.irradiance, lights.small, lights.spread)
+    empty_floor = environment_floor_terms(camera, light_position, floor_color, floor_sky, lights.directions,
+                                          lights.irradiance, lights.small, lights.spread, floor_texture is not None)
+    floor_terms, per_light = empty_floor.terms, empty_floor.per_light
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
     block = geometry.occluder_block * voxel
     area = _ShadowMaps.area(geometry, light_position, quality, block) if light_position is not None else None
@@ -369,9 +370,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     if floor_texture is not None:
         # The texture varies the diffuse base alone: the base lit as the floor is, once more, times the texture's
         # albedo over its mean less one, added where the floor shows (the coat reflects as it did).
-        base_terms, base_lights = environment_floor_terms(camera, light_position, floor_color, floor_sky,
-                                                          lights.directions, lights.irradiance, lights.small,
-                                                          lights.spread, coat=False)
+        base_terms, base_lights = empty_floor.base_terms, empty_floor.base_per_light
         base = np.zeros_like(image)
         none = np.zeros(0, dtype=np.int64)
         composite(base_terms.from_light, base_terms.from_ambient, *base_terms.row_weights, *base_terms.col_weights,
@@ -454,8 +453,8 @@ def _floor_pixels(elevation_deg: float, size: int) -> tuple[np.ndarray, np.ndarr
 def _texture_change(texture: FloorTexture, camera: Camera) -> np.ndarray:
     """(F, 3) float32: the texture's albedo over each floor pixel (FloorTexture.albedo_at, the pixel's footprint) over
     its mean, less one, per texture and camera (read-only)."""
-    floor, points, _ = camera_floor_points(camera)
-    rows, cols = np.nonzero(floor)
+    _, points, _ = camera_floor_points(camera)
+    rows, cols = _floor_pixels(camera.elevation_deg, camera.width)
     # A pixel's footprint on the floor: how far the floor point moves to the next pixel across and down.
     footprint = np.zeros(len(points))
     for du, dv in ((1.0, 0.0), (0.0, 1.0)):

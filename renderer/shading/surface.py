@@ -21,8 +21,8 @@ from scipy import ndimage, special
 
 from renderer.camera import Camera
 from renderer.color import srgb_to_linear
-from renderer.floor_light import coat_reflectance
-from renderer.resample import downscaled_mask, linear_weights, upsampled
+from renderer.floor_light import coarse_floor_grid, coat_reflectance
+from renderer.resample import downscaled_mask, upsampled
 from renderer.shading.fields import FAR, HIT_GAP, blend_fields, cell_corners, sample, sample_pair, surface_gap
 from renderer.shading.geometry import ObjectGeometry, points_box
 from renderer.shading.quality import (
@@ -526,20 +526,12 @@ def floor_sky_cones(geometry: ObjectGeometry, surface: VisibleSurface) -> np.nda
 
 @lru_cache(maxsize=8)
 def _floor_sky_grid(elevation_deg: float, size: int) -> tuple[np.ndarray, tuple, tuple]:
-    """floor_sky_cones' world points (h, w, 3) on the floor, FLOOR_SKY_PIXELS apart at 256^2 and at the image's
-    edges, and the weights that interpolate them to every pixel; past the horizon a far point (its cones see no
-    object). Per camera, read-only."""
+    """floor_sky_cones' floor points (floor_light.coarse_floor_grid, FLOOR_SKY_PIXELS apart at 256^2; past the
+    horizon far points, whose cones see no object) and their weights, per camera (read-only)."""
     camera = Camera(elevation_deg, width=size, height=size)
-    step = max(1, round(FLOOR_SKY_PIXELS * size / 256))
-    centres = np.arange(0.5, size, step)
-    centres = np.append(centres, size - 0.5) if centres[-1] < size - 0.5 else centres
-    v, u = np.meshgrid(centres, centres, indexing="ij")
-    origin, dirs = camera.pixel_rays(u, v)
-    dirs[..., 1] = np.minimum(dirs[..., 1], -1e-3)
-    points = origin + (-origin[1] / dirs[..., 1])[..., None] * dirs
-    weights = linear_weights(centres, size)
+    points, row_weights, col_weights = coarse_floor_grid(camera, max(1, round(FLOOR_SKY_PIXELS * size / 256)))
     points.flags.writeable = False
-    return points, weights, weights
+    return points, row_weights, col_weights
 
 
 def _view_axis(camera: Camera) -> np.ndarray:
