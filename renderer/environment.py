@@ -343,6 +343,23 @@ def environment_thumbnail(environment: EnvironmentLight, width: int = THUMBNAIL_
     return image
 
 
+def environment_probe(environment: EnvironmentLight, size: int) -> np.ndarray:
+    """(size, size, 3) float32 linear radiance: the environment as it lights the scene (turned, strength applied),
+    area-averaged into an equirectangular grid of `size` rows (polar angle) and `size` columns (azimuth), the sun's
+    irradiance spread over the texel that holds its direction: what a network reads of the environment."""
+    import cv2
+
+    h, w = environment.lighting.shape[:2]
+    world = environment.radiance(map_directions(h, w))  # the lighting map in the world's frame
+    probe = cv2.resize(np.ascontiguousarray(world, dtype=np.float32), (size, size), interpolation=cv2.INTER_AREA)
+    if environment.sun_direction is not None and environment.sun_irradiance.max() > 0.0:
+        theta, phi = direction_angles(environment.sun_direction)
+        row = min(int(theta / math.pi * size), size - 1)
+        col = int((phi % (2.0 * math.pi)) / (2.0 * math.pi) * size) % size
+        probe[row, col] += (environment.sun_irradiance / texel_solid_angles(size, size)[row, 0]).astype(np.float32)
+    return np.maximum(probe, 0.0)
+
+
 def luminance(rgb: np.ndarray) -> np.ndarray:
     return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
 

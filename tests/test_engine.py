@@ -665,8 +665,8 @@ ENVIRONMENT_EDITS = {
 
 @pytest.mark.parametrize("edit", ENVIRONMENT_EDITS)
 def test_environment_edits_show_the_shaders_image_rerun_only_the_lighting_and_equal_uncached(scene, edit):
-    """No network reads an environment yet: the engine shows the shader's image and says so. An environment or
-    material edit reruns the lighting alone, and its image equals a fresh engine's."""
+    """A network that does not read the environment: the engine shows the shader's image and says so. An environment
+    or material edit reruns the lighting alone, and its image equals a fresh engine's."""
     model = refiner()
     lit = replace(scene, environment=EnvironmentSpec(sky=SkySpec(40.0, 30.0)), light=replace(scene.light, enabled=False))
     edited = ENVIRONMENT_EDITS[edit](lit)
@@ -675,8 +675,37 @@ def test_environment_edits_show_the_shaders_image_rerun_only_the_lighting_and_eq
     image = live.render(edited)
     stages = set(live.last_report.stages_run)
     assert "shade_lighting" in stages and not {"shade_geometry", "shade_surface", "shade_colors"} & stages
-    assert "no network is trained" in live.last_report.note
+    assert "not trained for environment light" in live.last_report.note
     np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
     np.testing.assert_allclose(image, np.clip(_shaded_image(edited, 128), 0.0, 1.0), rtol=0, atol=1e-5)
     assert np.abs(image - before).max() > 1e-3
     assert live.render(scene).shape == (64, 64, 3) and live.last_report.note == ""  # back to the area light: the network
+
+
+TINY_ENVIRONMENT_REFINER = replace(TINY_HALF_REFINER, environment_input=True)
+
+
+def environment_refiner(seed: int = 0):
+    """A random refiner that reads the environment, its environment code as strong as its light code."""
+    model = refiner(seed, config=TINY_ENVIRONMENT_REFINER)
+    torch.manual_seed(seed + 2)
+    model.light_decoder.environment.mlp[-1].weight.data.normal_(0.0, 3.0)
+    return model
+
+
+@pytest.mark.parametrize("edit", ENVIRONMENT_EDITS)
+def test_a_network_that_reads_the_environment_corrects_every_environment_edit_as_a_fresh_engine(scene, edit):
+    """Its image is the network's (no note), the edit reruns the shader's lighting and the network's light stage but
+    not the voxel branch, and it equals an uncached engine's."""
+    model = environment_refiner()
+    lit = replace(scene, environment=EnvironmentSpec(sky=SkySpec(40.0, 30.0)), light=replace(scene.light, enabled=False))
+    edited = ENVIRONMENT_EDITS[edit](lit)
+    live = engine(model)
+    before = live.render(lit)
+    assert live.last_report.note == ""
+    image = live.render(edited)
+    stages = set(live.last_report.stages_run)
+    assert {"shade_lighting", "lighting", "light"} <= stages and not {"voxel_branch", "splat", "shade_surface"} & stages
+    np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
+    assert np.abs(image - before).max() > 1e-3
+    assert np.abs(image - np.clip(_shaded_image(edited, 128), 0.0, 1.0)).max() > 1e-3  # corrected, not the shader's

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from renderer.camera import Camera
 from renderer.environment import (
@@ -515,8 +516,12 @@ def test_a_data_set_lit_by_environments_writes_its_maps_and_scenes_that_load(tmp
     assert manifest["config"]["lighting"] == "environment" and manifest["config"]["materials"] is True
     from models.training.data import VoxelRenderSet
 
-    with pytest.raises(InputError, match="no network reads those yet"):
+    with pytest.raises(InputError, match="which this network does not read"):
         VoxelRenderSet([tmp_path / "set"]).check_samples(32)
+    environment_set = VoxelRenderSet([tmp_path / "set"], grid_size=16, environment=True)
+    environment_set.check_samples(32)  # a network that reads the environment trains on it
+    light = environment_set[0]["light"]
+    assert light.shape == (3 + 4 + 3 * 32 * 32,) and torch.isfinite(light).all()
 
 
 def test_info_and_range_warnings_say_what_lights_the_scene_and_that_no_network_is_trained_for_it(tmp_path):

@@ -10,6 +10,7 @@ import torch
 
 from models.networks.config import (
     CompactConfig,
+    EnvironmentRefinerConfig,
     HalfResolutionRefinerConfig,
     NVRConfig,
     PaperConfig,
@@ -209,7 +210,8 @@ def test_lit_floor_input_changes_the_output() -> None:
 
 
 def test_config_round_trip_and_validation() -> None:
-    for config in (PaperConfig(), CompactConfig(), TINY_PAPER, ShaderRefinerConfig(), HalfResolutionRefinerConfig()):
+    for config in (PaperConfig(), CompactConfig(), TINY_PAPER, ShaderRefinerConfig(), HalfResolutionRefinerConfig(),
+                   EnvironmentRefinerConfig()):
         data = config.to_dict()
         again = NVRConfig.from_dict(data)
         assert again == config and type(again) is type(config)

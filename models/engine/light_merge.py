@@ -13,7 +13,7 @@ import torch
 from torch import nn
 
 from models.engine.onednn import OneDnnConv
-from models.networks.nvr import LightDecoder
+from models.networks.nvr import LightDecoder, light_code
 
 
 class SplitLightMerge(nn.Module):
@@ -33,7 +33,8 @@ class SplitLightMerge(nn.Module):
                                           requires_grad=False)
         self.light_weight = nn.Parameter(conv.weight[:, latent_channels:, 0, 0].clone(), requires_grad=False)
         self.bias = conv.bias
-        self.light_mlp, self.blocks, self.decoder = decoder.light_mlp, decoder.blocks, decoder.decoder
+        self.light_mlp, self.environment = decoder.light_mlp, decoder.environment
+        self.blocks, self.decoder = decoder.blocks, decoder.decoder
         self._latent: torch.Tensor | None = None
         self._latent_half: torch.Tensor | None = None
 
@@ -41,7 +42,8 @@ class SplitLightMerge(nn.Module):
         if latent is not self._latent:
             self._latent_half = torch.ops.aten.mkldnn_convolution(latent, self.latent_weight, None, [0, 0], [1, 1], [1, 1], 1)
             self._latent = latent
-        light_half = torch.addmm(self.bias, self.light_mlp(light), self.light_weight.t())  # (B, C)
+        light_half = torch.addmm(self.bias, light_code(self.light_mlp, self.environment, light),
+                                self.light_weight.t())  # (B, C)
         merged = torch.relu(self._latent_half + light_half[:, :, None, None])
         return self.decoder(self.blocks(merged))
 

@@ -74,7 +74,7 @@ from models.engine.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, 
 from models.engine.paint_replay import PaintReplay
 from models.networks.config import IMAGE_CHANNELS
 from models.networks.inference import prepare_for_inference
-from models.networks.nvr import NVR, NVRPlus, light_to_network, reads_floor_light, reads_shading
+from models.networks.nvr import NVR, NVRPlus, lighting_input, reads_floor_light, reads_shading
 from models.threads import set_threads
 from renderer.camera import Camera
 from renderer.errors import InputError
@@ -108,8 +108,8 @@ from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
-# What a render of a scene no network reads (an environment, the area light off, a glossy object) shows instead.
-UNCORRECTED_NOTE = "no network is trained for environment light or glossy materials yet: the voxel shader's image"
+# What a render of a scene the network does not read (an environment, the area light off, a glossy object) shows.
+UNCORRECTED_NOTE = "this network is not trained for environment light or glossy materials: the voxel shader's image"
 # bfloat16 against float32 on the same scene, 0-255 scale: largest pixel difference and MSE (measured by
 # benchmarks/bench_precision.py).
 BF16_BOUND = {"max_abs": 4.0, "mse": 0.5}
@@ -246,6 +246,11 @@ class RenderEngine:
     def output_size(self) -> int:
         return self.config.output_size
 
+    def reads_scene(self, scene: Scene) -> bool:
+        """Whether the network renders the scene: one lit by an environment, with the area light off or a glossy object
+        only if it reads the environment and the material (config.environment_input); else the shader's image shows."""
+        return self.config.environment_input or not needs_environment_shading(scene)
+
     def clear(self) -> None:
         """Forget every cached stage (the next render computes all of them)."""
         self._cache.clear()
@@ -317,7 +322,7 @@ class RenderEngine:
         key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, lighting_key(scene))
 
         def render() -> tuple[np.ndarray, torch.Tensor | None]:
-            if needs_environment_shading(scene):  # no network is trained for it yet: the shader's image as it is
+            if not self.reads_scene(scene):  # this network is not trained for it: the shader's image as it is
                 return np.clip(self._shaded(scene, inputs.painted, keys).image, 0.0, 1.0), None
             if not self._reads_shading:
                 return _to_image(self.model.render_from_latent(latent, light, features)), None
@@ -344,9 +349,9 @@ class RenderEngine:
             floor_light = self._floor_light(scene, painted.floor, keys) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
-        light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg))[None]
-        return _NetworkInputs(latent, light.to(self.device, self.dtype), features, buffers, buffers_tensor, keys,
-                              painted)
+        light = self._stage("lighting", (lighting_key(scene), scene.camera.elevation_deg), lambda: torch.from_numpy(
+            lighting_input(scene, self.config.environment_input))[None].to(self.device, self.dtype))
+        return _NetworkInputs(latent, light, features, buffers, buffers_tensor, keys, painted)
 
     def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
                       buffers: Callable[[], np.ndarray | None], buffers_tensor: Callable[[], torch.Tensor | None]
@@ -519,7 +524,7 @@ class RenderEngine:
     def _begin(self, scene: Scene) -> float:
         self._cache.begin()
         self._grid_fraction = None
-        self._note = UNCORRECTED_NOTE if needs_environment_shading(scene) else ""
+        self._note = "" if self.reads_scene(scene) else UNCORRECTED_NOTE
         return time.perf_counter()
 
     def _finish(self, start: float, preview: bool) -> None:

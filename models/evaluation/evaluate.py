@@ -71,6 +71,8 @@ def evaluate(data: list[str], model_path: str | None, renderer: str, report: str
     with_floor_light = model is not None and reads_floor_light(model.architecture, config)
     with_shading = model is not None and reads_shading(model.architecture, config)
     columns = ", ".join(["splat"] + ["lit floor"] * with_floor_light + ["shaded"] * with_shading + ["prediction", "target"])
+    if config is not None and config.environment_input:
+        extra = {**extra, "environment_input": True}
     _write_report(report, figure, columns, captions, renderer, model_path, extra, scores,
                   metrics.perceptual.weights_name, count, seconds, data)
     return report
@@ -115,13 +117,15 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     dataset = VoxelRenderSet(data, grid_size=grid_size, object_resolution=object_resolution, floor_light=with_floor_light,
                              shading=with_shading,
                              shading_grid_factor=config.shading_grid_factor if with_shading else shading_grid_factor,
-                             shader_quality=shader_quality)
+                             shader_quality=shader_quality,
+                             environment=config is not None and config.environment_input)
     count = len(dataset) if limit <= 0 else min(limit, len(dataset))
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
     def predict(sample: dict, index: int) -> torch.Tensor:
-        # No network reads an environment or a material yet: they render those scenes as the shader does (the engine).
-        if shader or (model is not None and needs_environment_shading(dataset.scene(index))):
+        # A network that does not read the environment and the material renders those scenes as the shader (the engine).
+        if shader or (model is not None and not config.environment_input
+                      and needs_environment_shading(dataset.scene(index))):
             image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1],
                                    reflection=True).image
             return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
@@ -234,8 +238,9 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
                 mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
                 lines.append(f"| {label} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} "
                              f"| {mean['perceptual']:.3f} |")
-        lines += ["", "Networks are not trained for environments, glossy materials or floor textures yet: for those samples the network "
-                      "renderers show the voxel shader's image, as the editor does."]
+        if renderer_entry(renderer).architecture and not extra.get("environment_input"):
+            lines += ["", "This network does not read environments or materials: for those samples it shows the "
+                          "voxel shader's image, as the editor does."]
     lines += ["", f"![{columns}]({figure.name})", "", f"Figure rows ({columns}), top to bottom:", ""]
     lines += [f"{number}. {caption}" for number, caption in enumerate(captions, 1)]
     lines += [""] + _object_table(scores)

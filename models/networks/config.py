@@ -15,6 +15,11 @@ from typing import Any, ClassVar
 VOXEL_CHANNELS_IN = 4  # R, G, B, occupancy
 LIGHT_DIMS = 3
 IMAGE_CHANNELS = 3
+# With environment_input, the light input goes on with the area light's switch and the object's material
+# (roughness, specular, metallic), then the environment probe (renderer.environment.environment_probe), channels first.
+LIGHTING_SCALARS = 4
+PROBE_SIZE = 32
+PROBE_DIMS = IMAGE_CHANNELS * PROBE_SIZE * PROBE_SIZE
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,9 @@ class NVRConfig:
     # shaded image, which holds the detail (the full-resolution refiner's own correction, averaged to 128^2 and
     # upsampled, moved the test sets' MSE by 0.1-1.4).
     correction_downsampling: int = 1
+    # The light input also holds the environment, the area light's switch and the object's material
+    # (models/networks/nvr.py, lighting_input); an encoder turns them into a code added to the light's.
+    environment_input: bool = False
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -86,6 +94,11 @@ class NVRConfig:
         for s in self.voxel_strides:
             factor *= s
         return factor
+
+    @property
+    def light_dims(self) -> int:
+        """Width of the light input: the light's position, and with environment_input the scalars and the probe."""
+        return LIGHT_DIMS + (LIGHTING_SCALARS + PROBE_DIMS if self.environment_input else 0)
 
     @property
     def shading_grid_size(self) -> int:
@@ -137,7 +150,9 @@ class NVRConfig:
                 raise ValueError(f"config field {key} must be at least 1")
         if self.shading_grid_factor < 1:
             raise ValueError(f"shading_grid_factor must be at least 1, got {self.shading_grid_factor!r}")
-        for key in ("floor_light_input", "shading_input"):
+        if self.environment_input and not self.shading_input:
+            raise ValueError("environment_input needs shading_input (the network corrects the shader's image)")
+        for key in ("floor_light_input", "shading_input", "environment_input"):
             if not isinstance(getattr(self, key), bool):
                 raise ValueError(f"config field {key} must be true or false, got {getattr(self, key)!r}")
         if not self.perceptual_weight >= 0.0:
@@ -159,7 +174,7 @@ class NVRConfig:
         cls = CONFIGS[data["name"]]
         # Files written before these fields existed had no such inputs (and shaded the network's own grid).
         data = {"floor_light_input": False, "shading_input": False, "shading_grid_factor": 1, "correction_downsampling": 1,
-                **data}
+                "environment_input": False, **data}
         fields = {f.name for f in dataclasses.fields(cls)}
         given = set(data) - {"name"}
         if given != fields:
@@ -275,5 +290,19 @@ class HalfResolutionRefinerConfig(ShaderRefinerConfig):
     correction_downsampling: int = 2
 
 
+@dataclass(frozen=True)
+class EnvironmentRefinerConfig(HalfResolutionRefinerConfig):
+    """The shipped refiner (half resolution, one residual block after the light merge) that also reads the scene's
+    environment as a 32x32 probe (the paper's "Increasing realism" input), whether the area light is on, and the
+    object's material. Their code is added to the light's and starts at zero, so from the shipped weights
+    (`nvr train --init`) it renders what they render."""
+
+    name: ClassVar[str] = "environment_refiner"
+
+    post_light_blocks: int = 1
+    environment_input: bool = True
+
+
 CONFIGS: dict[str, type[NVRConfig]] = {cls.name: cls for cls in (CompactConfig, PaperConfig, ShaderRefinerConfig,
-                                                                   HalfResolutionRefinerConfig)}
+                                                                   HalfResolutionRefinerConfig,
+                                                                   EnvironmentRefinerConfig)}

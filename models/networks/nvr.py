@@ -4,9 +4,12 @@ Input/output convention (the one place it is written down):
 - voxels: (B, 4, D, H, W) float32, D = H = W = config.grid_size; channels R, G, B (sRGB in
   [0, 1]) and occupancy (0 or 1); indexed [depth, row, column] as renderer/camera.py defines
   the camera-aligned grid (depth 0 nearest the camera, row 0 at the top, column 0 at the left).
-- light: (B, 3) float32, the light's position in camera coordinates
+- light: (B, config.light_dims) float32: the light's position in camera coordinates
   (renderer.camera.Camera.world_to_camera) divided by LIGHT_SCALE = CAMERA_DISTANCE, so the
-  look-at point is (0, 0, -1); `light_to_network` makes it from a world position.
+  look-at point is (0, 0, -1); `light_to_network` makes it from a world position. With
+  config.environment_input it goes on with whether the area light is on (1 or 0), the object's
+  roughness, specular and metallic, and the environment probe (renderer.environment.environment_probe,
+  PROBE_SIZE^2, world frame) as log(1 + radiance), channels first; `lighting_input` makes all of it.
 - splat (NVR+ only): (B, 3, S, S) float32 sRGB in [0, 1], S = config.output_size, the splatted
   image of the same scene and camera.
 - floor_light (NVR+ with config.floor_light_input only): (B, 3, S, S) float32 sRGB in [0, 1], the
@@ -37,7 +40,14 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from models.networks.config import IMAGE_CHANNELS, LIGHT_DIMS, VOXEL_CHANNELS_IN, NVRConfig
+from models.networks.config import (
+    IMAGE_CHANNELS,
+    LIGHT_DIMS,
+    LIGHTING_SCALARS,
+    PROBE_SIZE,
+    VOXEL_CHANNELS_IN,
+    NVRConfig,
+)
 from models.networks.layers import (
     ResidualBlock2d,
     ResidualBlock3d,
@@ -49,7 +59,7 @@ from models.networks.layers import (
     up_block_2d,
 )
 from renderer.camera import Camera
-from renderer.scene import CAMERA_DISTANCE
+from renderer.scene import CAMERA_DISTANCE, Scene
 from renderer.shading import BUFFER_CHANNELS
 
 LIGHT_SCALE = CAMERA_DISTANCE
@@ -61,6 +71,22 @@ def light_to_network(light_world: np.ndarray, elevation_deg: float) -> np.ndarra
     w2c = Camera(elevation_deg=elevation_deg).world_to_camera()
     p = np.asarray(light_world, dtype=np.float64)
     return ((p @ w2c[:3, :3].T + w2c[:3, 3]) / LIGHT_SCALE).astype(np.float32)
+
+
+def lighting_input(scene: Scene, environment_input: bool) -> np.ndarray:
+    """The network's light input (config.light_dims,) for a scene: the light's position (light_to_network), and for a
+    network with config.environment_input the area light's switch, the material and the environment probe (the
+    uniform ambient light where the scene has no environment)."""
+    light = light_to_network(scene.light.position, scene.camera.elevation_deg)
+    if not environment_input:
+        return light
+    from renderer.environment import environment_probe
+    from renderer.shading.environment_shading import scene_environment
+
+    m = scene.object.material
+    scalars = np.array([float(scene.light.enabled), m.roughness, m.specular, m.metallic], dtype=np.float32)
+    probe = np.log1p(environment_probe(scene_environment(scene), PROBE_SIZE)).transpose(2, 0, 1)
+    return np.concatenate([light, scalars, probe.ravel()]).astype(np.float32)
 
 
 # --- branches -------------------------------------------------------------------------------
@@ -87,6 +113,39 @@ class VoxelEncoder(nn.Module):
         return self.blocks(self.projection(x.reshape(b, c * d, h, w)))
 
 
+class EnvironmentEncoder(nn.Module):
+    """The environment probe, the area light's switch and the material -> a code added to the light's: strided
+    convolutions over the probe (32 -> 4 texels a side), then two FC layers that also read the scalars. The last
+    layer starts at zero, so a network given this encoder renders what it rendered without it."""
+
+    def __init__(self, config: NVRConfig):
+        super().__init__()
+        n, widths = config.light_channels, (16, 32, 32)
+        layers, c_in = [], IMAGE_CHANNELS
+        for c_out in widths:
+            layers += [nn.Conv2d(c_in, c_out, 4, stride=2, padding=1), nn.ReLU()]
+            c_in = c_out
+        self.probe = nn.Sequential(*layers)
+        probe_features = c_in * (PROBE_SIZE // 2 ** len(widths)) ** 2
+        self.mlp = nn.Sequential(nn.Linear(probe_features + LIGHTING_SCALARS, n), nn.ReLU(), nn.Linear(n, n))
+        nn.init.zeros_(self.mlp[-1].weight)
+        nn.init.zeros_(self.mlp[-1].bias)
+
+    def forward(self, scalars: torch.Tensor, probe: torch.Tensor) -> torch.Tensor:
+        features = self.probe(probe.reshape(-1, IMAGE_CHANNELS, PROBE_SIZE, PROBE_SIZE)).flatten(1)
+        return self.mlp(torch.cat([features, scalars], dim=1))
+
+
+def light_code(light_mlp: nn.Module, environment: EnvironmentEncoder | None, light: torch.Tensor) -> torch.Tensor:
+    """The light code (B, light_channels) from the light input: the position's FCs, and with an environment encoder
+    those FCs gated by the area light's switch plus the environment's code."""
+    code = light_mlp(light[:, :LIGHT_DIMS])
+    if environment is None:
+        return code
+    scalars = light[:, LIGHT_DIMS:LIGHT_DIMS + LIGHTING_SCALARS]
+    return code * scalars[:, :1] + environment(scalars, light[:, LIGHT_DIMS + LIGHTING_SCALARS:])
+
+
 class LightDecoder(nn.Module):
     """Latent + light -> full-resolution features: light FCs tiled, merge, residual blocks, upsampling."""
 
@@ -94,6 +153,7 @@ class LightDecoder(nn.Module):
         super().__init__()
         n = config.light_channels
         self.light_mlp = nn.Sequential(nn.Linear(LIGHT_DIMS, n), nn.ReLU(), nn.Linear(n, n))
+        self.environment = EnvironmentEncoder(config) if config.environment_input else None
         self.merge = conv_block_2d(config.latent_channels + n, config.latent_channels, config.merge_kernel)
         self.blocks = ResidualStack(lambda: ResidualBlock2d(config.latent_channels), config.post_light_blocks)
         layers, c_in = [], config.latent_channels
@@ -103,7 +163,8 @@ class LightDecoder(nn.Module):
         self.decoder = nn.Sequential(*layers)
 
     def forward(self, latent: torch.Tensor, light: torch.Tensor) -> torch.Tensor:
-        code = self.light_mlp(light)[:, :, None, None].expand(-1, -1, latent.shape[2], latent.shape[3])
+        code = light_code(self.light_mlp, self.environment, light)[:, :, None, None]
+        code = code.expand(-1, -1, latent.shape[2], latent.shape[3])
         x = self.merge(torch.cat([latent, code], dim=1))
         return self.decoder(self.blocks(x))
 
@@ -181,7 +242,7 @@ class _VoxelRenderer(nn.Module):
         return self.voxel_encoder(voxels)
 
     def _features(self, latent: torch.Tensor, light: torch.Tensor) -> torch.Tensor:
-        _check_shape("light", light, (LIGHT_DIMS,))
+        _check_shape("light", light, (self.config.light_dims,))
         if light.shape[0] != latent.shape[0]:
             raise ValueError(f"light has batch {light.shape[0]}, latent has batch {latent.shape[0]}")
         return self.light_decoder(latent, light)
@@ -292,6 +353,7 @@ class NVRPlus(_VoxelRenderer):
 
 ARCHITECTURES: dict[str, type[_VoxelRenderer]] = {NVR.architecture: NVR, NVRPlus.architecture: NVRPlus}
 SHARED_BRANCHES = ("voxel_encoder.", "light_decoder.")  # state-dict prefixes of _VoxelRenderer's layers: both have them
+ENVIRONMENT_ENCODER = "light_decoder.environment."  # state-dict prefix of the EnvironmentEncoder (environment_input)
 
 
 def reads_floor_light(architecture: str, config: NVRConfig | None) -> bool:

@@ -30,7 +30,7 @@ class TrainConfig:
 
     data: tuple[str, ...] = field(metadata={"help": "data folders made by `nvr data generate`", "required": True})
     architecture: str = "nvr_plus"
-    config: str = field(default="compact", metadata={"help": "network widths and inputs: compact (live on a CPU), paper (the published widths), shader_refiner (compact, correcting the voxel shader's image), half_res_refiner (the same, its correction computed at half the image's side)", "choices": list(CONFIGS)})
+    config: str = field(default="compact", metadata={"help": "network widths and inputs: compact (live on a CPU), paper (the published widths), shader_refiner (compact, correcting the voxel shader's image), half_res_refiner (the same, its correction computed at half the image's side), environment_refiner (the shipped refiner also reading the environment and the material)", "choices": list(CONFIGS)})
     steps: int = field(default=10000, metadata={"help": "training steps"})
     batch: int = field(default=10, metadata={"help": "global batch size (paper: 10)"})
     lr: float = field(default=1e-4, metadata={"help": "Adam learning rate (paper: 1e-4)"})

@@ -1,7 +1,8 @@
 """Training samples from a data folder made by `nvr data generate` (see renderer/dataset.py).
 
 Each sample gives the network's three inputs and its target, in the convention of models/networks/nvr.py:
-voxels (4, D, H, W) in [0, 1], light (3,) in camera coordinates (scaled), splat (3, S, S) and
+voxels (4, D, H, W) in [0, 1], light (3,) in camera coordinates (scaled; with the environment, its switch and the
+material after it for a network that reads them: models.networks.nvr.lighting_input), splat (3, S, S) and
 target (3, S, S) in sRGB [0, 1]. Object voxels are read once per object and kept (their non-empty voxels); the
 scene grid and the shader's buffers are made anew per sample.
 """
@@ -15,6 +16,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from models.networks.config import IMAGE_CHANNELS, LIGHT_DIMS, PROBE_DIMS
 from renderer.errors import InputError
 from renderer.io import load_image, load_json
 from renderer.scene import Scene, needs_environment_shading, scene_from_dict
@@ -38,18 +40,18 @@ def image_tensor(path: Path) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
 
 
-def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """The voxel grid (4, D, H, W) (a view of channels-last memory) and scaled camera-space light (3,) the network
-    reads for a scene."""
-    from models.networks.nvr import light_to_network
+def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size: int,
+                   environment: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """The voxel grid (4, D, H, W) (a view of channels-last memory) and the light input (lighting_input: with
+    `environment`, for a network that reads the environment and the material) the network reads for a scene."""
+    from models.networks.nvr import lighting_input
     from renderer.grid import scene_grid
 
     grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size=grid_size)
     # A channels-first view of the channels-last grid, not a copy: stacking a batch copies it anyway, several
     # times quicker than numpy's transposing copy per sample.
     voxels = torch.from_numpy(np.asarray(grid, dtype=np.float32)).permute(3, 0, 1, 2)
-    light = torch.from_numpy(light_to_network(scene.light.position, scene.camera.elevation_deg).astype(np.float32))
-    return voxels, light
+    return voxels, torch.from_numpy(lighting_input(scene, environment))
 
 
 # Object voxels a data set keeps in memory per process, as their non-empty voxels (the latest object always): at
@@ -80,7 +82,7 @@ class VoxelRenderSet(Dataset):
     def __init__(self, folders: list[str | Path] | str | Path, grid_size: int = 128,
                  voxel_cache_bytes: int = VOXEL_CACHE_BYTES,
                  object_resolution: int | None = None, floor_light: bool = False, shading: bool = False,
-                 shading_grid_factor: int = 1, shader_quality: str = "full"):
+                 shading_grid_factor: int = 1, shader_quality: str = "full", environment: bool = False):
         folders = [folders] if isinstance(folders, (str, Path)) else list(folders)
         self.items: list[tuple[Path, dict]] = []
         self.settings: list[str] = []
@@ -104,6 +106,7 @@ class VoxelRenderSet(Dataset):
         self.shading = shading  # add the voxel shader's buffers (NVR+ with config.shading_input)
         self.shading_grid_size = grid_size * shading_grid_factor  # the grid the shader draws from
         self.shader_quality = shader_quality  # 'full' (as trained on) or 'fast': renderer.shading.QUALITIES
+        self.environment = environment  # the light input holds the environment and material (config.environment_input)
         self._voxel_cache_bytes = voxel_cache_bytes
         self._voxels: OrderedDict[str, _StoredVoxels] = OrderedDict()  # the objects read last, by voxel file
         self._dense: tuple[str, np.ndarray] | None = None  # the latest object's voxels, dense (views come in runs)
@@ -122,9 +125,9 @@ class VoxelRenderSet(Dataset):
         voxel_files = set()
         for index, (folder, sample) in enumerate(self.items):
             scene = self.scene(index)
-            if needs_environment_shading(scene):
+            if needs_environment_shading(scene) and not self.environment:
                 raise InputError(f"sample {sample.get('id', index)} is lit by an environment or has a glossy "
-                                 "material; no network reads those yet (evaluate it, do not train on it)",
+                                 "material, which this network does not read (train --config environment_refiner)",
                                  folder / "manifest.json")
             voxel_files.add(scene.voxels_path())
             for key in ("target", "splat"):
@@ -176,7 +179,7 @@ class VoxelRenderSet(Dataset):
         folder, sample = self.items[index]
         scene = self.scene(index)
         rgba = self.object_voxels(index)
-        voxels, light = network_inputs(scene, rgba, scene.floor.color, self.grid_size)
+        voxels, light = network_inputs(scene, rgba, scene.floor.color, self.grid_size, self.environment)
         if self.object_resolution is None:
             splat = image_tensor(folder / sample["splat"])
         else:  # the stored splat shows the full-resolution voxels: splat the coarse ones instead
@@ -244,13 +247,17 @@ def permute_colors(batch: dict[str, torch.Tensor], orders: torch.Tensor) -> dict
     """The batch with each sample's RGB channels reordered by its row of `orders` ((B, 3): new channel c is old
     channel orders[b, c]) in every input that holds colors and in the target.
 
-    Why this is a training sample: the scene's light and sky are white and every renderer here treats the three
-    channels alike (the path tracer, the shader, the splat), so reordering the channels of every color of a scene
-    reorders the channels of its images.
+    Why this is a training sample: every renderer here treats the three channels alike (the path tracer, the
+    shader, the splat), so reordering the channels of every color of a scene, its environment's included (the
+    probe in the light input), reorders the channels of its images.
     """
     count = orders.shape[0]
     rows = torch.arange(count)[:, None]
     out = dict(batch)
+    if "light" in batch and batch["light"].shape[1] > LIGHT_DIMS:  # the environment probe's channels come along
+        light = batch["light"]
+        head, probe = light[:, :-PROBE_DIMS], light[:, -PROBE_DIMS:].reshape(count, IMAGE_CHANNELS, -1)
+        out["light"] = torch.cat([head, probe[rows, orders].reshape(count, -1)], dim=1)
     for key, channel_groups in _color_channel_groups().items():
         if key not in batch:
             continue

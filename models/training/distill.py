@@ -102,6 +102,8 @@ def distill(out: str | Path, config: DistillConfig, progress: bool = True) -> di
     teacher, teacher_config, teacher_extra = load_model(config.teacher)
     if not isinstance(teacher, NVRPlus):
         raise InputError("is not an NVR+ network (distillation keeps NVR+'s other branches)", config.teacher)
+    if teacher_config.environment_input:  # its lights are drawn as area lights alone
+        raise InputError("reads the environment; distillation draws area lights only", config.teacher)
     config.check(teacher_config.post_light_blocks)
     latents, elevations = training_latents(teacher, config, progress)
     held_out = np.arange(len(latents)) % HELD_OUT_EVERY == 0

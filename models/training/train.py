@@ -191,7 +191,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     dataset = VoxelRenderSet(list(config.data), grid_size=net_config.grid_size,
                              floor_light=reads_floor_light(config.architecture, net_config),
                              shading=reads_shading(config.architecture, net_config),
-                             shading_grid_factor=net_config.shading_grid_factor)
+                             shading_grid_factor=net_config.shading_grid_factor,
+                             environment=net_config.environment_input)
     dataset.check_samples(net_config.output_size)  # a broken or mis-sized sample is refused before step 0
     torch.manual_seed(config.seed)  # identical initial weights on every rank
     model = build_model(config.architecture, net_config)
@@ -286,6 +287,8 @@ def initialize_from(model: nn.Module, path: Path) -> None:
 
     NVR may start from NVR+ (the other way round has nothing to gain): the branches both have,
     voxel encoder and light decoder, come over, and NVR's own output layer keeps its fresh weights.
+    An NVR+ that reads the environment (config.environment_input) may start from one that does not: its environment
+    encoder keeps its fresh weights, whose last layer is zero, so it starts out rendering what the source renders.
     An NVR+ that corrects the shaded image (config.shading_input) may start from one that does not:
     everything but its correction layer comes over, so it starts out rendering the shaded image.
     A refiner working at another resolution (config.correction_downsampling) may start from one that does not:
@@ -294,7 +297,7 @@ def initialize_from(model: nn.Module, path: Path) -> None:
     network starts out correcting from the splat branch alone.
     """
     from models.networks.checkpoint import load_model
-    from models.networks.nvr import SHARED_BRANCHES
+    from models.networks.nvr import ENVIRONMENT_ENCODER, SHARED_BRANCHES
 
     source, _, _ = load_model(path)
     old, new = source.state_dict(), model.state_dict()
@@ -307,9 +310,13 @@ def initialize_from(model: nn.Module, path: Path) -> None:
             if not key.startswith("light_decoder.decoder."):
                 raise InputError(f"has no layer {key}; --init needs the same layers", path)
     elif source.architecture == model.architecture:
-        if set(old) != set(new):
+        if model.config.environment_input and not source.config.environment_input:
+            new_keys = {key for key in new if not key.startswith(ENVIRONMENT_ENCODER)}
+        else:
+            new_keys = set(new)
+        if set(old) != new_keys:
             raise InputError("its layers differ from this network's; --init needs the same layers", path)
-        keys = list(new)
+        keys = sorted(new_keys)
     elif (source.architecture, model.architecture) == ("nvr_plus", "nvr"):
         keys = [key for key in new if key.startswith(SHARED_BRANCHES)]
     else:
