@@ -240,9 +240,9 @@ def bench_pathtracing(tracers: list[PathTracer], settings: BenchSettings, memory
 def bench_environment(scenes: list[BenchScene], engine: RenderEngine, settings: BenchSettings, memory: PeakMemory,
                       metrics: ImageMetrics) -> dict[str, Any]:
     """The scenes under a sun and sky with glossy objects (models/bench/environment.py): path tracing's rows at
-    `settings.environment_spps`, the staged shader's and NVR+'s (a frame after an object move; NVR+ shows the shader's
-    image, no network being trained for environment light yet), against a path-traced reference; and each one's median
-    ms per environment edit."""
+    `settings.environment_spps`, the staged shader's and NVR+'s (a frame after an object move; an NVR+ that does not
+    read the environment shows the shader's image), against a path-traced reference; and each one's median ms per
+    environment edit."""
     lit = [replace(b, scene=environment_scene(b.scene, i)) for i, b in enumerate(scenes)]
     tracers = [PathTracer(b.scene, b.mesh, size=SIZE) for b in lit]
     score = _scorer(metrics, [t.render(spp=settings.reference_spp, seed=REFERENCE_SEED).image for t in tracers])
@@ -250,7 +250,8 @@ def bench_environment(scenes: list[BenchScene], engine: RenderEngine, settings: 
     edits = {}
     for family, renderer_for, setting in (
             (RENDERERS["shaded"].label, _PaintedShader, "staged, as in the editor"),
-            (_family(engine), lambda bench: engine, f"{engine.model_name}: the shader's image")):
+            (_family(engine), lambda bench: engine,
+             engine.model_name + ("" if engine.config.environment_input else ": the shader's image"))):
         memory.start()
         images, times = [], {}
         for bench in lit:
