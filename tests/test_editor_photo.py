@@ -32,9 +32,10 @@ START = ObjectSpec(mesh="chair.obj", resolution=24, rotation_deg=20.0)  # the sc
 CHAIR_BLUE, BACKDROP = (0.2, 0.4, 0.9), 0.75
 OUTLINE = (1.0, 0.2, 0.6)  # app/editor/photo_capture.py OUTLINE_COLOR
 # Window pixels in the 1280x800 window (tests/test_editor.py WINDOW): the Photo tab's label, and the middle of the
-# photo as the tab shows it once loaded (files folded; the photo at the left, about 144x120 pixels from (848, 628),
-# the drag mode's row below it).
-PHOTO_TAB, PHOTO_MIDDLE = [1062, 539], [930, 697]
+# photo as it covers the viewport once loaded (the 120 x 100 photo fitted to the 840 x 752 viewport: 7 times larger).
+PHOTO_TAB, PHOTO_MIDDLE = [1062, 539], [420, 398]
+PHOTO_SCALE = 7.0
+PHOTO_ORIGIN = (0.0, 398 - 50 * PHOTO_SCALE)  # window pixels of the photo's top left corner, fitted
 
 
 @pytest.fixture(scope="module")
@@ -148,10 +149,10 @@ def test_dragging_on_the_photo_turns_shift_drag_moves_and_the_wheel_scales(displ
     assert posed.camera.elevation_deg == pytest.approx(TRUTH.camera.elevation_deg - 5.0)
     assert posed.object.translation == pytest.approx((TRUTH.translation[0] - 0.1, TRUTH.translation[1] + 0.04))
     assert posed.object.scale == pytest.approx((1.05**2,) * 3)
-    tools = (pixels(tmp_path / name, PANELS.tools) for name in ("tab.png", "posed.png"))
-    outlines = [np.all(np.abs(t - OUTLINE) < 0.03, axis=-1) for t in tools]
-    assert outlines[0].sum() > 30  # the tab shows the photo with the chair's outline
-    assert (outlines[0] != outlines[1]).sum() > 30  # which follows the pose
+    shown = (pixels(tmp_path / name, PANELS.viewport) for name in ("tab.png", "posed.png"))
+    outlines = [np.all(np.abs(t - OUTLINE) < 0.03, axis=-1) for t in shown]
+    assert outlines[0].sum() > 300  # the viewport shows the photo with the chair's outline
+    assert (outlines[0] != outlines[1]).sum() > 300  # which follows the pose
 
 
 
@@ -190,15 +191,15 @@ def test_in_box_mode_a_drag_on_the_photo_draws_the_box(display, tmp_path, chair_
         {"action": "load_photo", "photo": str(chair_scene.parent / "photo.png")},
         *_click(PHOTO_TAB),
         *_click(box_mode),
-        {"action": "mouse_move", "pos": [870, 650]}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
-        {"action": "mouse_move", "pos": [940, 720]}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
+        {"action": "mouse_move", "pos": [300, 300]}, {"action": "mouse_down", "button": 0}, {"action": "wait", "frames": 2},
+        {"action": "mouse_move", "pos": [500, 500]}, {"action": "wait", "frames": 2}, {"action": "mouse_up", "button": 0},
         {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": str(tmp_path / "box.png")},
         {"action": "save", "path": str(tmp_path / "after.json")},
     ], "--model", str(model_file))
     image = np.asarray(Image.open(tmp_path / "box.png").convert("RGB"), dtype=float) / 255.0
     yellow = (image[..., 0] > 0.9) & (image[..., 1] > 0.75) & (image[..., 2] < 0.35)
-    assert yellow[645:725, 865:945].sum() > 100  # the box's outline where the mouse went
+    assert yellow[295:505, 295:505].sum() > 400  # the box's outline where the mouse went
     assert load_scene(tmp_path / "after.json").object.rotation_deg == START.rotation_deg  # the drag posed nothing
 
 
@@ -216,8 +217,60 @@ def test_a_background_stroke_keeps_a_distractor_out_and_the_mask_shows_over_the_
     ], "--model", str(model_file))
     aligned = load_scene(tmp_path / "stroked.json")
     assert rotation_error_deg(aligned.object.rotation_deg, TRUTH.rotation_deg) < 3.0
-    image = pixels(tmp_path / "mask.png", PANELS.tools)
+    image = pixels(tmp_path / "mask.png", PANELS.viewport)
     red = np.all(np.abs(image - np.array([0.95, 0.3, 0.2])) < 0.05, axis=-1)
-    assert red.sum() > 100  # the stroke over the distractor
+    assert red.sum() > 1000  # the stroke over the distractor
     darkened = np.all(np.abs(image - BACKDROP * 0.45) < 0.03, axis=-1)
-    assert darkened.sum() > 1000  # the segmented background, darkened
+    assert darkened.sum() > 50_000  # the segmented background, darkened
+
+
+def test_the_photo_over_the_viewport_zooms_about_the_mouse_pans_and_goes_back_into_the_tab(display, tmp_path, chair_scene,
+                                                                                      model_file):
+    """Ctrl+wheel zooms about the mouse (the photo's pixel under it stays there) and leaves the object's scale alone;
+    middle-drag pans; unticking "Photo over the viewport" gives the viewport back and shows the photo in the tab."""
+    folder = chair_scene.parent
+    corner = [200, 200]  # a point of the fitted photo: photo pixel ((200 - 0) / 7, (200 - 48) / 7)
+    run_editor(display, tmp_path, chair_scene, [
+        *_click(PHOTO_TAB),
+        {"action": "load_photo", "photo": str(folder / "photo.png"), "camera": str(folder / "camera.json")},
+        {"action": "show_photo_mask"},
+        {"action": "wait", "frames": 10},
+        {"action": "screenshot", "path": str(tmp_path / "fitted.png")},
+        {"action": "mouse_move", "pos": corner}, {"action": "wait", "frames": 2},
+        {"action": "scroll", "dy": 2, "mods": ["ctrl"]}, {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "zoomed.png")},
+        {"action": "mouse_down", "button": 2}, {"action": "wait", "frames": 2},
+        {"action": "mouse_move", "pos": [corner[0] + 60, corner[1] + 30]}, {"action": "wait", "frames": 2},
+        {"action": "mouse_up", "button": 2}, {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "panned.png")},
+        *_click([858, 639]),  # the "Photo over the viewport" box
+        {"action": "wait", "frames": 3},
+        {"action": "screenshot", "path": str(tmp_path / "in_tab.png")},
+        {"action": "save", "path": str(tmp_path / "after.json")},
+    ], "--model", str(model_file))
+    assert load_scene(tmp_path / "after.json").object.scale == (1.0, 1.0, 1.0)  # the wheel zoomed the view only
+    shots = {name: np.asarray(Image.open(tmp_path / f"{name}.png").convert("RGB"), dtype=float) / 255.0
+             for name in ("fitted", "zoomed", "panned", "in_tab")}
+    zoom = 1.25**2
+
+    def fitted_at(x: float, y: float) -> np.ndarray:
+        """The fitted photo's pixel that the zoomed view shows at window pixel (x, y), zoomed about `corner`."""
+        return shots["fitted"][round(corner[1] + (y - corner[1]) / zoom), round(corner[0] + (x - corner[0]) / zoom)]
+
+    def outline(image: np.ndarray) -> np.ndarray:
+        return np.all(np.abs(image - OUTLINE) < 0.03, axis=-1)
+
+    # The mask over the photo, the background darkened (its rim lies under the outline at this photo's size).
+    shown = pixels(tmp_path / "fitted.png", PANELS.viewport)
+    assert np.all(np.abs(shown - BACKDROP * 0.45) < 0.03, axis=-1).sum() > 100_000
+
+    # The zoomed view is the fitted one scaled about the mouse: compare where the chair's outline lies.
+    ys, xs = np.nonzero(outline(shots["zoomed"][30:770, :840]))
+    ys += 30
+    agree = np.mean([np.all(np.abs(fitted_at(x, y) - OUTLINE) < 0.05) for x, y in zip(xs[::7], ys[::7])])
+    assert len(xs) > 500 and agree > 0.7
+    # Panned by (60, 30) window pixels: the zoomed outline moved by as much.
+    moved = outline(shots["panned"][30 + 30:770, 60:840])
+    assert np.mean(moved[: 740 - 30, : 780] == outline(shots["zoomed"][30:770 - 30, :780])) > 0.99
+    viewport, tools = (pixels(tmp_path / "in_tab.png", rect) for rect in (PANELS.viewport, PANELS.tools))
+    assert outline(viewport).sum() < 50 and outline(tools).sum() > 30  # the photo back in the tab

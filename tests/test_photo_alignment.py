@@ -79,3 +79,24 @@ def test_a_broken_photo_is_a_one_line_error(demo, tmp_path):
         PhotoAlignment(tmp_path / "broken.png", scene)
     save_png(tmp_path / "ok.png", np.zeros((20, 20, 3)))
     assert PhotoAlignment(tmp_path / "ok.png", scene).overlay().shape == (20, 20, 3)
+
+
+def test_the_overlay_shows_the_masks_rim_whose_colors_are_not_taken(demo, tmp_path):
+    """A mask of a 400 x 400 disc: the background darkened, the rim 4 pixels wide (TRUST_MARGIN of the shorter side)
+    amber, the rest of the disc the photo's own color."""
+    from app.editor.photo_capture import UNTRUSTED_COLOR
+
+    photo = np.full((400, 400, 3), 0.5, dtype=np.float32)
+    save_png(tmp_path / "gray.png", photo)
+    a = PhotoAlignment(tmp_path / "gray.png", demo[0])
+    yy, xx = np.mgrid[:400, :400]
+    depth = 150.0 - np.hypot(yy - 200.0, xx - 200.0)
+    a.set_mask(depth > 0.0)
+    a._silhouettes = None  # the photo and the mask alone
+    shown = a.overlay(400)
+    amber = 0.5 * 0.5 + 0.5 * UNTRUSTED_COLOR
+    np.testing.assert_allclose(shown[200, 200], 0.5, atol=0.01)  # inside: trusted
+    np.testing.assert_allclose(shown[200, 52], amber, atol=0.01)  # 2 pixels inside the edge: the rim
+    np.testing.assert_allclose(shown[200, 10], 0.5 * 0.45, atol=0.01)  # background
+    is_amber = np.all(np.abs(shown - amber) < 0.01, axis=-1)
+    assert np.all(depth[is_amber] <= 4.5) and np.all(is_amber[(depth > 1.0) & (depth < 3.5)])

@@ -130,9 +130,9 @@ class Interface:
         escape_is_free = not self.viewport_input.interacting  # else Esc cancels the drag or the G/R/S in progress
         self._menu()
         self._column_border(panels, width)
+        self.photo_panel.shown = None  # set again if the photo is drawn (over the viewport or in the Photo tab)
         self._viewport(panels.viewport)
         self._render_panel(panels.render, panels.render_image)
-        self.photo_panel.shown = None  # set again if the Photo tab is open
         self._tools(panels.tools)
         self._status(panels.status)
         self._reference_window(panels.viewport, escape_is_free)
@@ -278,6 +278,10 @@ class Interface:
                                         picked_voxel=inputs.hovered_voxel,
                                         moving=inputs.interacting or app.doc.previewing)
         self.underlay = (framebuffer, int(origin.x), int(origin.y))  # copied under the interface (Window.end_frame)
+        if self.photo_panel.fills_viewport():  # the photo being aligned covers the view, with its own gestures
+            self.photo_panel.draw_in_viewport(origin, w, h)
+            imgui.end()
+            return
         imgui.invisible_button("viewport", imgui.ImVec2(w, h), imgui.ButtonFlags_.mouse_button_left
                                | imgui.ButtonFlags_.mouse_button_right | imgui.ButtonFlags_.mouse_button_middle)
         hovered = imgui.is_item_hovered() and app.prompt is None and not self.border_hot

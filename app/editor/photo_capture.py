@@ -18,7 +18,7 @@ import trimesh
 from PIL import Image
 
 from renderer.camera import Camera
-from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance, mask_at_size
+from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance, mask_at_size, trusted_pixels
 from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
@@ -33,6 +33,7 @@ if TYPE_CHECKING:
 OVERLAY_SIDE = 320  # default long side of the overlay (the Photo tab asks for the size it shows)
 OUTLINE_COLOR = np.array([1.0, 0.2, 0.6])
 STROKE_OBJECT, STROKE_BACKGROUND = np.array([0.2, 0.9, 0.3]), np.array([0.95, 0.3, 0.2])
+UNTRUSTED_COLOR = np.array([1.0, 0.7, 0.1])  # the mask's rim, whose pixels do not color the object
 TURN_DEG_PER_PIXEL = 0.5  # per pixel the mouse moves over the overlay as shown
 SHIFT_PER_PIXEL = 0.004  # object units per pixel the mouse moves over the overlay
 SCALE_PER_WHEEL_STEP = 1.05
@@ -61,6 +62,7 @@ class PhotoAlignment:
         self.box: tuple[int, int, int, int] | None = None  # the user's box around the object (photo pixels), or None
         self.strokes = np.zeros((h, w), np.int8)  # the user's strokes: 1 object, -1 background, 0 none
         self.mask: np.ndarray | None = None  # the object's mask as segmented from the photo with these hints, to show
+        self.trusted: np.ndarray | None = None  # the mask's pixels that color the object (capture.trusted_pixels)
 
     def set_mesh(self, mesh: trimesh.Trimesh, key: object, silhouettes: SilhouetteRenderer | None = None) -> None:
         """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped.
@@ -117,6 +119,7 @@ class PhotoAlignment:
 
     def set_mask(self, mask: np.ndarray | None) -> None:
         self.mask = mask
+        self.trusted = trusted_pixels(mask)
         self.revision += 1
 
     def set_pose(self, pose: PhotoPose) -> None:
@@ -153,6 +156,8 @@ class PhotoAlignment:
             if self.mask is not None:
                 segmented = mask_at_size(self.mask, size)
                 shown[~segmented] *= 0.45  # the background darkened: what stays bright is the object
+                rim = segmented & ~mask_at_size(self.trusted, size)  # on the object, but too near its edge to trust
+                shown[rim] = 0.5 * shown[rim] + 0.5 * UNTRUSTED_COLOR
             strokes = np.asarray(Image.fromarray(self.strokes.astype(np.uint8) + 1).resize(size, Image.Resampling.NEAREST))
             shown[strokes == 2] = STROKE_OBJECT
             shown[strokes == 0] = STROKE_BACKGROUND

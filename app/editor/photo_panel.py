@@ -1,7 +1,8 @@
 """The Photo tab: load a photo, align the object to it by hand or with the search, color the object, take its view.
 
 The photo is shown with the object's silhouette outlined over it (PhotoAlignment.overlay), as a
-texture uploaded again only when the pose or the shape changed. On the image, left-drag turns
+texture uploaded again only when the pose or the shape changed: while the tab is open, over the whole viewport
+(Ctrl+wheel zooms about the mouse, middle-drag pans), or, with that turned off, inside the tab. On the image, left-drag turns
 the object (up and down raises and lowers the camera), Shift+left-drag moves it on the floor and
 the wheel scales it; the numeric fields below set the same pose exactly. While a drag is under
 way the overlay is drawn at a smaller size, so every frame of the drag stays cheap (ray casting
@@ -33,6 +34,12 @@ MIN_IMAGE_HEIGHT = 120  # the photo fills the tab's height below the buttons, bu
 IMAGE_SHARE = 0.55  # ... and at most this share of its width: the pose fields stand beside it
 POSE_LABEL_WIDTH = 62  # room for the pose fields' labels
 DRAG_SIDE = 160  # long side of the overlay while a drag is under way
+VIEW_DRAG_SIDE = 320  # the same for the photo over the viewport
+MAX_VIEW_SIDE = 1600  # the overlay's long side over the viewport at most (zoomed further, the texture is enlarged)
+MAX_ZOOM = 16.0  # over the viewport, the photo fitted to it and enlarged up to this
+ZOOM_PER_STEP = 1.25  # per Ctrl+wheel step
+BACKDROP = imgui.ImVec4(0.1, 0.1, 0.11, 1.0)  # around the photo over the viewport
+HINT_SHADE, HINT_BAND = imgui.ImVec4(0.0, 0.0, 0.0, 0.55), 26  # behind the hint line at the view's top, its height
 STROKE_RADIUS = 0.02  # of the photo's shorter side
 DRAG_HINTS = {
     "pose": "On the photo: drag turns the object, Shift+drag moves it, the wheel scales it",
@@ -61,6 +68,81 @@ class PhotoPanel:
         self.shown: tuple[Box, tuple] | None = None  # where the overlay was drawn this frame, and its version
         self.drag_mode = "pose"  # what a drag on the photo does: "pose" the object, draw its "box", paint "strokes"
         self._box_start: tuple[float, float] | None = None  # photo pixels where the box drag began
+        self.in_viewport = True  # while the tab is open, the photo covers the viewport (else it is drawn in the tab)
+        self.zoom = 1.0  # over the viewport: 1 fits the photo to it
+        self.centre = (0.5, 0.5)  # the photo's point (fractions of its width and height) at the viewport's centre
+        self._panning = False
+
+    def fills_viewport(self) -> bool:
+        """Whether the photo is drawn over the viewport this frame (the Photo tab open, a photo loaded)."""
+        return self.in_viewport and self.app.tools_tab == "Photo" and self.app.photo.alignment is not None
+
+    def draw_in_viewport(self, origin: imgui.ImVec2, width: int, height: int) -> None:
+        """The photo and its overlay over the viewport's `width` x `height` at `origin`, zoomed and panned, taking
+        the same gestures as in the tab; Ctrl+wheel zooms about the mouse, middle-drag pans."""
+        alignment = self.app.photo.alignment
+        h, w = alignment.rgb.shape[:2]
+        scale = min(width / w, height / h) * self.zoom
+        shown_w, shown_h = w * scale, h * scale
+        left = origin.x + width / 2 - self.centre[0] * shown_w
+        top = origin.y + height / 2 - self.centre[1] * shown_h
+        corner = imgui.ImVec2(origin.x + width, origin.y + height)
+        imgui.set_cursor_screen_pos(origin)
+        imgui.invisible_button("photo view", imgui.ImVec2(width, height),
+                               imgui.ButtonFlags_.mouse_button_left | imgui.ButtonFlags_.mouse_button_middle)
+        left_down = imgui.is_mouse_down(imgui.MouseButton_.left)
+        image_origin = imgui.ImVec2(left, top)
+        if not (self._panning or imgui.is_mouse_down(imgui.MouseButton_.middle)):  # the middle button pans only
+            if self.drag_mode == "box":
+                self._box_gesture(alignment, image_origin, w / shown_w)
+            elif self.drag_mode == "strokes":
+                self._stroke_gesture(alignment, image_origin, w / shown_w)
+            else:
+                self._gestures()
+        self._view_gestures(origin, width, height, shown_w, shown_h)
+        dragging = imgui.is_item_active() and left_down
+        side = VIEW_DRAG_SIDE if dragging else min(MAX_VIEW_SIDE, round(max(shown_w, shown_h)))
+        self._upload(alignment, max(side, 1))
+        draw = imgui.get_window_draw_list()
+        draw.add_rect_filled(origin, corner, imgui.get_color_u32(BACKDROP))
+        draw.push_clip_rect(origin, corner, True)
+        draw.add_image(imgui.ImTextureRef(self.texture.glo), image_origin,
+                       imgui.ImVec2(left + shown_w, top + shown_h))
+        if alignment.box is not None:
+            x0, y0, x1, y1 = (v * scale for v in alignment.box)
+            draw.add_rect(imgui.ImVec2(left + x0, top + y0), imgui.ImVec2(left + x1, top + y1),
+                          imgui.get_color_u32(imgui.ImVec4(1.0, 0.85, 0.2, 1.0)), thickness=2.0)
+        draw.pop_clip_rect()
+        draw.add_rect_filled(origin, imgui.ImVec2(corner.x, origin.y + HINT_BAND), imgui.get_color_u32(HINT_SHADE))
+        imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
+        imgui.text_colored(GRAY, f"{DRAG_HINTS[self.drag_mode]}.  Ctrl+wheel zooms ({self.zoom:.2g}x), "
+                                 "middle-drag pans.")
+        self.shown = ((int(origin.x), int(origin.y), int(corner.x), int(corner.y)),
+                      (self.uploads, alignment.box, self.zoom, self.centre))
+
+    def _view_gestures(self, origin: imgui.ImVec2, width: int, height: int, shown_w: float, shown_h: float) -> None:
+        """Ctrl+wheel zooms about the mouse (the photo's point under it stays under it); middle-drag pans."""
+        io = imgui.get_io()
+        if imgui.is_item_hovered() and io.key_ctrl and io.mouse_wheel:
+            zoom = min(max(self.zoom * ZOOM_PER_STEP ** io.mouse_wheel, 1.0), MAX_ZOOM)
+            # The mouse's offset from the view's centre, in fractions of the photo, shrinks by the zoom's ratio.
+            mx = (io.mouse_pos.x - origin.x - width / 2) / shown_w
+            my = (io.mouse_pos.y - origin.y - height / 2) / shown_h
+            ratio = self.zoom / zoom
+            self.set_view(zoom, (self.centre[0] + mx * (1.0 - ratio), self.centre[1] + my * (1.0 - ratio)))
+        if imgui.is_item_hovered() and imgui.is_mouse_clicked(imgui.MouseButton_.middle):
+            self._panning = True
+        if self._panning:
+            if imgui.is_mouse_down(imgui.MouseButton_.middle):
+                self.set_view(self.zoom, (self.centre[0] - io.mouse_delta.x / shown_w,
+                                          self.centre[1] - io.mouse_delta.y / shown_h))
+            else:
+                self._panning = False
+
+    def set_view(self, zoom: float, centre: tuple[float, float]) -> None:
+        """Zoom (1: fitted) and the photo's point at the view's centre, kept so that the photo covers the centre."""
+        self.zoom = min(max(float(zoom), 1.0), MAX_ZOOM)
+        self.centre = (min(max(float(centre[0]), 0.0), 1.0), min(max(float(centre[1]), 0.0), 1.0))
 
     def draw(self, fields: PhotoFields, browse: Browse) -> None:
         """The tab's contents, for this frame."""
@@ -70,12 +152,21 @@ class PhotoPanel:
             imgui.text_colored(GRAY, "Load a photo of the object to align the object to it.")
             return
         self._commands()
-        self._overlay(alignment)
-        imgui.same_line()
-        imgui.begin_group()  # the numbers beside the photo
-        self._pose_fields(alignment.pose)
-        imgui.end_group()
+        _, self.in_viewport = imgui.checkbox("Photo over the viewport", self.in_viewport)
+        if self.in_viewport:
+            imgui.same_line()
+            if imgui.small_button("fit"):
+                self.set_view(1.0, (0.5, 0.5))
+            self._pose_fields(alignment.pose)
+        else:
+            self._overlay(alignment)
+            imgui.same_line()
+            imgui.begin_group()  # the numbers beside the photo
+            self._pose_fields(alignment.pose)
+            imgui.end_group()
         self._drag_mode(alignment)
+        if alignment.mask is not None:
+            imgui.text_colored(GRAY, "Darkened: background. Amber: the object's rim, whose colors are not taken.")
 
     def _drag_mode(self, alignment: PhotoAlignment) -> None:
         """What a drag on the photo does: pose the object, draw its box, or paint strokes (object; Shift:
@@ -160,7 +251,7 @@ class PhotoPanel:
         if imgui.is_item_hovered():
             imgui.set_item_key_owner(imgui.Key.mouse_wheel_y)  # the wheel scales the object, not the tab
             steps = io.mouse_wheel
-            if steps:
+            if steps and not io.key_ctrl:  # Ctrl+wheel zooms the photo over the viewport instead
                 photo.adjust(lambda a: a.zoom(steps))
 
     def _box_gesture(self, alignment: PhotoAlignment, origin: imgui.ImVec2, photo_per_pixel: float) -> None:

@@ -42,7 +42,7 @@ buttons and modifiers go to ImGui's input queue directly, see _mouse_button):
     {"action": "mouse_move", "pos": [x, y]}   window pixels
     {"action": "mouse_down", "button": 0, "mods": ["shift"]} {"action": "mouse_up", "button": 0}
                                               buttons 0 left, 1 right, 2 middle; mods held until mouse_up
-    {"action": "scroll", "dy": 1}
+    {"action": "scroll", "dy": 1, "mods": ["ctrl"]}
     {"action": "key", "key": "g", "mods": ["ctrl", "shift"]}   press and release
     {"action": "type", "text": "chair.obj"}   characters, as typed into the focused text field
 Before each action the replay waits until the editor is idle (jobs done, render up to date),
@@ -238,8 +238,18 @@ def _mouse_button(down: bool):
     return run
 
 
-def _scroll(app, action) -> None:
+def _scroll(app, action) -> Iterator[None]:
+    """The wheel, with its "mods" (e.g. ["ctrl"]) held from the frame before to the frame after."""
+    mods = [str(m).lower() for m in action.get("mods", [])]
+    io = imgui.get_io()
+    for m in mods:
+        io.add_key_event(MODIFIER_IMGUI[m], True)
+    if mods:
+        yield
     imgui.backends.glfw_scroll_callback(_window(app), 0.0, float(action.get("dy", 1.0)))
+    yield
+    for m in mods:
+        io.add_key_event(MODIFIER_IMGUI[m], False)
 
 
 def _key(app, action) -> Iterator[None]:
