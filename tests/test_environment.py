@@ -562,3 +562,32 @@ def test_the_light_tabs_picture_shows_the_environment_turned_scaled_and_its_sun_
     row, col = np.unravel_index(np.argmax(dot), picture.shape[:2])
     up = map_directions(32, 64)[row, col]
     assert np.degrees(np.arccos(np.clip(up @ sky.sun_direction, -1, 1))) < 8.0  # the dot where the sun is
+
+
+@pytest.mark.parametrize("elevation, spread", [(12.0, 0.25), (30.0, 0.1), (60.0, 0.25)])
+def test_the_floors_shadow_of_a_wide_low_light_equals_the_shadow_maps_read_everywhere(tmp_path, elevation, spread):
+    """The floor reads the shadow maps only inside the box the object's shadow can reach: that box must hold the
+    whole soft shadow of a wide light (a window low in the sky), so the floor equals the maps read at every point."""
+    from renderer.shading.environment_shading import _ShadowMaps
+    from renderer.shading.lighting import FLOOR_SHADOW_BIAS, light_visibility
+
+    rgba = cube(16)
+    spec = ObjectSpec(voxels="cube.npz")
+    factors = shader_pool_factors(rgba.shape[0], spec.scale, SHADER_GRID_SIZE)
+    geometry = placed(object_geometry(pool_voxels(rgba, factors), rgba.shape[0], factors), spec, 30.0)
+    surface = visible_surface(geometry, SIZE)
+    e = math.radians(elevation)
+    direction = np.array([-math.cos(e), math.sin(e), 0.0])  # the shadow falls along +x, across the image
+    block = 1.0 / 16
+    maps = _ShadowMaps.directional(geometry, direction, spread, block)
+    boxed = maps.floor_visibility(surface, geometry, block)
+    everywhere = np.ones(len(surface.floor_points))
+    light_visibility(surface.floor_points, FLOOR_SHADOW_BIAS * block, maps.points, maps.maps, maps.bounds, maps.nearest,
+                     maps.spacing, everywhere)
+    assert everywhere.min() < 0.5  # the cube shadows the floor
+    # Outside the box the floor sees all the light: no point of the shadow (beyond the unit cube's far side, along
+    # +x) may be left there.
+    cut_off = (boxed == 1.0) & (everywhere < 0.95) & (surface.floor_points[:, 0] > 0.55)
+    assert cut_off.sum() == 0, f"{cut_off.sum()} floor points of the shadow are outside the box"
+    # Inside, the box's grid interpolates the maps (FLOOR_SHADOW_STEP apart): equal but for the shadow's sharp edges.
+    assert np.abs(boxed - everywhere).mean() < 0.01

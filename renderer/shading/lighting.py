@@ -126,7 +126,10 @@ def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights:
     if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
         light_visibility(floor_points, bias, lights, maps, bounds, nearest, spacing, seen)
         return seen
-    ends = lights[[0, -1]][:, None, :]  # opposite corners of the grid of light points
+    # Opposite corners of the light's square: of the grid of light points, widened by the square each stands for (a
+    # wide light's soft shadow reaches past what its points alone cast).
+    half = 0.5 * spacing * np.array([1.0, 0.0, 1.0])
+    ends = np.stack([lights.min(axis=0) - half, lights.max(axis=0) + half])[:, None, :]
     cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
     cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
     (x0, z0), (x1, z1) = cast[:, [0, 2]].min(axis=0) - FLOOR_SHADOW_STEP, cast[:, [0, 2]].max(axis=0) + FLOOR_SHADOW_STEP
