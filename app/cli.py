@@ -77,7 +77,8 @@ def cmd_render(args: argparse.Namespace) -> None:
     save_png(out, image)
     print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{correction_note(renderer, size)}, "
           f"{elapsed:.2f} s)")
-    _warn(range_warnings(scene) + _material_warnings(scene.mesh_path()))  # after the image: a refusal stays one line
+    note = renderer.last_report.note if renderer.last_report is not None else ""  # e.g. a scene the network does not read
+    _warn(range_warnings(scene) + ([note] if note else []) + _material_warnings(scene.mesh_path()))  # after the image
 
 
 def add_render_parser(sub: argparse._SubParsersAction) -> None:
@@ -212,7 +213,7 @@ def _parse_box(text: str | None, shape) -> tuple[int, int, int, int] | None:
 
 def cmd_info(args: argparse.Namespace) -> None:
     from renderer.pipeline import object_voxels, painted_voxels, scene_grid_for
-    from renderer.scene import load_scene, range_warnings
+    from renderer.scene import load_scene, needs_environment_shading, range_warnings
 
     scene = load_scene(args.scene)
     rgba, floor_color = painted_voxels(scene, object_voxels(scene))
@@ -249,6 +250,9 @@ def cmd_info(args: argparse.Namespace) -> None:
     print("training   all values inside the training ranges" if not warnings else "training   outside the training ranges:")
     for message in warnings:
         print(f"  - {message}")
+    if needs_environment_shading(scene):
+        print("network    the shipped NVR+ is not trained for environments, gloss or floor textures: "
+              "for this scene it shows the voxel shader's image")
 
 
 def add_info_parser(sub: argparse._SubParsersAction) -> None:

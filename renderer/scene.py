@@ -503,9 +503,9 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
 
 
 def needs_environment_shading(scene: Scene) -> bool:
-    """Whether the scene holds more than the set-up the networks were trained on (an environment, the area light off,
-    an object that is not diffuse, a textured or round floor): the shader's environment path draws it, and no network
-    corrects it yet."""
+    """Whether the scene holds more than the area-light set-up (an environment, the area light off, an object that is
+    not diffuse, a textured or round floor): the shader's environment path draws it, and only a network that reads the
+    environment (config.environment_input) corrects it."""
     return (scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
             or scene.floor.texture is not None or scene.floor.shape != "square")
 
@@ -523,8 +523,6 @@ def range_warnings(scene: Scene) -> list[str]:
         check(f"object.translation.{name}", v, *TRANSLATION_RANGE)
     for name, v in zip("xyz", scene.object.scale):
         check(f"object.scale.{name}", v, *SCALE_RANGE)
-    if needs_environment_shading(scene):
-        out.append("no network is trained for environments, gloss or floor textures yet: NVR+ shows the shader's image")
     lx, ly, lz = scene.light.position
     check("light.position.x", lx, *LIGHT_XZ_RANGE)
     check("light.position.y", ly, *LIGHT_Y_RANGE)

@@ -133,3 +133,32 @@ def test_unreadable_mesh_for_voxelize(tmp_path):
     (tmp_path / "x.stl").write_bytes(b"\x00\x01garbage")
     assert_user_error(nvr("voxelize", tmp_path / "x.stl", "-o", tmp_path / "x.npz"), "x.stl")
     assert not (tmp_path / "x.npz").exists()
+
+
+def test_under_a_sky_the_render_warns_only_when_its_network_does_not_read_the_environment(scene_dir):
+    """The shipped NVR+ shows the shader's image for a sky-lit scene and says so; a network that reads the
+    environment renders it without the warning, and its image is not the shader's."""
+    import torch
+
+    from models.networks.checkpoint import save_model
+    from models.networks.config import EnvironmentRefinerConfig
+    from models.networks.nvr import build_model
+
+    data = json.loads((scene_dir / "scene.json").read_text())
+    data["environment"] = {"sky": {"sun_elevation_deg": 30, "sun_azimuth_deg": 100}}
+    data["light"]["enabled"] = False
+    (scene_dir / "scene.json").write_text(json.dumps(data))
+    torch.manual_seed(0)
+    model = build_model("nvr_plus", EnvironmentRefinerConfig()).eval()
+    for parameter in (*model.rerender.to_rgb.parameters(), *model.light_decoder.environment.mlp[-1].parameters()):
+        parameter.data.normal_(0.0, 0.05)  # a network that has learned something
+    save_model(scene_dir / "environment.safetensors", model, model.config)
+    shipped, reading = scene_dir / "shipped.png", scene_dir / "reading.png"
+    result = nvr("render", scene_dir / "scene.json", "-o", shipped, "--renderer", "nvr+", "--size", "64")
+    assert result.returncode == 0, result.stderr
+    assert "not trained for environment light" in result.stderr
+    result = nvr("render", scene_dir / "scene.json", "-o", reading, "--renderer", "nvr+", "--size", "64",
+                 "--model", scene_dir / "environment.safetensors")
+    assert result.returncode == 0, result.stderr
+    assert "trained" not in result.stderr
+    assert np.abs(np.asarray(Image.open(reading)).astype(int) - np.asarray(Image.open(shipped)).astype(int)).max() > 3

@@ -355,7 +355,7 @@ class Interface:
             else:
                 imgui.text_colored(GREEN, "UP TO DATE")
             imgui.same_line()
-            if frame.note:  # the renderer drew something else than usual (a scene no network is trained for)
+            if frame.note:  # the renderer drew something else than usual (a scene its network is not trained for)
                 imgui.text_colored(AMBER, f"shader only, {frame.seconds * 1000:.0f} ms")
                 if imgui.is_item_hovered():
                     imgui.set_tooltip(frame.note)
