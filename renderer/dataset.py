@@ -196,6 +196,7 @@ def sample_lighting(rng: np.random.Generator, lighting: str, split: str) -> tupl
 GROUND_SCALE_RANGE = (1.0, 3.0)  # world units a textured ground repeats over
 GROUND_TILE_PIXELS = 512  # a ground image's side: 2 to 5 millimetres of ground a pixel, finer than the images see
 DISK_SHARE = 0.5  # of textured grounds, the share that are disks (the paper's), the rest squares
+MIXED_TEXTURED_SHARE = 0.5  # with grounds "mixed", the share of views on a textured ground (the rest plain)
 
 
 def sample_ground(rng: np.random.Generator, split: str) -> tuple[np.ndarray, float, str, str]:
@@ -359,7 +360,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
             write_environment_map(out, *made_map)
         scene = replace(view_scene(view, voxel_file, floor_color, config.size, single_color, lighting, material),
                         base_dir=out)
-        if config.grounds == "textured":
+        if config.grounds == "textured" or (config.grounds == "mixed" and ground_rng.random() < MIXED_TEXTURED_SHARE):
             tile, scale, shape, _ = sample_ground(ground_rng, config.split)
             save_png(out / f"grounds/{sample_id}.png", tile)
             scene = replace(scene, floor=FloorSpec(floor_color, f"grounds/{sample_id}.png", scale, shape))

@@ -23,7 +23,7 @@ SETTINGS = ("single", "default", "textured")
 # How the target views are lit: the paper's area light; an environment alone; or each view one of area light,
 # environment, or both (renderer/dataset.py, sample_lighting).
 LIGHTINGS = ("area", "environment", "mixed")
-GROUNDS = ("plain", "textured")
+GROUNDS = ("plain", "textured", "mixed")
 SPLITS = ("train", "test")
 DELIGHT_SHADERS = ("path traced", "object voxels", "camera grid")  # DataConfig.delight_shader: today's first
 MADE_DELIGHT_SHADERS = DELIGHT_SHADERS[:2]  # those a set can still be made with
@@ -53,7 +53,7 @@ class DataConfig:
     photo_size: int = field(default=0, metadata={"help": "side in pixels of the source photo that colors the voxels (0: --size)"})
     lighting: str = field(default="area", metadata={"help": "how target views are lit: the area light, an environment (sky or a made map), or mixed (area, environment or both per view)", "choices": LIGHTINGS})
     materials: bool = field(default=False, metadata={"help": "give each object a random material (matte to mirror-like, plastic or metal)"})
-    grounds: str = field(default="plain", metadata={"help": "the ground of each view: plain (a color), or textured (an image of the split's texture families, on a square or a disk)", "choices": GROUNDS})
+    grounds: str = field(default="plain", metadata={"help": "the ground of each view: plain (a color), textured (an image of the split's texture families, on a square or a disk), or mixed (either, half and half)", "choices": GROUNDS})
 
     def __post_init__(self) -> None:
         if self.photo_size == self.size:  # one config per set: a photo of the images' size is written 0

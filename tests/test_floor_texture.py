@@ -203,6 +203,18 @@ def test_textured_grounds_in_a_data_set_repeat_without_seams_and_come_from_the_s
     assert manifest["config"]["grounds"] == "textured"
 
 
+def test_mixed_grounds_put_some_views_on_a_plain_floor_and_some_on_a_texture(tmp_path):
+    from renderer.dataset import DataConfig, generate_dataset
+
+    config = DataConfig(setting="single", split="train", objects=1, views=8, size=32, spp=2, denoise=False,
+                        resolution=32, lighting="mixed", grounds="mixed", seed=3)
+    generate_dataset(tmp_path / "set", config, progress=False)
+    manifest = json.loads((tmp_path / "set" / "manifest.json").read_text())
+    textured = [scene_from_dict(s["scene"], tmp_path / "set" / "manifest.json").floor.texture is not None
+                for s in manifest["samples"]]
+    assert 0 < sum(textured) < len(textured)
+
+
 def test_info_says_what_the_floor_is_and_that_no_network_corrects_a_textured_one(tmp_path):
     quadrant_texture(tmp_path / "tiles.png")
     data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
@@ -214,4 +226,4 @@ def test_info_says_what_the_floor_is_and_that_no_network_corrects_a_textured_one
     assert info.returncode == 0, info.stderr
     floor = next(line for line in info.stdout.splitlines() if line.startswith("floor"))
     assert "tiles.png repeated every 0.5 units; disk" in floor
-    assert "floor textures yet" in info.stdout
+    assert "not trained for environments, gloss or floor textures" in info.stdout

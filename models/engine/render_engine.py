@@ -20,6 +20,8 @@ computed from, and reruns only when those change. This table is the one list of 
     splat_layout  shell, translation, rotation, scale, camera elevation   the voxel each pixel shows, the floor
     splat         splat_layout, paint, floor color                        splatted image (NVR+, and previews)
     floor_light   camera elevation, floor color, light position           the lit empty floor (networks that read it)
+    lighting      light, environment, material, camera elevation          the light input of a network that reads the
+                                                                          environment (config.environment_input)
     shade_*       the voxel shader's stages (renderer/shading/staged.py)  its image and buffers (networks that read
                   prefixed with shade_; shade_pool for a finer grid       the shader), without the floor's reflection
     splat_branch  as splat (and floor_light, shade, if the network        splat features (encode_splat)
@@ -27,7 +29,8 @@ computed from, and reruns only when those change. This table is the one list of 
     light         all of the above and the light position                 image (render_from_latent)
 
 Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (plus the shader's own stages
-for a network that reads it, and floor_light only for one that reads the lit floor):
+for a network that reads it, floor_light only for one that reads the lit floor, and lighting, with a light,
+environment or material edit, for one that reads the environment):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
@@ -349,8 +352,12 @@ class RenderEngine:
             floor_light = self._floor_light(scene, painted.floor, keys) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
-        light = self._stage("lighting", (lighting_key(scene), scene.camera.elevation_deg), lambda: torch.from_numpy(
-            lighting_input(scene, self.config.environment_input))[None].to(self.device, self.dtype))
+        def light_input() -> torch.Tensor:
+            return torch.from_numpy(lighting_input(scene, self.config.environment_input))[None].to(self.device, self.dtype)
+
+        # The environment's probe is worth keeping; the light's position alone is three numbers.
+        light = (self._stage("lighting", (lighting_key(scene), scene.camera.elevation_deg), light_input)
+                 if self.config.environment_input else light_input())
         return _NetworkInputs(latent, light, features, buffers, buffers_tensor, keys, painted)
 
     def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
