@@ -709,3 +709,15 @@ def test_a_network_that_reads_the_environment_corrects_every_environment_edit_as
     np.testing.assert_allclose(image, engine(model, crop=False).render(edited), rtol=0, atol=1e-5)
     assert np.abs(image - before).max() > 1e-3
     assert np.abs(image - np.clip(_shaded_image(edited, 128), 0.0, 1.0)).max() > 1e-3  # corrected, not the shader's
+
+
+def test_the_light_input_of_a_network_that_reads_the_environment_is_kept_through_edits_it_does_not_read(scene):
+    """Its light input (the probe, the switch, the material) is made again for a light or material edit only."""
+    lit = replace(scene, environment=EnvironmentSpec(sky=SkySpec(40.0, 30.0)))
+    live = engine(environment_refiner())
+    live.render(lit)
+    for edited, reread in ((lit.with_changes(floor=FloorSpec((0.9, 0.2, 0.1))), False),
+                           (lit.with_changes(object=replace(lit.object, translation=(0.2, 0.1))), False),
+                           (lit.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), True)):
+        live.render(edited)
+        assert ("lighting" in live.last_report.stages_run) == reread

@@ -356,8 +356,8 @@ class RenderEngine:
             return torch.from_numpy(lighting_input(scene, self.config.environment_input))[None].to(self.device, self.dtype)
 
         # The environment's probe is worth keeping; the light's position alone is three numbers.
-        light = (self._stage("lighting", (lighting_key(scene), scene.camera.elevation_deg), light_input)
-                 if self.config.environment_input else light_input())
+        key = (scene.light, scene.environment, scene.object.material, scene.camera.elevation_deg)  # what it reads
+        light = self._stage("lighting", key, light_input) if self.config.environment_input else light_input()
         return _NetworkInputs(latent, light, features, buffers, buffers_tensor, keys, painted)
 
     def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
