@@ -93,12 +93,7 @@ class PhotoPanel:
         left_down = imgui.is_mouse_down(imgui.MouseButton_.left)
         image_origin = imgui.ImVec2(left, top)
         if not (self._panning or imgui.is_mouse_down(imgui.MouseButton_.middle)):  # the middle button pans only
-            if self.drag_mode == "box":
-                self._box_gesture(alignment, image_origin, w / shown_w)
-            elif self.drag_mode == "strokes":
-                self._stroke_gesture(alignment, image_origin, w / shown_w)
-            else:
-                self._gestures()
+            self._photo_gestures(alignment, image_origin, w / shown_w)
         self._view_gestures(origin, width, height, shown_w, shown_h)
         dragging = imgui.is_item_active() and left_down
         side = VIEW_DRAG_SIDE if dragging else min(MAX_VIEW_SIDE, round(max(shown_w, shown_h)))
@@ -108,10 +103,7 @@ class PhotoPanel:
         draw.push_clip_rect(origin, corner, True)
         draw.add_image(imgui.ImTextureRef(self.texture.glo), image_origin,
                        imgui.ImVec2(left + shown_w, top + shown_h))
-        if alignment.box is not None:
-            x0, y0, x1, y1 = (v * scale for v in alignment.box)
-            draw.add_rect(imgui.ImVec2(left + x0, top + y0), imgui.ImVec2(left + x1, top + y1),
-                          imgui.get_color_u32(imgui.ImVec4(1.0, 0.85, 0.2, 1.0)), thickness=2.0)
+        _draw_box(draw, alignment, image_origin, scale)
         draw.pop_clip_rect()
         draw.add_rect_filled(origin, imgui.ImVec2(corner.x, origin.y + HINT_BAND), imgui.get_color_u32(HINT_SHADE))
         imgui.set_cursor_screen_pos(imgui.ImVec2(origin.x + 8, origin.y + 6))
@@ -226,21 +218,23 @@ class PhotoPanel:
         height = max(1, round(width * h / w))
         origin = imgui.get_cursor_screen_pos()
         imgui.invisible_button("photo overlay", imgui.ImVec2(width, height))
-        if self.drag_mode == "box":
-            self._box_gesture(alignment, origin, w / width)
-        elif self.drag_mode == "strokes":
-            self._stroke_gesture(alignment, origin, w / width)
-        else:
-            self._gestures()
+        self._photo_gestures(alignment, origin, w / width)
         self._upload(alignment, DRAG_SIDE if imgui.is_item_active() else max(width, height))
         corner = imgui.ImVec2(origin.x + width, origin.y + height)
         draw = imgui.get_window_draw_list()
         draw.add_image(imgui.ImTextureRef(self.texture.glo), origin, corner)
-        if alignment.box is not None:  # the box, in the photo's pixels scaled to the shown image
-            x0, y0, x1, y1 = (v * width / w for v in alignment.box)
-            draw.add_rect(imgui.ImVec2(origin.x + x0, origin.y + y0), imgui.ImVec2(origin.x + x1, origin.y + y1),
-                          imgui.get_color_u32(imgui.ImVec4(1.0, 0.85, 0.2, 1.0)), thickness=2.0)
+        _draw_box(draw, alignment, origin, width / w)
         self.shown = ((int(origin.x), int(origin.y), int(corner.x), int(corner.y)), (self.uploads, alignment.box))
+
+    def _photo_gestures(self, alignment: PhotoAlignment, origin: imgui.ImVec2, photo_per_pixel: float) -> None:
+        """What a drag on the photo shown from `origin` does, by the drag mode (photo_per_pixel: photo pixels a screen
+        pixel)."""
+        if self.drag_mode == "box":
+            self._box_gesture(alignment, origin, photo_per_pixel)
+        elif self.drag_mode == "strokes":
+            self._stroke_gesture(alignment, origin, photo_per_pixel)
+        else:
+            self._gestures()
 
     def _gestures(self) -> None:
         """Left-drag turns, Shift+left-drag shifts (screen pixels), the wheel zooms, over the last item."""
@@ -306,3 +300,11 @@ class PhotoPanel:
         if self.texture is not None:
             self.texture.release()
             self.texture = None
+
+
+def _draw_box(draw: imgui.ImDrawList, alignment: PhotoAlignment, origin: imgui.ImVec2, scale: float) -> None:
+    """The user's box (photo pixels) over the photo drawn from `origin` at `scale` screen pixels a photo pixel."""
+    if alignment.box is not None:
+        x0, y0, x1, y1 = (v * scale for v in alignment.box)
+        draw.add_rect(imgui.ImVec2(origin.x + x0, origin.y + y0), imgui.ImVec2(origin.x + x1, origin.y + y1),
+                      imgui.get_color_u32(imgui.ImVec4(1.0, 0.85, 0.2, 1.0)), thickness=2.0)

@@ -77,7 +77,7 @@ from models.engine.onednn import cpu_can_run_bfloat16, cpu_has_native_bfloat16, 
 from models.engine.paint_replay import PaintReplay
 from models.networks.config import IMAGE_CHANNELS
 from models.networks.inference import prepare_for_inference
-from models.networks.nvr import NVR, NVRPlus, lighting_input, reads_floor_light, reads_shading
+from models.networks.nvr import NVR, NVRPlus, lighting_input, reads_floor_light, reads_scene, reads_shading
 from models.threads import set_threads
 from renderer.camera import Camera
 from renderer.errors import InputError
@@ -97,7 +97,7 @@ from renderer.grid import (
 )
 from renderer.paint import apply_paint
 from renderer.pipeline import object_voxels
-from renderer.scene import Scene, needs_environment_shading
+from renderer.scene import Scene
 from renderer.shading import (
     ShadedImage,
     network_buffers,
@@ -250,9 +250,8 @@ class RenderEngine:
         return self.config.output_size
 
     def reads_scene(self, scene: Scene) -> bool:
-        """Whether the network renders the scene: one lit by an environment, with the area light off or a glossy object
-        only if it reads the environment and the material (config.environment_input); else the shader's image shows."""
-        return self.config.environment_input or not needs_environment_shading(scene)
+        """Whether the network renders the scene (models.networks.nvr.reads_scene); else the shader's image shows."""
+        return reads_scene(self.config, scene)
 
     def clear(self) -> None:
         """Forget every cached stage (the next render computes all of them)."""

@@ -18,13 +18,13 @@ import numpy as np
 import torch
 
 from models.evaluation.metrics import ImageMetrics
-from models.networks.nvr import NVRPlus, reads_floor_light, reads_shading
+from models.networks.nvr import NVRPlus, reads_floor_light, reads_scene, reads_shading
 from models.networks.shipped import shipped_weights
 from models.renderers import renderer_entry
 from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
-from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE, needs_environment_shading
+from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
 from renderer.shading import quality_named
 
 METRICS = ("mse", "dssim", "perceptual")
@@ -123,9 +123,8 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
     scores: dict[str, list[dict[str, float]]] = defaultdict(list)
 
     def predict(sample: dict, index: int) -> torch.Tensor:
-        # A network that does not read the environment and the material renders those scenes as the shader (the engine).
-        if shader or (model is not None and not config.environment_input
-                      and needs_environment_shading(dataset.scene(index))):
+        # A scene the network does not read shows the shader's image, as in the engine.
+        if shader or (model is not None and not reads_scene(config, dataset.scene(index))):
             image = dataset.shaded(dataset.scene(index), dataset.object_voxels(index), sample["target"].shape[-1],
                                    reflection=True).image
             return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]

@@ -59,7 +59,7 @@ from models.networks.layers import (
     up_block_2d,
 )
 from renderer.camera import Camera
-from renderer.scene import CAMERA_DISTANCE, Scene
+from renderer.scene import CAMERA_DISTANCE, Scene, needs_environment_shading
 from renderer.shading import BUFFER_CHANNELS
 
 LIGHT_SCALE = CAMERA_DISTANCE
@@ -364,6 +364,13 @@ def reads_floor_light(architecture: str, config: NVRConfig | None) -> bool:
 def reads_shading(architecture: str, config: NVRConfig | None) -> bool:
     """Whether a network of this architecture and config reads the voxel shader's buffers (and corrects its image)."""
     return architecture == NVRPlus.architecture and config is not None and config.shading_input
+
+
+def reads_scene(config: NVRConfig, scene: Scene) -> bool:
+    """Whether a network of this config renders the scene: one lit by an environment, with the area light off, a glossy
+    object or a textured or round floor only if it reads the environment (config.environment_input); for the rest it
+    shows the voxel shader's image."""
+    return config.environment_input or not needs_environment_shading(scene)
 
 
 def build_model(architecture: str, config: NVRConfig) -> NVR | NVRPlus:
