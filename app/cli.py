@@ -49,13 +49,17 @@ def _material_warnings(mesh_path) -> list[str]:
 
 
 def cmd_render(args: argparse.Namespace) -> None:
-    from models.renderers import RendererOptions, correction_note, fixed_size, make_renderer
+    from models.renderers import RendererOptions, check_draws, correction_note, fixed_size, make_renderer
     from renderer.io import save_png
     from renderer.scene import load_scene, range_warnings
 
     if args.size is not None and not MIN_IMAGE_SIZE <= args.size <= MAX_IMAGE_SIZE:
         raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
     scene = load_scene(args.scene)
+    try:
+        check_draws(args.renderer, scene)
+    except InputError as exc:
+        raise InputError(exc.problem, args.scene) from None
     out = _output_path(args.output, args.force)
     size = args.size or scene.image_size
     start = time.perf_counter()
@@ -78,12 +82,13 @@ def cmd_render(args: argparse.Namespace) -> None:
     print(f"wrote {out} ({size}x{size}, {args.renderer}, {renderer.description}{correction_note(renderer, size)}, "
           f"{elapsed:.2f} s)")
     note = renderer.last_report.note if renderer.last_report is not None else ""  # e.g. a scene the network does not read
-    _warn(range_warnings(scene) + ([note] if note else []) + _material_warnings(scene.mesh_path()))  # after the image
+    materials = [w for o in scene.objects for w in _material_warnings(scene.file(o.mesh))]
+    _warn(range_warnings(scene) + ([note] if note else []) + materials)  # after the image
 
 
 def add_render_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help="render a scene file to a PNG")
-    p.add_argument("scene", help="scene file (JSON, version 1)")
+    p.add_argument("scene", help="scene file (JSON, version 1 or 2)")
     p.add_argument("-o", "--output", required=True, help="PNG to write")
     p.add_argument("--renderer", choices=list(RENDERERS), default="nvr+", help=RENDERER_HELP)
     p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
@@ -212,21 +217,22 @@ def _parse_box(text: str | None, shape) -> tuple[int, int, int, int] | None:
 
 
 def cmd_info(args: argparse.Namespace) -> None:
-    from renderer.pipeline import object_voxels, painted_voxels, scene_grid_for
+    from renderer.pipeline import painted_objects, scene_grid_for
     from renderer.scene import load_scene, needs_environment_shading, range_warnings
 
     scene = load_scene(args.scene)
-    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
-    grid = scene_grid_for(scene, rgba, floor_color)
-    object_count = int((rgba[..., 3] > 0.5).sum())
+    painted = painted_objects(scene)
+    grid = scene_grid_for(scene, painted, scene.floor.color)
     grid_count = int((grid[..., 3] > 0.5).sum())
-    o = scene.object
     print(f"scene      {args.scene}")
-    print(f"object     {o.voxels or o.mesh} (up {o.up}, {o.resolution}^3 voxels)")
-    print(f"  color    {'mesh colors' if o.color is None else list(o.color)}; {len(scene.paint)} paint operations")
-    print(f"  placed   translation {list(o.translation)}, rotation {o.rotation_deg:g} deg, scale {list(o.scale)}")
-    m = o.material
-    print(f"  material {'matte' if m.diffuse_only else f'roughness {m.roughness:g}, specular {m.specular:g}, metallic {m.metallic:g}'}")
+    for i, (o, rgba) in enumerate(zip(scene.objects, painted)):
+        name = "object" if len(scene.objects) == 1 else f"object {i}" + ("" if o.name is None else f" ({o.name})")
+        print(f"{name:<10} {o.voxels or o.mesh} (up {o.up}, {o.resolution}^3 voxels, "
+              f"{int((rgba[..., 3] > 0.5).sum())} occupied)")
+        print(f"  color    {'mesh colors' if o.color is None else list(o.color)}; {len(o.paint)} paint operations")
+        print(f"  placed   translation {list(o.translation)}, rotation {o.rotation_deg:g} deg, scale {list(o.scale)}")
+        m = o.material
+        print(f"  material {'matte' if m.diffuse_only else f'roughness {m.roughness:g}, specular {m.specular:g}, metallic {m.metallic:g}'}")
     floor = scene.floor
     look = (f"color {list(floor.color)}" if floor.texture is None
             else f"texture {scene.floor_texture_path()} repeated every {floor.texture_scale:g} units")
@@ -245,12 +251,15 @@ def cmd_info(args: argparse.Namespace) -> None:
         print(f"sky        {what}; turned {env.rotation_deg:g} deg, strength {env.strength:g}")
 
     print(f"camera     elevation {scene.camera.elevation_deg:g} deg; image {scene.image_size}x{scene.image_size}")
-    print(f"voxels     object {object_count} of {rgba.shape[0]}^3; scene grid {grid_count} of {grid.shape[0]}^3 occupied")
+    print(f"voxels     scene grid {grid_count} of {grid.shape[0]}^3 occupied")
     warnings = range_warnings(scene)
     print("training   all values inside the training ranges" if not warnings else "training   outside the training ranges:")
     for message in warnings:
         print(f"  - {message}")
-    if needs_environment_shading(scene):
+    if len(scene.objects) > 1:
+        print("network    the shipped NVR+ is not trained on several objects: for this scene it shows the voxel "
+              "shader's image")
+    elif needs_environment_shading(scene):
         print("network    the shipped NVR+ is not trained for environments, gloss or floor textures: "
               "for this scene it shows the voxel shader's image")
 
@@ -274,7 +283,7 @@ def cmd_import_vox(args: argparse.Namespace) -> None:
     rgba = read_vox(args.model_file, model=args.model)
     save_voxels(voxels_out, rgba)
     n = rgba.shape[0]
-    scene = Scene(object=ObjectSpec(voxels=str(voxels_out.resolve()), resolution=n), base_dir=Path("."))
+    scene = Scene.single(object=ObjectSpec(voxels=str(voxels_out.resolve()), resolution=n), base_dir=Path("."))
     save_scene(scene, scene_out)
     print(f"wrote {scene_out} and {voxels_out} ({n}^3 voxels, {int((rgba[..., 3] > 0.5).sum())} occupied)")
 

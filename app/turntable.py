@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer
 from renderer.errors import InputError
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
+from renderer.scene import replaced
 
 if TYPE_CHECKING:  # the command line reads TurntableConfig at start-up: the image and scene modules load when used
     import numpy as np
@@ -64,7 +65,7 @@ def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
         turn = 2.0 * math.pi * f / frames
         if sweep == "rotation":
             rotation = (scene.object.rotation_deg + math.degrees(turn) + 180.0) % 360.0 - 180.0
-            yield replace(scene, object=replace(scene.object, rotation_deg=rotation))
+            yield replaced(scene, object=replace(scene.object, rotation_deg=rotation))
         elif not scene.light.enabled and scene.environment is not None:  # the environment alone lights it: turn that
             env = scene.environment
             yield replace(scene, environment=replace(env, rotation_deg=env.rotation_deg + math.degrees(turn)))

@@ -128,7 +128,7 @@ def make_photo(style: str, number: int, size: int, spp: int) -> Photo:
     light = (float(rng.uniform(*LIGHT_XZ_RANGE)), float(rng.uniform(*LIGHT_Y_RANGE)), float(rng.uniform(*LIGHT_XZ_RANGE)))
     style_rng = np.random.default_rng([2026, number, STYLES.index(style)])
     long_lens = style == "real" and style_rng.random() < 1 / 3
-    scene = Scene(object=truth.placed(ObjectSpec()), floor=FloorSpec(floor_color), light=LightSpec(light),
+    scene = Scene.single(object=truth.placed(ObjectSpec()), floor=FloorSpec(floor_color), light=LightSpec(light),
                   camera=CameraSpec(truth.camera.elevation_deg), image_size=size)
     if long_lens:  # the centre of a wider render is what a longer lens sees from the same place
         wide = round(size * LONG_LENS_MM / truth.camera.focal_mm)

@@ -25,7 +25,7 @@ from renderer.objects.demo import DEMO_DIR
 from renderer.pathtrace import render_pathtraced
 from renderer.pipeline import object_voxels, painted_voxels
 from renderer.reference_object import object_mesh
-from renderer.scene import load_scene
+from renderer.scene import load_scene, replaced
 from renderer.shading import shade_scene
 
 RESOLUTIONS = (100, 200, 256)
@@ -50,7 +50,7 @@ def main() -> None:
     engine = RenderEngine.load(shipped_weights("nvr_plus"))
     rows, crops = {}, []
     for resolution in RESOLUTIONS:
-        scene = replace(demo, object=replace(demo.object, resolution=resolution))
+        scene = replaced(demo, object=replace(demo.object, resolution=resolution))
         rgba, floor = painted_voxels(scene, object_voxels(scene))
         start = time.perf_counter()
         shaded = shade_scene(scene, rgba, floor, args.size).image

@@ -67,7 +67,7 @@ def bench_scenes() -> list[BenchScene]:
     out = []
     for category, setting, seed, placement, light, elevation in views:
         mesh, floor, _ = apply_appearance(generate_object(category, seed), setting, seed, "test")
-        scene = Scene(object=ObjectSpec(mesh=f"{category}.obj", **placement), floor=FloorSpec(tuple(map(float, floor))),
+        scene = Scene.single(object=ObjectSpec(mesh=f"{category}.obj", **placement), floor=FloorSpec(tuple(map(float, floor))),
                       light=LightSpec(light), camera=CameraSpec(elevation))
         out.append(BenchScene(f"{category} ({setting}, {len(mesh.faces)} faces)", scene, mesh))
     return out

@@ -64,6 +64,7 @@ class RendererEntry:
     summary: str  # what draws the image, for --help
     architecture: str | None = None  # a network's architecture (models.networks), which its weights must hold
     interactive: bool = False  # offered by the editor's render panel
+    several_objects: bool = True  # draws scenes of several objects (else one object alone)
 
 
 def _voxel_cache() -> VoxelCache:
@@ -118,15 +119,21 @@ class ShaderRenderer:
 
     def render(self, scene: Scene, preview: bool = False, size: int | None = None) -> np.ndarray:
         """The scene at its image size, or at `size` without keeping the stages that depend on the size."""
+        from renderer.scene import replaced
+        from renderer.shading.staged import ObjectVoxels
         from renderer.voxel_cache import source_key
 
         start = time.perf_counter()
-        rgba, floor_color = self._voxels.painted(scene)
-        shape = source_key(scene)  # paint keeps the occupancy: the shader keeps what the camera sees
-        key = (shape, tuple(op for op in scene.paint if op.target != "floor"))
+        objects = []
+        for o in scene.objects:
+            one = replaced(scene, objects=(o,))
+            rgba, _ = self._voxels.painted(one)
+            shape = source_key(one)  # paint keeps the occupancy: the shader keeps what the camera sees
+            objects.append(ObjectVoxels(o, (shape, o.paint), rgba, shape))
         with self._lock:
-            image = self._shader.render(scene, key, rgba, floor_color, size or scene.image_size, shape_key=shape,
-                                        keep=size is None).image
+            self._shader.cache.begin()
+            image = self._shader.run_objects(scene, objects, scene.floor.color, size or scene.image_size,
+                                             keep=size is None).image
             stages = dict(self._shader.stage_ms)
         _timed(self, stages, start, preview)
         return image
@@ -146,7 +153,7 @@ class PathTraceRenderer:
 
     def __init__(self, options: RendererOptions) -> None:
         self._options = options
-        self._reference: tuple[tuple, Scene, object] | None = None  # (what it was made from, scene, mesh)
+        self._reference: tuple[tuple, Scene, list] | None = None  # (what it was made from, scene, meshes)
         self.description = f"path tracer, {options.spp} spp" + (" + OIDN" if options.denoise else "")
         self.last_report: RenderReport | None = None
 
@@ -160,23 +167,25 @@ class PathTraceRenderer:
         from renderer.pathtrace.path_tracer import render_pathtraced
 
         start = time.perf_counter()
-        reference, mesh = self._colored(scene)
-        # The reference differs from the scene only in its colors: the floor's painted one, the mesh's own.
-        traced = replace(scene, floor=reference.floor, object=replace(scene.object, color=reference.object.color))
+        reference, meshes = self._colored(scene)
+        # The reference differs from the scene only in the objects' colors: their meshes' own.
+        traced = replace(scene, objects=tuple(replace(o, color=r.color) for o, r in zip(scene.objects, reference.objects)))
         o = self._options
-        result = render_pathtraced(traced, mesh, size=size, spp=o.spp, seed=o.seed, denoise=o.denoise)
+        result = render_pathtraced(traced, meshes, size=size, spp=o.spp, seed=o.seed, denoise=o.denoise)
         self.description = f"path tracer, mitsuba {result.variant}, {o.spp} spp" + (" + OIDN" if o.denoise else "")
         _timed(self, {"pathtrace": (time.perf_counter() - start) * 1000.0}, start, False)
         return result.image
 
-    def _colored(self, scene: Scene) -> tuple[Scene, object]:
-        """The scene and mesh with the paint and captured colors on the mesh, made once per object and paint."""
-        from renderer.reference_object import reference_scene
+    def _colored(self, scene: Scene) -> tuple[Scene, list]:
+        """The scene and one mesh per object with the paint and captured colors on the meshes, made once per set of
+        objects and their paint."""
+        from renderer.reference_object import reference_objects
+        from renderer.scene import replaced
         from renderer.voxel_cache import source_key
 
-        key = (source_key(scene), scene.floor.color, scene.paint)
+        key = tuple((source_key(replaced(scene, objects=(o,))), o.paint) for o in scene.objects)
         if self._reference is None or self._reference[0] != key:
-            self._reference = (key, *reference_scene(scene))
+            self._reference = (key, *reference_objects(scene))
         return self._reference[1], self._reference[2]
 
 
@@ -199,7 +208,7 @@ RENDERERS: dict[str, RendererEntry] = {entry.name: entry for entry in (
                   "the voxels lit physically: soft shadows, lit floor (any size)", interactive=True),
     RendererEntry("nvr", "NVR", "network", _network("nvr"), "the paper's network without the splat (256 px)",
                   architecture="nvr"),
-    RendererEntry("splat", "splatting", "splat", SplatRenderer, "the surface voxels' colors"),
+    RendererEntry("splat", "splatting", "splat", SplatRenderer, "the surface voxels' colors", several_objects=False),
     RendererEntry("pathtrace", "path tracing", "pathtrace", PathTraceRenderer, "the mesh in Mitsuba 3, the reference"),
 )}
 INTERACTIVE = tuple(name for name, entry in RENDERERS.items() if entry.interactive)
@@ -216,6 +225,15 @@ def renderer_entry(name: str) -> RendererEntry:
 def network_entry(architecture: str) -> RendererEntry:
     """The entry of the network renderer whose weights hold `architecture`."""
     return next(e for e in RENDERERS.values() if e.architecture == architecture)
+
+
+def check_draws(name: str, scene: Scene) -> None:
+    """Refuse, in one line, a scene the renderer `name` cannot draw (several objects for one that draws one)."""
+    entry = renderer_entry(name)
+    if len(scene.objects) > 1 and not entry.several_objects:
+        several = ", ".join(n for n, e in RENDERERS.items() if e.several_objects)
+        raise InputError(f"renderer {name} draws one object; the scene holds {len(scene.objects)} (these draw "
+                         f"several: {several})")
 
 
 def make_renderer(name: str, options: RendererOptions | None = None) -> Renderer:

@@ -148,7 +148,7 @@ def view_scene(view: View, voxels: str, floor_color: tuple, size: int, color: tu
                lighting: Lighting | None = None, material: MaterialSpec | None = None) -> Scene:
     """The scene of one sample, its object given by a voxel file relative to the data folder."""
     lighting = lighting or Lighting()
-    return Scene(
+    return Scene.single(
         object=ObjectSpec(voxels=voxels, color=color, translation=view.translation, rotation_deg=view.rotation_deg,
                           scale=view.scale, material=material or MaterialSpec()),
         floor=FloorSpec(tuple(float(c) for c in floor_color)),

@@ -43,4 +43,5 @@ MAX_PHOTO_SIDE = 4096
 MAX_TEXTURE_SIDE = 1024  # a floor texture's long side, after reducing it while decoding: one repeat is a few hundred pixels on screen
 MAX_MAP_SIDE = 8192  # widest environment map read: 8192 x 4096 floats are 400 MB while the map is reduced
 MAX_PHOTO_PIXELS = 400_000_000
+MAX_OBJECTS = 16  # objects a scene holds: each keeps its own voxels and shader stages (a 200^3 object's voxels take 128 MB)
 MAX_PAINT_STROKES = 10_000  # paint operations a scene holds: far more than anyone paints by hand, and few enough to parse at once

@@ -44,7 +44,7 @@ from renderer.dataset_config import check_hidden_rule
 from renderer.errors import InputError
 from renderer.raymarch import OccupancyMarcher
 from renderer.resample import downscaled, resized
-from renderer.scene import Scene
+from renderer.scene import Scene, replaced
 from renderer.surface import check_object_voxels, grid_from_world, occupancy, surface_mask, voxel_centers_at
 from renderer.transform import apply_transform
 
@@ -213,7 +213,7 @@ def unmixed_albedo(photo_rgb: np.ndarray, scene: Scene, mesh, spp: int = UNMIX_S
 
     def render(albedo_linear: float) -> np.ndarray:
         srgb = float(linear_to_srgb(albedo_linear))
-        colored = replace(scene, object=replace(scene.object, color=(srgb, srgb, srgb)))
+        colored = replaced(scene, object=replace(scene.object, color=(srgb, srgb, srgb)))
         return denoise_layers(PathTracer(colored, mesh).render_layers(spp, seed)).astype(np.float64)
 
     base = render(0.0)

@@ -1,19 +1,21 @@
 """The staged path from a Scene to the network's input grid; each stage is a pure function the live engine can cache.
 
-object_voxels (mesh or voxel file, base color) -> painted_voxels (paint strokes, floor color)
--> scene_grid_for (placement, camera elevation). object_mesh is the mesh the voxels come from.
+object_voxels (mesh or voxel file, base color) -> painted_voxels (paint strokes) -> scene_grid_for (placement,
+camera elevation; every object's: painted_objects). object_mesh is the mesh the voxels come from.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import trimesh
 
 from renderer.errors import InputError
-from renderer.grid import scene_grid
+from renderer.grid import ground_mask, scene_grid
 from renderer.mesh import load_mesh, normalise_mesh
 from renderer.paint import Color, apply_paint, fill_object
-from renderer.scene import Scene
+from renderer.scene import Scene, replaced
 from renderer.voxels import ProgressCallback, load_voxels, voxelize
 
 
@@ -43,6 +45,22 @@ def painted_voxels(scene: Scene, rgba: np.ndarray) -> tuple[np.ndarray, Color]:
     return apply_paint(rgba, scene.floor.color, scene.paint)
 
 
-def scene_grid_for(scene: Scene, rgba: np.ndarray, floor_color: Color) -> np.ndarray:
-    """The network's camera-aligned input grid (128^3 x 4) for the scene's placement and camera."""
-    return scene_grid(rgba, scene.object, floor_color, scene.camera.elevation_deg)
+def painted_objects(scene: Scene) -> list[np.ndarray]:
+    """Every object's painted voxels, in the scene's order."""
+    out = []
+    for o in scene.objects:
+        one = replaced(scene, objects=(o,))
+        out.append(painted_voxels(one, object_voxels(one))[0])
+    return out
+
+
+def scene_grid_for(scene: Scene, painted: Sequence[np.ndarray], floor_color: Color) -> np.ndarray:
+    """The network's camera-aligned input grid (128^3 x 4) for the scene's objects (their painted voxels, one array
+    per object in order) and camera. Where objects meet, the later object's voxels win."""
+    elevation = scene.camera.elevation_deg
+    grid = scene_grid(painted[0], scene.objects[0], floor_color, elevation)
+    for rgba, o in zip(painted[1:], scene.objects[1:]):
+        one = scene_grid(rgba, o, floor_color, elevation)
+        taken = (one[..., 3] > 0.5) & ~ground_mask(elevation, grid.shape[0])
+        grid[taken] = one[taken]
+    return grid

@@ -16,9 +16,8 @@ import trimesh
 from scipy import ndimage
 
 from renderer.limits import MAX_MESH_FACES
-from renderer.paint import apply_paint
 from renderer.pipeline import object_mesh, object_voxels, painted_voxels
-from renderer.scene import OBJECT_SIZE, Scene
+from renderer.scene import OBJECT_SIZE, Scene, replaced
 from renderer.surface import occupancy
 from renderer.transform import OBJECT_BOX_MIN
 from renderer.voxel_faces import exposed_faces, voxel_surface_mesh
@@ -33,18 +32,27 @@ def voxel_colored(scene: Scene) -> bool:
 
 
 def reference_scene(scene: Scene) -> tuple[Scene, trimesh.Trimesh]:
-    """The scene and object mesh (object coordinates) to path trace: the floor in its painted color, and the
-    object colored from its painted voxels when voxel_colored, else the scene's own mesh."""
+    """The scene and object mesh (object coordinates) to path trace: the object colored from its painted voxels when
+    voxel_colored, else the scene's own mesh."""
     if not voxel_colored(scene):
-        floor_strokes = [op for op in scene.paint if op.target == "floor"]
-        _, floor_color = apply_paint(np.zeros((1, 1, 1, 4), np.float32), scene.floor.color, floor_strokes)
-        return scene.with_changes(floor=replace(scene.floor, color=tuple(floor_color))), object_mesh(scene)
-    rgba, floor_color = painted_voxels(scene, object_voxels(scene))
+        return scene, object_mesh(scene)
+    rgba, _ = painted_voxels(scene, object_voxels(scene))
     # The voxels hold the object color and the paint: the path tracer takes the colors from the mesh alone.
-    scene = scene.with_changes(floor=replace(scene.floor, color=tuple(floor_color)), object=replace(scene.object, color=None))
+    scene = scene.with_changes(object=replace(scene.object, color=None, paint=()))
     if scene.mesh_path() is None:
         return scene, colored_voxel_faces(rgba)
     return scene, mesh_colored_from_voxels(object_mesh(scene), rgba)
+
+
+def reference_objects(scene: Scene) -> tuple[Scene, list[trimesh.Trimesh]]:
+    """reference_scene of each of the scene's objects: the scene with the objects' colors as their meshes hold them,
+    and one mesh per object, in order."""
+    objects, meshes = [], []
+    for o in scene.objects:
+        one, mesh = reference_scene(replaced(scene, objects=(o,)))
+        objects.append(one.object)
+        meshes.append(mesh)
+    return replaced(scene, objects=tuple(objects)), meshes
 
 
 def mesh_colored_from_voxels(mesh: trimesh.Trimesh, rgba: np.ndarray) -> trimesh.Trimesh:

@@ -1,6 +1,8 @@
-"""The scene as data: one object on a ground plane, one rectangular area light, an optional environment, one camera.
+"""The scene as data: up to MAX_OBJECTS objects on a ground plane, one rectangular area light, an optional
+environment, one camera.
 
-A `Scene` mirrors the JSON scene file (version 1) key for key. It is immutable: an edit
+A `Scene` mirrors the JSON scene file (version 2) key for key; a version 1 file (one "object", its paint strokes at
+the top level) reads as a one-object scene, its floor strokes folded into the floor's color. It is immutable: an edit
 makes a new scene with `dataclasses.replace`, which lets undo keep old scenes and lets the
 live engine see exactly which part changed.
 
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 import difflib
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -26,13 +28,14 @@ from renderer.io import check_path_text, load_json, save_json
 from renderer.limits import (
     DEFAULT_RESOLUTION,
     MAX_IMAGE_SIZE,
+    MAX_OBJECTS,
     MAX_PAINT_STROKES,
     MAX_RESOLUTION,
     MIN_IMAGE_SIZE,
     MIN_RESOLUTION,
 )
 
-SCENE_VERSION = 1
+SCENE_VERSION = 2  # what save_scene writes; load_scene reads 1 and 2
 
 # Fixed set-up, in world units (the object is normalised to a unit box).
 OBJECT_SIZE = 1.0  # longest side of a normalised object's bounding box
@@ -113,6 +116,8 @@ class ObjectSpec:
     scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     voxels: str | None = None  # optional .npz of RGBA object voxels (e.g. captured colors)
     material: MaterialSpec = field(default_factory=MaterialSpec)
+    paint: tuple[PaintOp, ...] = ()  # region and whole-object fills, replayed in order on this object's voxels
+    name: str | None = None  # shown in the editor's object list; unique within a scene
 
 
 @dataclass(frozen=True)
@@ -166,21 +171,42 @@ class CameraSpec:
 
 @dataclass(frozen=True)
 class Scene:
-    object: ObjectSpec = field(default_factory=ObjectSpec)
+    objects: tuple[ObjectSpec, ...] = (ObjectSpec(),)  # 1 to MAX_OBJECTS; where their voxels meet the later one wins
     floor: FloorSpec = field(default_factory=FloorSpec)
     light: LightSpec = field(default_factory=LightSpec)
     camera: CameraSpec = field(default_factory=CameraSpec)
     image_size: int = 256
-    paint: tuple[PaintOp, ...] = ()
     environment: EnvironmentSpec | None = None  # None: the uniform ambient light
     base_dir: Path = field(default=Path("."), compare=False)  # where relative paths start
 
+    @classmethod
+    def single(cls, object: ObjectSpec | None = None, paint: tuple[PaintOp, ...] = (), **parts: Any) -> Scene:
+        """A one-object scene (unvalidated, like the constructor); `paint`: the object's strokes."""
+        obj = ObjectSpec() if object is None else object
+        return cls(objects=(replace(obj, paint=tuple(paint)) if paint else obj,), **parts)
+
+    @property
+    def object(self) -> ObjectSpec:
+        """The scene's only object, for the tools that draw or edit one (InputError when it holds several)."""
+        if len(self.objects) != 1:
+            raise InputError(f"this tool draws and edits one object; the scene holds {len(self.objects)}")
+        return self.objects[0]
+
+    @property
+    def paint(self) -> tuple[PaintOp, ...]:
+        """The only object's paint strokes (see `object`)."""
+        return self.object.paint
+
+    def file(self, relative: str | None) -> Path | None:
+        """A path from the scene file (relative to its folder) as a path to open, or None."""
+        return None if relative is None else self.base_dir / relative
+
     def mesh_path(self) -> Path | None:
-        """Absolute path of the object's mesh, or None."""
-        return None if self.object.mesh is None else (self.base_dir / self.object.mesh)
+        """Path of the only object's mesh, or None."""
+        return self.file(self.object.mesh)
 
     def voxels_path(self) -> Path | None:
-        return None if self.object.voxels is None else (self.base_dir / self.object.voxels)
+        return self.file(self.object.voxels)
 
     def floor_texture_path(self) -> Path | None:
         """Absolute path of the floor's texture image, or None."""
@@ -192,24 +218,20 @@ class Scene:
         return None if env is None or env.image is None else (self.base_dir / env.image)
 
     def with_changes(self, **parts: Any) -> Scene:
-        """A copy with whole parts replaced, validated (e.g. `light=LightSpec((0, 3, 0))`)."""
-        scene = replace(self, **parts)
+        """A copy with whole parts replaced, validated (e.g. `light=LightSpec((0, 3, 0))`); `object` and `paint`
+        replace the only object and its strokes."""
+        scene = replaced(self, **parts)
         validate(scene)
         return scene
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON form (version 1); keys that are None, and new parts left at their defaults, are left out, so a
-        scene without them saves as it did before they existed."""
-        obj = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self.object).items()
-               if v is not None and k != "material"}
-        if self.object.material != MaterialSpec():
-            obj["material"] = asdict(self.object.material)
+        """The JSON form (version 2); keys that are None, and optional parts left at their defaults, are left out."""
         light: dict[str, Any] = {"position": list(self.light.position)}
         if not self.light.enabled:
             light["enabled"] = False
         data: dict[str, Any] = {
             "version": SCENE_VERSION,
-            "object": obj,
+            "objects": [_object_to_dict(o) for o in self.objects],
             "floor": _floor_to_dict(self.floor),
             "light": light,
             "camera": {"elevation_deg": self.camera.elevation_deg},
@@ -217,9 +239,28 @@ class Scene:
         }
         if self.environment is not None:
             data["environment"] = {k: v for k, v in asdict(self.environment).items() if v is not None}
-        if self.paint:
-            data["paint"] = [_paint_to_dict(op) for op in self.paint]
         return data
+
+
+def replaced(scene: Scene, **parts: Any) -> Scene:
+    """dataclasses.replace, where `object` (and `paint`, its strokes) replace a one-object scene's object; unvalidated."""
+    obj, paint = parts.pop("object", None), parts.pop("paint", None)
+    if obj is not None or paint is not None:
+        obj = scene.object if obj is None else obj
+        parts["objects"] = (obj if paint is None else replace(obj, paint=tuple(paint)),)
+    return replace(scene, **parts)
+
+
+def _object_to_dict(o: ObjectSpec) -> dict[str, Any]:
+    data = {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(o).items()
+            if v is not None and k not in ("material", "paint", "name")}
+    if o.name is not None:
+        data = {"name": o.name, **data}
+    if o.material != MaterialSpec():
+        data["material"] = asdict(o.material)
+    if o.paint:
+        data["paint"] = [_paint_to_dict(op) for op in o.paint]
+    return data
 
 
 def _floor_to_dict(floor: FloorSpec) -> dict[str, Any]:
@@ -328,42 +369,43 @@ def json_type(value: Any) -> str:
 
 
 def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
-    """Build and validate a Scene from its JSON form; problems raise InputError naming `path`."""
+    """Build and validate a Scene from its JSON form (version 1 or 2); problems raise InputError naming `path`."""
     path = None if path is None else Path(path)
     r = _Reader(path)
     if not isinstance(data, dict):
         raise InputError("a scene file must hold a JSON object", path)
     version = data.get("version")
-    if version != SCENE_VERSION:
-        raise r.fail("version", f"unsupported scene version {version!r} (expected {SCENE_VERSION})")
-    r.known_keys(data, SCENE_KEYS)
-    o = r.section(data, "object", required=True)
-    r.known_keys(o, OBJECT_KEYS, "object.")
-    resolution = o.get("resolution", DEFAULT_RESOLUTION)
-    if isinstance(resolution, bool) or not isinstance(resolution, int):
-        raise r.fail("object.resolution", f"must be an integer, got {json_type(resolution)}")
-    up = r.string(o, "up", "object.up", "y")
-    color = None if o.get("color") is None else r.vector(o, "color", "object.color", 3, (0, 0, 0))
-    m = r.section(o, "material", name="object.material")
-    r.known_keys(m, MATERIAL_KEYS, "object.material.")
-    material = MaterialSpec(**{key: r.number(m, key, f"object.material.{key}", getattr(MaterialSpec(), key))
-                               for key in MATERIAL_KEYS})
-    obj = ObjectSpec(
-        mesh=r.file_path(o, "mesh", "object.mesh"),
-        up=up,
-        resolution=resolution,
-        color=color,
-        translation=r.vector(o, "translation", "object.translation", 2, (0.0, 0.0)),
-        rotation_deg=r.number(o, "rotation_deg", "object.rotation_deg", 0.0),
-        scale=r.vector(o, "scale", "object.scale", 3, (1.0, 1.0, 1.0)),
-        voxels=r.file_path(o, "voxels", "object.voxels"),
-        material=material,
-    )
+    if version not in (1, SCENE_VERSION):
+        raise r.fail("version", f"unsupported scene version {version!r} (expected 1 or {SCENE_VERSION})")
+    r.known_keys(data, SCENE_KEYS_V1 if version == 1 else SCENE_KEYS)
     f = r.section(data, "floor")
     r.known_keys(f, FLOOR_KEYS, "floor.")
     floor = FloorSpec(r.vector(f, "color", "floor.color", 3, FloorSpec().color), r.file_path(f, "texture", "floor.texture"),
                       r.number(f, "texture_scale", "floor.texture_scale", FloorSpec().texture_scale),
                       r.string(f, "shape", "floor.shape", "square"))
+    if version == 1:  # one object; its strokes and the floor's at the top level
+        strokes = _paint_from_list(r, data.get("paint", []), "paint", _paint_side(data.get("object")))
+        floor_strokes = [op for op in strokes if op.target == "floor"]
+        if floor_strokes:  # a floor fill sets the floor's color (renderer.paint.apply_paint)
+            floor = replace(floor, color=tuple(floor_strokes[-1].color))
+        o = r.section(data, "object", required=True)
+        objects = (_object_from_dict(r, o, "object", tuple(op for op in strokes if op.target != "floor")),)
+    else:
+        entries = data.get("objects")
+        if not isinstance(entries, list):
+            raise r.fail("objects", "missing" if entries is None else f"must be a list of objects, got {json_type(entries)}")
+        if not 1 <= len(entries) <= MAX_OBJECTS:
+            raise r.fail("objects", f"{len(entries)} objects; a scene holds 1 to {MAX_OBJECTS}")
+        objects = []
+        for i, o in enumerate(entries):
+            name = f"objects[{i}]"
+            if not isinstance(o, dict):
+                raise r.fail(name, f"must be an object, got {json_type(o)}")
+            paint = _paint_from_list(r, o.get("paint", []), f"{name}.paint", _paint_side(o))
+            if any(op.target == "floor" for op in paint):
+                raise r.fail(f"{name}.paint", 'an object\'s fills are "region" or "object"; the floor\'s color is floor.color')
+            objects.append(_object_from_dict(r, o, name, paint))
+        objects = tuple(objects)
     li = r.section(data, "light")
     r.known_keys(li, ("position", "enabled"), "light.")
     light = LightSpec(r.vector(li, "position", "light.position", 3, LightSpec().position),
@@ -375,14 +417,55 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
     image_size = data.get("image_size", 256)
     if isinstance(image_size, bool) or not isinstance(image_size, int):
         raise r.fail("image_size", f"must be an integer, got {json_type(image_size)}")
-    paint_data = data.get("paint", [])
+    base_dir = path.parent if path is not None else Path(".")
+    scene = Scene(objects, floor, light, camera, image_size, environment, base_dir)
+    validate(scene, path, object_key=(lambda i: "object") if version == 1 else (lambda i: f"objects[{i}]"))
+    return scene
+
+
+def _object_from_dict(r: _Reader, o: dict, name: str, paint: tuple[PaintOp, ...]) -> ObjectSpec:
+    """One object's entry (`name`: how messages name it, "object" or "objects[i]")."""
+    r.known_keys(o, OBJECT_KEYS if name != "object" else OBJECT_KEYS_V1, f"{name}.")
+    resolution = o.get("resolution", DEFAULT_RESOLUTION)
+    if isinstance(resolution, bool) or not isinstance(resolution, int):
+        raise r.fail(f"{name}.resolution", f"must be an integer, got {json_type(resolution)}")
+    color = None if o.get("color") is None else r.vector(o, "color", f"{name}.color", 3, (0, 0, 0))
+    m = r.section(o, "material", name=f"{name}.material")
+    r.known_keys(m, MATERIAL_KEYS, f"{name}.material.")
+    material = MaterialSpec(**{key: r.number(m, key, f"{name}.material.{key}", getattr(MaterialSpec(), key))
+                               for key in MATERIAL_KEYS})
+    return ObjectSpec(
+        mesh=r.file_path(o, "mesh", f"{name}.mesh"),
+        up=r.string(o, "up", f"{name}.up", "y"),
+        resolution=resolution,
+        color=color,
+        translation=r.vector(o, "translation", f"{name}.translation", 2, (0.0, 0.0)),
+        rotation_deg=r.number(o, "rotation_deg", f"{name}.rotation_deg", 0.0),
+        scale=r.vector(o, "scale", f"{name}.scale", 3, (1.0, 1.0, 1.0)),
+        voxels=r.file_path(o, "voxels", f"{name}.voxels"),
+        material=material,
+        paint=paint,
+        name=r.string(o, "name", f"{name}.name", None),
+    )
+
+
+def _paint_side(o: Any) -> int:
+    """The voxels per side a stroke's seed indexes: the object's resolution, or the largest for a voxel file."""
+    if not isinstance(o, dict) or o.get("voxels") is not None:
+        return MAX_RESOLUTION
+    resolution = o.get("resolution", DEFAULT_RESOLUTION)
+    return resolution if isinstance(resolution, int) and not isinstance(resolution, bool) else MAX_RESOLUTION
+
+
+def _paint_from_list(r: _Reader, paint_data: Any, where: str, side: int) -> tuple[PaintOp, ...]:
+    """Fill strokes from their JSON list (`where`: its key in messages; `side`: the seeds' bound)."""
     if not isinstance(paint_data, list):
-        raise r.fail("paint", "must be a list of fill operations")
+        raise r.fail(where, "must be a list of fill operations")
     if len(paint_data) > MAX_PAINT_STROKES:
-        raise r.fail("paint", f"{len(paint_data)} operations; a scene holds at most {MAX_PAINT_STROKES}")
+        raise r.fail(where, f"{len(paint_data)} operations; a scene holds at most {MAX_PAINT_STROKES}")
     paint = []
     for i, p in enumerate(paint_data):
-        name = f"paint[{i}]"
+        name = f"{where}[{i}]"
         if not isinstance(p, dict):
             raise r.fail(name, "must be an object")
         r.known_keys(p, ("target", "color", "seed", "tolerance", "similarity"), f"{name}.")
@@ -390,7 +473,6 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
         if seed is not None:
             if not isinstance(seed, list) or len(seed) != 3 or not all(isinstance(s, int) and not isinstance(s, bool) for s in seed):
                 raise r.fail(f"{name}.seed", "must be a list of 3 integers")
-            side = resolution if o.get("voxels") is None else MAX_RESOLUTION
             if not all(0 <= s < side for s in seed):
                 raise r.fail(f"{name}.seed", f"must be voxel indices from 0 to {side - 1}, got {seed}")
             seed = tuple(seed)
@@ -403,15 +485,14 @@ def scene_from_dict(data: Any, path: str | Path | None = None) -> Scene:
                 similarity=r.string(p, "similarity", f"{name}.similarity", "rgb"),
             )
         )
-    base_dir = path.parent if path is not None else Path(".")
-    scene = Scene(obj, floor, light, camera, image_size, tuple(paint), environment, base_dir)
-    validate(scene, path)
-    return scene
+    return tuple(paint)
 
 
 FLOOR_KEYS = ("color", "texture", "texture_scale", "shape")
-SCENE_KEYS = ("version", "object", "floor", "light", "camera", "image_size", "paint", "environment")
-OBJECT_KEYS = ("mesh", "up", "resolution", "color", "translation", "rotation_deg", "scale", "voxels", "material")
+SCENE_KEYS = ("version", "objects", "floor", "light", "camera", "image_size", "environment")
+SCENE_KEYS_V1 = ("version", "object", "floor", "light", "camera", "image_size", "paint", "environment")
+OBJECT_KEYS_V1 = ("mesh", "up", "resolution", "color", "translation", "rotation_deg", "scale", "voxels", "material")
+OBJECT_KEYS = ("name", *OBJECT_KEYS_V1, "paint")
 MATERIAL_KEYS = ("roughness", "specular", "metallic")
 SKY_KEYS = ("sun_elevation_deg", "sun_azimuth_deg", "turbidity")
 
@@ -429,29 +510,31 @@ def _environment_from_dict(r: _Reader, data: dict) -> EnvironmentSpec:
                            strength=r.number(e, "strength", "environment.strength", 1.0))
 
 
-def validate(scene: Scene, path: str | Path | None = None) -> None:
-    """Raise InputError for impossible values (NaN, scale <= 0, light at or below the floor, ...)."""
+def validate(scene: Scene, path: str | Path | None = None,
+             object_key: Callable[[int], str] | None = None) -> None:
+    """Raise InputError for impossible values (NaN, scale <= 0, light at or below the floor, ...). `object_key`: how
+    messages name object i (default "object" in a one-object scene, else "objects[i]")."""
 
     def fail(key: str, problem: str) -> InputError:
         return InputError(f"{key}: {problem}", path)
 
-    o = scene.object
-    values = [*o.translation, o.rotation_deg, *o.scale, *scene.light.position, scene.camera.elevation_deg]
+    if not 1 <= len(scene.objects) <= MAX_OBJECTS:
+        raise fail("objects", f"{len(scene.objects)} objects; a scene holds 1 to {MAX_OBJECTS}")
+    if object_key is None:
+        object_key = (lambda i: "object") if len(scene.objects) == 1 else (lambda i: f"objects[{i}]")
+    values = [*scene.light.position, scene.camera.elevation_deg]
     if not all(math.isfinite(v) for v in values):
         raise InputError("scene holds a NaN or infinite value", path)
-    if o.up not in ("y", "z"):
-        raise fail("object.up", f'must be "y" or "z", got {o.up!r}')
-    if not MIN_RESOLUTION <= o.resolution <= MAX_RESOLUTION:
-        raise fail("object.resolution", f"must be in [{MIN_RESOLUTION}, {MAX_RESOLUTION}], got {o.resolution}")
-    if o.mesh is None and o.voxels is None:
-        raise fail("object", "needs a mesh or a voxels file")
-    if any(s <= 0 for s in o.scale):
-        raise fail("object.scale", f"must be positive, got {list(o.scale)}")
-    if any(abs(t) > MAX_ABS_POSITION for t in o.translation):
-        raise fail("object.translation", f"must be within +-{MAX_ABS_POSITION}")
-    for key, color in (("object.color", o.color), ("floor.color", scene.floor.color)):
-        if color is not None and not all(0.0 <= c <= 1.0 for c in color):
-            raise fail(key, f"sRGB values must be in [0, 1], got {list(color)}")
+    names: dict[str, int] = {}
+    for i, o in enumerate(scene.objects):
+        _validate_object(o, object_key(i), fail)
+        if o.name is not None:
+            if o.name in names:
+                raise fail(f"{object_key(i)}.name", f"{o.name!r} is the name of {object_key(names[o.name])} too; "
+                                                    "names are unique")
+            names[o.name] = i
+    if scene.floor.color is not None and not all(0.0 <= c <= 1.0 for c in scene.floor.color):
+        raise fail("floor.color", f"sRGB values must be in [0, 1], got {list(scene.floor.color)}")
     if scene.floor.shape not in FLOOR_SHAPES:
         raise fail("floor.shape", f'must be "square" or "disk", got {scene.floor.shape!r}')
     if not 0.0 < scene.floor.texture_scale <= MAX_TEXTURE_SCALE:
@@ -463,9 +546,6 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
         raise fail("light.position", f"must be within +-{MAX_ABS_POSITION}")
     if not 0.0 <= scene.camera.elevation_deg < 90.0:
         raise fail("camera.elevation_deg", f"must be in [0, 90), got {scene.camera.elevation_deg}")
-    for key, value in asdict(o.material).items():
-        if not math.isfinite(value) or not 0.0 <= value <= 1.0:
-            raise fail(f"object.material.{key}", f"must be in [0, 1], got {value}")
     env = scene.environment
     if env is not None:
         if (env.image is None) == (env.sky is None):
@@ -487,26 +567,53 @@ def validate(scene: Scene, path: str | Path | None = None) -> None:
         raise fail("light.enabled", "the area light can be off only when an environment lights the scene")
     if not MIN_IMAGE_SIZE <= scene.image_size <= MAX_IMAGE_SIZE:
         raise fail("image_size", f"must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {scene.image_size}")
-    if len(scene.paint) > MAX_PAINT_STROKES:
-        raise fail("paint", f"{len(scene.paint)} operations; a scene holds at most {MAX_PAINT_STROKES}")
-    for i, op in enumerate(scene.paint):
-        if op.target not in ("region", "object", "floor"):
-            raise fail(f"paint[{i}].target", f'must be "region", "object" or "floor", got {op.target!r}')
+
+
+def _validate_object(o: ObjectSpec, key: str, fail: Callable[[str, str], InputError]) -> None:
+    """One object's values (`key`: how messages name it); the paint strokes' keys are "paint[j]" in a version 1
+    file's one-object scene, as they are written there."""
+    values = [*o.translation, o.rotation_deg, *o.scale]
+    if not all(math.isfinite(v) for v in values):
+        raise fail(key, "holds a NaN or infinite value")
+    if o.up not in ("y", "z"):
+        raise fail(f"{key}.up", f'must be "y" or "z", got {o.up!r}')
+    if not MIN_RESOLUTION <= o.resolution <= MAX_RESOLUTION:
+        raise fail(f"{key}.resolution", f"must be in [{MIN_RESOLUTION}, {MAX_RESOLUTION}], got {o.resolution}")
+    if o.mesh is None and o.voxels is None:
+        raise fail(key, "needs a mesh or a voxels file")
+    if any(s <= 0 for s in o.scale):
+        raise fail(f"{key}.scale", f"must be positive, got {list(o.scale)}")
+    if any(abs(t) > MAX_ABS_POSITION for t in o.translation):
+        raise fail(f"{key}.translation", f"must be within +-{MAX_ABS_POSITION}")
+    if o.color is not None and not all(0.0 <= c <= 1.0 for c in o.color):
+        raise fail(f"{key}.color", f"sRGB values must be in [0, 1], got {list(o.color)}")
+    for name, value in asdict(o.material).items():
+        if not math.isfinite(value) or not 0.0 <= value <= 1.0:
+            raise fail(f"{key}.material.{name}", f"must be in [0, 1], got {value}")
+    if o.name is not None and not o.name.strip():
+        raise fail(f"{key}.name", "must not be empty")
+    where = "paint" if key == "object" else f"{key}.paint"
+    if len(o.paint) > MAX_PAINT_STROKES:
+        raise fail(where, f"{len(o.paint)} operations; an object holds at most {MAX_PAINT_STROKES}")
+    for i, op in enumerate(o.paint):
+        if op.target not in ("region", "object"):
+            raise fail(f"{where}[{i}].target", f'must be "region" or "object", got {op.target!r}')
         if op.target == "region" and op.seed is None:
-            raise fail(f"paint[{i}].seed", "a region fill needs a seed voxel")
+            raise fail(f"{where}[{i}].seed", "a region fill needs a seed voxel")
         if not all(0.0 <= c <= 1.0 for c in op.color):
-            raise fail(f"paint[{i}].color", "sRGB values must be in [0, 1]")
+            raise fail(f"{where}[{i}].color", "sRGB values must be in [0, 1]")
         if not 0.0 <= op.tolerance <= 1.0:
-            raise fail(f"paint[{i}].tolerance", "must be in [0, 1]")
+            raise fail(f"{where}[{i}].tolerance", "must be in [0, 1]")
         if op.similarity not in SIMILARITIES:
-            raise fail(f"paint[{i}].similarity", f"must be one of {', '.join(SIMILARITIES)}, got {op.similarity!r}")
+            raise fail(f"{where}[{i}].similarity", f"must be one of {', '.join(SIMILARITIES)}, got {op.similarity!r}")
 
 
 def needs_environment_shading(scene: Scene) -> bool:
     """Whether the scene holds more than the area-light set-up (an environment, the area light off, an object that is
     not diffuse, a textured or round floor): the shader's environment path draws it, and only a network that reads the
     environment (config.environment_input) corrects it."""
-    return (scene.environment is not None or not scene.light.enabled or not scene.object.material.diffuse_only
+    return (scene.environment is not None or not scene.light.enabled
+            or any(not o.material.diffuse_only for o in scene.objects)
             or scene.floor.texture is not None or scene.floor.shape != "square")
 
 
@@ -519,10 +626,12 @@ def range_warnings(scene: Scene) -> list[str]:
             out.append(f"{name} = {value:g} is outside the training range [{lo:g}, {hi:g}]")
 
     check("camera.elevation_deg", scene.camera.elevation_deg, *ELEVATION_RANGE)
-    for name, v in zip(("x", "z"), scene.object.translation):
-        check(f"object.translation.{name}", v, *TRANSLATION_RANGE)
-    for name, v in zip("xyz", scene.object.scale):
-        check(f"object.scale.{name}", v, *SCALE_RANGE)
+    for i, o in enumerate(scene.objects):
+        key = "object" if len(scene.objects) == 1 else f"objects[{i}]"
+        for name, v in zip(("x", "z"), o.translation):
+            check(f"{key}.translation.{name}", v, *TRANSLATION_RANGE)
+        for name, v in zip("xyz", o.scale):
+            check(f"{key}.scale.{name}", v, *SCALE_RANGE)
     lx, ly, lz = scene.light.position
     check("light.position.x", lx, *LIGHT_XZ_RANGE)
     check("light.position.y", ly, *LIGHT_Y_RANGE)
@@ -531,13 +640,13 @@ def range_warnings(scene: Scene) -> list[str]:
 
 
 def load_scene(path: str | Path) -> Scene:
-    """Read and validate a scene file (format version 1)."""
+    """Read and validate a scene file (format version 1 or 2)."""
     return scene_from_dict(load_json(path), path)
 
 
 def save_scene(scene: Scene, path: str | Path) -> None:
-    """Write a scene file atomically; mesh, voxel, environment and floor texture paths are rewritten relative to its
-    folder."""
+    """Write a scene file (version 2) atomically; mesh, voxel, environment and floor texture paths are rewritten
+    relative to its folder."""
     import os
 
     folder = Path(path).resolve().parent
@@ -545,8 +654,9 @@ def save_scene(scene: Scene, path: str | Path) -> None:
     def rebase(value: str | None) -> str | None:
         return None if value is None else os.path.relpath((scene.base_dir / value).resolve(), folder)
 
-    obj, env = scene.object, scene.environment
-    rebased = replace(scene, object=replace(obj, mesh=rebase(obj.mesh), voxels=rebase(obj.voxels)),
+    env = scene.environment
+    objects = tuple(replace(o, mesh=rebase(o.mesh), voxels=rebase(o.voxels)) for o in scene.objects)
+    rebased = replace(scene, objects=objects,
                       environment=None if env is None else replace(env, image=rebase(env.image)),
                       floor=replace(scene.floor, texture=rebase(scene.floor.texture)))
     save_json(path, rebased.to_dict())

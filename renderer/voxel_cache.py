@@ -20,12 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from renderer.limits import MAX_OBJECTS
 from renderer.paint import Color, apply_paint, needed_strokes
 from renderer.pipeline import object_voxels
 from renderer.scene import PaintOp, Scene
 from renderer.voxels import ProgressCallback
 
-SOURCES_KEPT = 4  # objects remembered (undo across a few mesh loads stays instant)
+SOURCES_KEPT = MAX_OBJECTS + 4  # objects remembered: a full scene's, and undo across a few mesh loads stays instant
 PAINTINGS_KEPT = 24  # painted states remembered (undo across strokes stays instant)
 PAINTED_BYTES_KEPT = 512 * 2**20  # ... and at most this much of them (4 states of a 200^3 object, 24 at 110^3)
 
@@ -82,7 +83,7 @@ class VoxelCache:
     def painted(self, scene: Scene) -> tuple[np.ndarray, Color]:
         """The object voxels after the scene's paint strokes (read-only array), and the floor color."""
         key = source_key(scene)
-        strokes = tuple(needed_strokes([op for op in scene.paint if op.target != "floor"]))
+        strokes = tuple(needed_strokes(scene.paint))
         base = self.object_rgba(scene)
         with self._lock:
             done, rgba = self._longest_cached_prefix(key, strokes, base)
@@ -95,9 +96,7 @@ class VoxelCache:
                 self._painted[(key, strokes)] = rgba
                 self._forget_beyond_budget()
             self._prepare_spare(rgba.shape)  # for the next stroke
-        floor_strokes = [op for op in scene.paint if op.target == "floor"]
-        _, floor_color = apply_paint(rgba, scene.floor.color, floor_strokes)
-        return rgba, floor_color
+        return rgba, scene.floor.color
 
     def _longest_cached_prefix(self, key: SourceKey, strokes: tuple[PaintOp, ...],
                                base: np.ndarray) -> tuple[int, np.ndarray]:

@@ -58,7 +58,7 @@ def two_color_box(tmp_path):
     rgba[4:12, 0:10, 4:12] = (0.8, 0.3, 0.2, 1.0)
     rgba[4:12, 10:12, 4:12] = (0.2, 0.3, 0.8, 1.0)
     save_voxels(tmp_path / "box.npz", rgba)
-    return Scene(object=ObjectSpec(voxels="box.npz", rotation_deg=20.0, scale=(0.8, 0.8, 0.8)),
+    return Scene.single(object=ObjectSpec(voxels="box.npz", rotation_deg=20.0, scale=(0.8, 0.8, 0.8)),
                  floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec((1.0, 2.75, 0.5)), camera=CameraSpec(30.0),
                  image_size=64, base_dir=tmp_path)
 

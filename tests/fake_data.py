@@ -26,7 +26,7 @@ def make_fake_dataset(folder: Path, samples: int = 4, size: int = 32, resolution
     records = []
     for k in range(samples):
         light = (float(rng.uniform(-1.5, 1.5)), 2.75, float(rng.uniform(-1.5, 1.5)))
-        scene = Scene(
+        scene = Scene.single(
             object=ObjectSpec(voxels="objects/o00000.npz", rotation_deg=float(rng.uniform(-90, 90))),
             floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec(light), camera=CameraSpec(30.0), image_size=size,
         )

@@ -167,7 +167,7 @@ def test_rows_are_timed_in_step_scene_by_scene():
             return 1.0
 
     contenders = [Fake("a", True), Fake("b", False)]
-    scene = Scene(object=ObjectSpec(voxels="box.npz"))
+    scene = Scene.single(object=ObjectSpec(voxels="box.npz"))
     scenes = [BenchScene(name, scene, None) for name in ("s0", "s1", "s2")]
     settings = BenchSettings(repeats=2, in_step_rounds=2)
     bench_in_step(contenders, scenes, settings, NoMemory())

@@ -177,7 +177,7 @@ def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):
     colored = chair.copy()
     colored.visual.vertex_colors = np.tile([200, 40, 30, 255], (len(chair.vertices), 1)).astype(np.uint8)
     truth = PhotoPose(Camera(22.0, 96, 96), rotation_deg=35.0)
-    scene = Scene(object=truth.placed(Scene().object), light=LightSpec((0.5, 3.0, 1.5)),
+    scene = Scene.single(object=truth.placed(Scene().object), light=LightSpec((0.5, 3.0, 1.5)),
                   camera=CameraSpec(truth.camera.elevation_deg), image_size=96)
     photo = render_pathtraced(scene, colored, spp=4, seed=1, denoise=True, floor=False).image
     rgba = voxelize(colored, 24)
@@ -265,7 +265,7 @@ def test_capture_command_writes_a_scene_that_reproduces_the_pose(tmp_path, chair
                 str(tmp_path / "rough.json"), "--auto", "--res", "24", "-o", str(out)])
     assert code == 0
     scene = json.loads(out.read_text())
-    assert rotation_error_deg(scene["object"]["rotation_deg"], 20.0) < 3.0
+    assert rotation_error_deg(scene["objects"][0]["rotation_deg"], 20.0) < 3.0
     assert abs(scene["camera"]["elevation_deg"] - 30.0) < 3.0
     assert (tmp_path / "scene_colors.npz").exists() and (tmp_path / "scene_camera.json").exists()
     assert run(["capture", str(tmp_path / "chair.obj"), str(tmp_path / "photo.png"), "-o", str(out)]) == 2  # exists

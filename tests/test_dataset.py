@@ -58,7 +58,7 @@ def test_files_and_manifest(reference):
         for key in ("target", "splat"):
             assert (reference / sample[key]).is_file()
         scene = sample["scene"]
-        assert (reference / scene["object"]["voxels"]).is_file()
+        assert (reference / scene["objects"][0]["voxels"]).is_file()
         assert ELEVATION_RANGE[0] <= scene["camera"]["elevation_deg"] <= ELEVATION_RANGE[1]
         assert LIGHT_Y_RANGE[0] <= scene["light"]["position"][1] <= LIGHT_Y_RANGE[1]
     rgba = np.load(reference / manifest["objects"][0]["voxels"])["rgba"]

@@ -30,7 +30,7 @@ from models.networks.checkpoint import save_model
 from models.networks.config import CompactConfig
 from models.networks.nvr import build_model
 from renderer.pipeline import object_voxels, painted_voxels
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, load_scene, save_scene
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, load_scene, replaced, save_scene
 from renderer.surface import voxel_centers_at
 from renderer.transform import apply_transform, object_to_world
 from renderer.voxels import load_voxels, save_voxels
@@ -81,7 +81,7 @@ def scene_file(tmp_path_factory) -> Path:
     """The box scene (tests save their edits elsewhere, so one file serves them all)."""
     tmp_path = tmp_path_factory.mktemp("scene")
     save_voxels(tmp_path / "box.npz", box_voxels())
-    scene = Scene(object=ObjectSpec(voxels="box.npz", resolution=16, rotation_deg=20.0),
+    scene = Scene.single(object=ObjectSpec(voxels="box.npz", resolution=16, rotation_deg=20.0),
                   floor=FloorSpec((0.5, 0.6, 0.7)), light=LightSpec((1.0, 2.75, 0.5)), camera=CameraSpec(30.0),
                   image_size=64, base_dir=tmp_path)
     save_scene(scene, tmp_path / "scene.json")
@@ -198,7 +198,7 @@ def test_undo_restores_the_scene_exactly_and_redo_repeats(display, tmp_path, sce
     assert edited.object.translation == (0.3, -0.2)
     assert edited.camera.elevation_deg == 15.0
     assert edited.light.position == (0.0, 2.9, 1.0)
-    assert [op.target for op in edited.paint] == ["region", "floor"]
+    assert [op.target for op in edited.paint] == ["region"]  # the floor's fill set its color
 
 
 def screen_position(point, scene_view=HOME) -> list[float]:
@@ -347,7 +347,7 @@ def test_a_headless_run_neither_offers_nor_replaces_the_interactive_autosave(dis
     interactive = state / "nvr-studio" / "recovery" / "scene.json"
     monkeypatch.setenv("XDG_STATE_HOME", str(state))
     moved = load_scene(scene_file)
-    editor_state.write_recovery(replace(moved, object=replace(moved.object, translation=(0.3, -0.2))), scene_file)
+    editor_state.write_recovery(replaced(moved, object=replace(moved.object, translation=(0.3, -0.2))), scene_file)
     before = interactive.read_bytes()  # unsaved changes the interactive editor left
     result = run_editor(display, tmp_path, scene_file, [
         {"action": "answer", "choice": "Restore"},  # nothing is offered: refused with a message
@@ -377,7 +377,7 @@ def test_meshes_and_photos_load_and_bad_files_leave_the_scene_alone(display, tmp
     assert "broken.obj" in result.stderr and "scene.json: missing" in result.stderr  # shown, and echoed on stderr
     unchanged, original = load_scene(tmp_path / "unchanged.json"), load_scene(scene_file)
     assert unchanged.voxels_path().resolve() == original.voxels_path().resolve()  # saved elsewhere: relative path differs
-    assert replace(unchanged, object=original.object) == original
+    assert replaced(unchanged, object=original.object) == original
     tall = load_scene(tmp_path / "tall.json")
     assert tall.mesh_path().resolve() == (tmp_path / "tall.obj").resolve() and tall.object.voxels is None
     occupied = object_voxels(tall)[..., 3] > 0.5
@@ -879,7 +879,7 @@ def test_a_paint_stroke_recolors_the_viewport_faces_as_if_they_were_made_again(d
     i, j, k = np.ogrid[:n, :n, :n]
     rgba[(i - 60) ** 2 + (j - 40) ** 2 + (k - 60) ** 2 < 30**2] = (0.8, 0.3, 0.2, 1.0)
     rgba[40:80, 20:40, 40:80] = (0.2, 0.6, 0.3, 1.0)  # a green slab through the ball's lower half
-    scene = Scene(object=ObjectSpec(voxels="unused.npz", resolution=n))
+    scene = Scene.single(object=ObjectSpec(voxels="unused.npz", resolution=n))
     view = viewport_camera(replace(HOME, distance=2.0), 320, 240)
     region = fill_region_voxels(rgba, (60, 30, 60), 0.05)  # the slab
     painted = rgba.copy()
@@ -928,7 +928,7 @@ def test_a_fine_object_is_drawn_in_merged_blocks_while_the_user_drags(display, m
     rgba[101, 110:190, 99] = (0.2, 0.3, 0.9, 1.0)  # a rod one voxel thick on top: a block holding it stays occupied
     blocks = pool_voxels(rgba, (2, 2, 2))
     as_blocks = blocks.repeat(2, axis=0).repeat(2, axis=1).repeat(2, axis=2)  # every voxel its block's value
-    scene = Scene(object=ObjectSpec(voxels="unused.npz", resolution=n))
+    scene = Scene.single(object=ObjectSpec(voxels="unused.npz", resolution=n))
     view = viewport_camera(replace(HOME, distance=2.0), 320, 240)  # the object fills much of the view
 
     def pixels(voxels: np.ndarray, moving: bool) -> np.ndarray:
@@ -1181,7 +1181,7 @@ def test_dragging_the_column_border_widens_the_render_panel_and_its_image(displa
 def test_an_export_can_voxelise_the_mesh_finer_and_the_scene_keeps_its_voxels(display, tmp_path, scene_file):
     shutil.copy(REPOSITORY / "assets" / "demo" / "chair.obj", tmp_path / "chair.obj")
     coarse = replace(load_scene(REPOSITORY / "assets" / "demo" / "scene.json"), base_dir=tmp_path)
-    coarse = replace(coarse, object=replace(coarse.object, resolution=64), image_size=64)
+    coarse = replaced(coarse, object=replace(coarse.object, resolution=64), image_size=64)
     save_scene(coarse, tmp_path / "chair.json")
     result = run_editor(display, tmp_path, tmp_path / "chair.json", [
         {"action": "export", "path": str(tmp_path / "own.png"), "size": 256},

@@ -22,7 +22,7 @@ from models.renderers import RendererOptions, ShaderRenderer
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.paint import apply_paint
-from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene
+from renderer.scene import LightSpec, ObjectSpec, PaintOp, Scene, replaced
 from renderer.shading import shade_scene
 from renderer.voxel_cache import VoxelCache
 from renderer.voxel_faces import exposed_faces, voxel_surface_mesh
@@ -36,7 +36,7 @@ def box_scene(tmp_path) -> Scene:
     rgba[2:6, 0:3, 2:6] = (0.8, 0.2, 0.2, 1.0)
     rgba[2:6, 3, 2:6] = (0.2, 0.2, 0.8, 1.0)
     save_voxels(tmp_path / "box.npz", rgba)
-    return Scene(object=ObjectSpec(voxels="box.npz", resolution=8), base_dir=tmp_path)
+    return Scene.single(object=ObjectSpec(voxels="box.npz", resolution=8), base_dir=tmp_path)
 
 
 # --- history and document -------------------------------------------------------------------------
@@ -97,14 +97,14 @@ def test_edits_inside_their_bounds_are_taken_as_given(box_scene):
     assert edits.place_object(box_scene, scale=(0.05, 1.0, 20.0)).object.scale == (0.05, 1.0, 20.0)
 
 
-def test_a_new_object_keeps_placement_and_floor_strokes_only(box_scene, tmp_path):
+def test_a_new_object_keeps_placement_and_the_floor_but_not_paint(box_scene, tmp_path):
     scene = edits.place_object(box_scene, translation=(0.3, 0.1), rotation_deg=45.0)
     scene = edits.paint(edits.paint(scene, PaintOp("object", (0.1, 0.1, 0.1))), PaintOp("floor", (0.9, 0.9, 0.9)))
     mesh = tmp_path / "chair.obj"
     changed = edits.replace_object_source(scene, mesh=mesh)
     assert changed.object.mesh == str(mesh.resolve()) and changed.object.voxels is None
     assert changed.object.translation == (0.3, 0.1) and changed.object.rotation_deg == 45.0
-    assert [op.target for op in changed.paint] == ["floor"]
+    assert changed.paint == () and changed.floor.color == (0.9, 0.9, 0.9)
 
 
 # --- picking --------------------------------------------------------------------------------------
@@ -206,9 +206,9 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
     two = edits.paint(two, PaintOp("floor", (0.3, 0.3, 0.3)))
     first, _ = cache.painted(one)
     rgba, floor = cache.painted(two)  # painted from `one`'s result
-    expected, expected_floor = apply_paint(cache.object_rgba(box_scene), box_scene.floor.color, two.paint)
+    expected, _ = apply_paint(cache.object_rgba(box_scene), box_scene.floor.color, two.paint)
     np.testing.assert_array_equal(rgba, expected)
-    assert floor == expected_floor == (0.3, 0.3, 0.3)
+    assert floor == two.floor.color == (0.3, 0.3, 0.3)  # a floor fill sets the floor's color
     assert cache.painted(one)[0] is first  # undo back to `one`: no repaint
 
 
@@ -312,7 +312,7 @@ def test_recovery_round_trip(box_scene, tmp_path, monkeypatch):
     recovery = state.read_recovery()
     assert recovery.origin == (tmp_path / "scene.json").resolve()
     assert recovery.scene.voxels_path().resolve() == moved.voxels_path().resolve()  # written relative to the recovery folder
-    assert replace(recovery.scene, object=moved.object) == moved
+    assert replaced(recovery.scene, object=moved.object) == moved
     state.clear_recovery()
     assert state.read_recovery() is None
 
@@ -322,7 +322,7 @@ def test_captures_are_named_by_content_and_copied_beside_a_saved_scene(box_scene
     rgba = VoxelCache().object_rgba(box_scene)
     path = state.save_capture(rgba)
     assert state.save_capture(rgba.copy()) == path
-    scene = replace(box_scene, object=replace(box_scene.object, voxels=str(path)))
+    scene = replaced(box_scene, object=replace(box_scene.object, voxels=str(path)))
     (tmp_path / "out").mkdir()
     adopted = state.adopt_capture(scene, tmp_path / "out" / "mine.json")
     assert adopted.voxels_path() == (tmp_path / "out" / "mine.voxels.npz").resolve()
@@ -536,7 +536,7 @@ def test_voxelising_the_same_mesh_again_keeps_the_scenes_color_and_another_mesh_
 
     for name in ("a.obj", "b.obj"):
         (tmp_path / name).write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    scene = Scene(object=ObjectSpec(mesh="a.obj", color=(0.9, 0.1, 0.1)), base_dir=tmp_path)
+    scene = Scene.single(object=ObjectSpec(mesh="a.obj", color=(0.9, 0.1, 0.1)), base_dir=tmp_path)
     again = edits.replace_object_source(scene, mesh=tmp_path / "a.obj", up="z")
     assert again.object.color == (0.9, 0.1, 0.1) and again.object.up == "z"
     other = edits.replace_object_source(scene, mesh=tmp_path / "b.obj")

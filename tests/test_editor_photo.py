@@ -21,7 +21,7 @@ from renderer.capture.pose import PhotoPose, save_pose
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.objects import generate_object
 from renderer.pipeline import object_voxels
-from renderer.scene import CameraSpec, ObjectSpec, Scene, load_scene, save_scene
+from renderer.scene import CameraSpec, ObjectSpec, Scene, load_scene, replaced, save_scene
 from tests import test_editor
 from tests.test_editor import PANELS, _click, pixels, run_editor
 
@@ -48,7 +48,7 @@ def chair_scene(tmp_path_factory):
     photo = np.where(mask[..., None], np.array(CHAIR_BLUE), BACKDROP)
     Image.fromarray((photo * 255).round().astype(np.uint8)).save(folder / "photo.png")
     save_pose(folder / "camera.json", TRUTH)
-    scene = Scene(object=START, camera=CameraSpec(35.0), image_size=64, base_dir=folder)
+    scene = Scene.single(object=START, camera=CameraSpec(35.0), image_size=64, base_dir=folder)
     save_scene(scene, folder / "scene.json")
     return folder / "scene.json"
 
@@ -119,7 +119,7 @@ def test_a_bad_photo_is_a_message_and_the_scene_stays(display, tmp_path, chair_s
     assert "Traceback" not in result.stderr
     unchanged, original = load_scene(tmp_path / "unchanged.json"), load_scene(chair_scene)
     assert unchanged.mesh_path().resolve() == original.mesh_path().resolve()
-    assert replace(unchanged, base_dir=original.base_dir, object=original.object) == original
+    assert replaced(unchanged, base_dir=original.base_dir, object=original.object) == original
     assert replace(unchanged.object, mesh=original.object.mesh) == original.object
 
 

@@ -41,6 +41,7 @@ from renderer.scene import (
     Scene,
     SkySpec,
     load_scene,
+    replaced,
 )
 from renderer.shading import FAST_QUALITY, FULL_QUALITY, ShaderQuality, shade_scene
 from renderer.splat import floor_mask, ground_and_background, splat_scene
@@ -101,7 +102,6 @@ FLOOR_PLACED = ["gather", "voxel_branch", "splat_layout", "splat", "floor_light"
 EDITS = {
     "light": (lambda s: s.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), ["floor_light", "splat_branch", "light"]),
     "floor color": (lambda s: s.with_changes(floor=FloorSpec((0.9, 0.2, 0.1))), ["background", *FLOOR_BRANCH]),
-    "floor paint": (lambda s: s.with_changes(paint=(PaintOp("floor", (0.1, 0.9, 0.1)),)), ["background", *FLOOR_BRANCH]),
     "paint stroke": (lambda s: s.with_changes(paint=(PaintOp("region", (0.0, 1.0, 0.0), seed=(5, 11, 5)),)),
                      ["paint", "pool", *VOXEL_BRANCH]),
     "object color": (lambda s: s.with_changes(object=replace(s.object, color=(0.9, 0.9, 0.1))),
@@ -407,7 +407,7 @@ class SlowEngine:
 
 
 def lit(x: float) -> Scene:
-    return Scene(object=ObjectSpec(voxels="unused.npz"), light=LightSpec((x, 2.75, 0.0)))
+    return Scene.single(object=ObjectSpec(voxels="unused.npz"), light=LightSpec((x, 2.75, 0.0)))
 
 
 def test_superseded_requests_are_dropped_and_never_overwrite_newer_frames():
@@ -503,10 +503,10 @@ def test_an_untrained_refiner_renders_the_shaded_image(scene, factor, engine_fac
     torch.manual_seed(0)
     model = build_model("nvr_plus", replace(TINY_REFINER, shading_grid_factor=factor)).eval()
     live = RenderEngine(model, threads=1, precision="fp32", device="cpu", shading_grid_factor=engine_factor)
-    scene = replace(scene, object=replace(scene.object, translation=(0.1, -0.05)))
+    scene = replaced(scene, object=replace(scene.object, translation=(0.1, -0.05)))
     np.testing.assert_allclose(live.render(scene), _shaded_image(scene, shaded_grid), rtol=0, atol=1e-6)
-    slid = replace(scene, object=replace(scene.object, translation=(-0.12, 0.07)))
-    turned = replace(slid, object=replace(slid.object, rotation_deg=slid.object.rotation_deg + 25.0))
+    slid = replaced(scene, object=replace(scene.object, translation=(-0.12, 0.07)))
+    turned = replaced(slid, object=replace(slid.object, rotation_deg=slid.object.rotation_deg + 25.0))
     for edited in (slid, turned):
         np.testing.assert_allclose(live.render(edited), _shaded_image(edited, shaded_grid), rtol=0, atol=1e-6)
         assert "shade_geometry" not in live.last_report.stages_run
@@ -533,10 +533,10 @@ def test_refiner_drag_preview_is_the_shaded_image(scene):
     """While the object turns or slides, the preview is the shader's image, its geometry kept from the render before;
     the settled render then reuses the preview's stages, and a second preview of the same scene reruns nothing."""
     live = engine(refiner(trained=False))
-    scene = replace(scene, object=replace(scene.object, translation=(-0.08, 0.06)))
+    scene = replaced(scene, object=replace(scene.object, translation=(-0.08, 0.06)))
     live.render(scene)
-    turned = replace(scene, object=replace(scene.object, rotation_deg=scene.object.rotation_deg + 25.0))
-    slid = replace(turned, object=replace(turned.object, translation=(0.1, -0.05)))
+    turned = replaced(scene, object=replace(scene.object, rotation_deg=scene.object.rotation_deg + 25.0))
+    slid = replaced(turned, object=replace(turned.object, translation=(0.1, -0.05)))
     for edited in (turned, slid):
         np.testing.assert_allclose(live.preview(edited), _shaded_image(edited, 128), rtol=0, atol=1e-6)
         assert {"shade_surface", "shade_lighting"} <= set(live.last_report.stages_run)
@@ -658,7 +658,7 @@ ENVIRONMENT_EDITS = {
     "turn": lambda s: replace(s, environment=replace(s.environment, rotation_deg=75.0)),
     "strength": lambda s: replace(s, environment=replace(s.environment, strength=1.6)),
     "sun": lambda s: replace(s, environment=replace(s.environment, sky=SkySpec(22.0, -60.0, 3.0))),
-    "material": lambda s: replace(s, object=replace(s.object, material=MaterialSpec(0.2, 0.5, 1.0))),
+    "material": lambda s: replaced(s, object=replace(s.object, material=MaterialSpec(0.2, 0.5, 1.0))),
     "area light on": lambda s: replace(s, light=replace(s.light, enabled=True)),
 }
 

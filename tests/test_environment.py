@@ -65,7 +65,7 @@ def write_map(path: Path, radiance: np.ndarray) -> Path:
 
 def env_scene(environment: EnvironmentSpec | None, material: MaterialSpec | None = None, light_on: bool = False,
               base_dir: Path = Path("."), elevation: float = 30.0) -> Scene:
-    return Scene(object=ObjectSpec(voxels="ball.npz", material=material or MaterialSpec()), environment=environment,
+    return Scene.single(object=ObjectSpec(voxels="ball.npz", material=material or MaterialSpec()), environment=environment,
                  light=LightSpec(enabled=light_on), camera=CameraSpec(elevation), image_size=SIZE, base_dir=base_dir)
 
 
@@ -77,17 +77,17 @@ def pixel_of(point, elevation=30.0, size=SIZE) -> tuple[int, int]:
 # --- the scene ----------------------------------------------------------------------------------------
 
 
-def test_a_scene_without_the_new_parts_saves_as_before(tmp_path):
+def test_a_scene_without_the_new_parts_saves_without_them(tmp_path):
     data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
     scene = scene_from_dict(data, tmp_path / "scene.json")
     written = scene.to_dict()
-    assert "environment" not in written and "material" not in written["object"] and written["light"] == {
+    assert "environment" not in written and "material" not in written["objects"][0] and written["light"] == {
         "position": data["light"]["position"]}
 
 
 def test_new_parts_round_trip_through_a_file(tmp_path):
     (tmp_path / "maps").mkdir()
-    scene = Scene(object=ObjectSpec(mesh="chair.obj", material=MaterialSpec(0.3, 0.5, 0.25)),
+    scene = Scene.single(object=ObjectSpec(mesh="chair.obj", material=MaterialSpec(0.3, 0.5, 0.25)),
                   light=LightSpec((0.5, 2.6, 0.0), enabled=False),
                   environment=EnvironmentSpec(image="maps/studio.exr", rotation_deg=40.0, strength=1.5),
                   base_dir=tmp_path)

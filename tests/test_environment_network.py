@@ -21,7 +21,7 @@ from models.training.data import permute_colors
 from models.training.train import initialize_from
 from renderer.environment import environment_light, environment_probe, texel_solid_angles, uniform_environment
 from renderer.errors import InputError
-from renderer.scene import AMBIENT_RADIANCE, EnvironmentSpec, MaterialSpec, Scene, SkySpec
+from renderer.scene import AMBIENT_RADIANCE, EnvironmentSpec, MaterialSpec, Scene, SkySpec, replaced
 from tests.test_engine import TINY_ENVIRONMENT_REFINER, TINY_HALF_REFINER, refiner
 from tests.test_environment import write_map
 
@@ -98,7 +98,7 @@ def test_an_area_light_scene_reads_as_the_light_on_a_diffuse_object_under_the_un
     np.testing.assert_array_equal(light[:LIGHT_DIMS], lighting_input(two_color_box, False))
     np.testing.assert_array_equal(light[LIGHT_DIMS:LIGHT_DIMS + LIGHTING_SCALARS], [1.0, 1.0, 0.0, 0.0])
     np.testing.assert_allclose(light[LIGHT_DIMS + LIGHTING_SCALARS:], math.log1p(AMBIENT_RADIANCE), rtol=1e-5)
-    glossy = replace(two_color_box, object=replace(two_color_box.object, material=MaterialSpec(0.3, 0.5, 0.25)),
+    glossy = replaced(two_color_box, object=replace(two_color_box.object, material=MaterialSpec(0.3, 0.5, 0.25)),
                      light=replace(two_color_box.light, enabled=False))
     np.testing.assert_allclose(lighting_input(glossy, True)[LIGHT_DIMS:LIGHT_DIMS + LIGHTING_SCALARS],
                                [0.0, 0.3, 0.5, 0.25])

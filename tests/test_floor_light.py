@@ -45,7 +45,7 @@ def test_diffuse_floor_below_the_light_matches_the_hand_integral():
 
 def test_matches_the_path_traced_empty_floor():
     # The object shrunk to nothing far away: the path tracer shows the empty floor, the independent reference.
-    scene = Scene(object=ObjectSpec(scale=(1e-3, 1e-3, 1e-3), translation=(0.0, -8.0)),
+    scene = Scene.single(object=ObjectSpec(scale=(1e-3, 1e-3, 1e-3), translation=(0.0, -8.0)),
                   floor=FloorSpec((0.7, 0.35, 0.2)), light=LightSpec((0.8, 2.6, -0.6)), camera=CameraSpec(20.0))
     box = trimesh.creation.box((1.0, 1.0, 1.0))
     traced = render_pathtraced(scene, box, size=64, spp=256).image

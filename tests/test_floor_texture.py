@@ -17,7 +17,17 @@ from PIL import Image
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_texture import floor_texture
-from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene, load_scene, save_scene, scene_from_dict
+from renderer.scene import (
+    CameraSpec,
+    FloorSpec,
+    LightSpec,
+    ObjectSpec,
+    Scene,
+    load_scene,
+    replaced,
+    save_scene,
+    scene_from_dict,
+)
 from renderer.shading.shader import shade_scene
 from tests.test_shading import cube
 
@@ -35,7 +45,7 @@ def quadrant_texture(path: Path) -> Path:
 
 
 def scene_on(folder: Path, texture: str | None, scale: float = 3.0, color=(0.5, 0.5, 0.5)) -> Scene:
-    return Scene(object=ObjectSpec(voxels="cube.npz", scale=(0.3, 0.3, 0.3), translation=(2.0, -2.0)),
+    return Scene.single(object=ObjectSpec(voxels="cube.npz", scale=(0.3, 0.3, 0.3), translation=(2.0, -2.0)),
                  floor=FloorSpec(color, texture, scale), light=LightSpec((0.0, 2.75, 0.0)), camera=CameraSpec(60.0),
                  image_size=96, base_dir=folder)
 
@@ -127,7 +137,7 @@ def test_a_texture_of_one_color_shades_as_a_plain_floor_of_that_color(tmp_path):
     textured = scene_on(tmp_path, "flat.png")
     plain = replace(textured, floor=FloorSpec((150 / 255, 90 / 255, 60 / 255)), light=replace(textured.light))
     # The plain floor takes the same (environment) path: the textured floor's only difference is the texture.
-    plain = replace(plain, object=replace(plain.object, material=replace(plain.object.material, specular=1e-6)))
+    plain = replaced(plain, object=replace(plain.object, material=replace(plain.object.material, specular=1e-6)))
     a = shade_scene(textured, cube(), textured.floor.color, 96).image
     b = shade_scene(plain, cube(), plain.floor.color, 96).image
     assert np.abs(a - b).max() < 2.0 / 255
@@ -174,8 +184,8 @@ def test_a_fine_texture_far_away_shades_as_its_mean_color_not_moire(tmp_path):
     Image.fromarray(np.repeat(checks[..., None], 3, axis=2)).save(tmp_path / "checks.png")
     textured = replace(scene_on(tmp_path, "checks.png", 0.64), camera=CameraSpec(30.0))
     mean = floor_texture(textured).mean_srgb
-    plain = replace(textured, floor=FloorSpec(mean, shape="square"),
-                    object=replace(textured.object, material=replace(textured.object.material, specular=1e-6)))
+    plain = replaced(textured, floor=FloorSpec(mean, shape="square"),
+                     object=replace(textured.object, material=replace(textured.object.material, specular=1e-6)))
     a = shade_scene(textured, cube(), textured.floor.color, 96)
     b = shade_scene(plain, cube(), plain.floor.color, 96)
     floor = b.coverage == 0.0

@@ -111,7 +111,7 @@ def test_a_path_traced_floor_photo_loses_the_lights_spot_and_keeps_the_chair():
 
     mesh, floor_color, _ = apply_appearance(generate_object("chair", 1000014), "textured", 1000014, "test")
     truth = PhotoPose(Camera(48.9, 256, 256), rotation_deg=125.9, translation=(-0.206, -0.218), scale=(0.883,) * 3)
-    scene = Scene(object=truth.placed(ObjectSpec()), floor=FloorSpec(floor_color), light=LightSpec((0.51, 2.82, -0.19)),
+    scene = Scene.single(object=truth.placed(ObjectSpec()), floor=FloorSpec(floor_color), light=LightSpec((0.51, 2.82, -0.19)),
                   camera=CameraSpec(48.9), image_size=256)
     photo = render_pathtraced(scene, mesh, spp=16, seed=14, denoise=True).image
     chair = SilhouetteRenderer(mesh).mask(truth)

@@ -164,7 +164,7 @@ def test_a_scene_of_many_whole_object_fills_replays_one_and_too_many_strokes_are
     stroke_voxels = renderer.paint.stroke_voxels
     monkeypatch.setattr(renderer.paint, "stroke_voxels", lambda *a: replayed.append(a[1]) or stroke_voxels(*a))
     painted, floor = painted_voxels(scene, rgba)
-    assert replayed == [scene.paint[-2]]  # the last whole-object fill alone, not ten thousand
+    assert replayed == [scene.paint[-1]]  # the last whole-object fill alone, not ten thousand
     assert tuple(painted[10, 5, 10, :3]) == pytest.approx((0.0, 0.2, 0.3)) and floor == (1.0, 1.0, 0.0)
     data["paint"].append({"target": "floor", "color": [0, 0, 0]})
     with pytest.raises(InputError, match=f"at most {MAX_PAINT_STROKES}"):

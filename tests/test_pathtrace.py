@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def make_scene(light=(0.0, 2.75, 0.0), floor=(0.6, 0.6, 0.6), elevation=30.0, **obj) -> Scene:
-    return Scene(object=ObjectSpec(mesh="test.obj", **obj), floor=FloorSpec(floor), light=LightSpec(light),
+    return Scene.single(object=ObjectSpec(mesh="test.obj", **obj), floor=FloorSpec(floor), light=LightSpec(light),
                  camera=CameraSpec(elevation))
 
 

@@ -24,7 +24,7 @@ RED, BLUE = (0.8, 0.25, 0.2), (0.15, 0.3, 0.7)
 
 def photo_scene(light=(0.6, 2.6, 0.4), elevation=30.0, rotation=25.0, size=SIZE, **obj) -> Scene:
     spec = ObjectSpec(rotation_deg=rotation, **({"voxels": "v.npz"} | obj))
-    return Scene(object=spec, floor=FloorSpec(FLOOR), light=LightSpec(light), camera=CameraSpec(elevation),
+    return Scene.single(object=spec, floor=FloorSpec(FLOOR), light=LightSpec(light), camera=CameraSpec(elevation),
                  image_size=size)
 
 

@@ -50,11 +50,11 @@ def object_voxels(draw) -> np.ndarray:
 def scenes(draw) -> tuple[Scene, np.ndarray]:
     rgba = draw(object_voxels())
     occupied = [tuple(int(i) for i in index) for index in np.argwhere(rgba[..., 3] > 0.5)[:50]]
-    strokes = [st.builds(lambda c: PaintOp("object", c), color), st.builds(lambda c: PaintOp("floor", c), color)]
+    strokes = [st.builds(lambda c: PaintOp("object", c), color)]
     if occupied:  # a region fill starts on a voxel of the object (else the scene is refused, as it should be)
         strokes.append(st.builds(lambda c, s, t: PaintOp("region", c, s, t), color, st.sampled_from(occupied), unit))
     paint = draw(st.lists(st.one_of(*strokes), max_size=3))
-    scene = Scene(
+    scene = Scene.single(
         object=ObjectSpec(voxels="object.npz", color=draw(st.none() | color),
                           translation=(draw(position), draw(position)), rotation_deg=draw(st.floats(-1e6, 1e6)),
                           scale=(draw(scale), draw(scale), draw(scale))),

@@ -50,7 +50,7 @@ def _scene(tmp_path, **changes) -> Scene:
     box.export(tmp_path / "box.obj")
     base = dict(object=ObjectSpec(mesh="box.obj", resolution=16, rotation_deg=30.0), floor=FloorSpec((0.6, 0.6, 0.6)),
                 light=LightSpec((0.0, 2.75, 0.5)), camera=CameraSpec(30.0), image_size=48, base_dir=tmp_path)
-    return Scene(**{**base, **changes})
+    return Scene.single(**{**base, **changes})
 
 
 def _object_hue(scene: Scene, mesh: trimesh.Trimesh) -> float:
@@ -62,7 +62,7 @@ def _object_hue(scene: Scene, mesh: trimesh.Trimesh) -> float:
 def test_painting_the_object_and_the_floor_changes_the_path_traced_image(tmp_path):
     plain = _scene(tmp_path)
     assert not voxel_colored(plain)
-    painted = _scene(tmp_path, paint=(PaintOp("object", RED), PaintOp("floor", (0.9, 0.9, 0.2))))
+    painted = _scene(tmp_path, paint=(PaintOp("object", RED),), floor=FloorSpec((0.9, 0.9, 0.2)))
     assert voxel_colored(painted)
     scene, mesh = reference_scene(painted)
     assert scene.floor.color == (0.9, 0.9, 0.2)

@@ -43,13 +43,12 @@ def test_round_trip_through_a_file_keeps_everything(tmp_path):
     (tmp_path / "chair.obj").write_text("")
     scene = scene_from_dict(EXAMPLE, tmp_path / "a.json")
     scene = scene.with_changes(paint=(PaintOp("region", (0.1, 0.2, 0.3), (1, 2, 3), 0.05),
-                                      PaintOp("region", (0.3, 0.2, 0.1), (3, 2, 1), 0.1, "perceptual"),
-                                      PaintOp("floor", (1, 1, 1))))
+                                      PaintOp("region", (0.3, 0.2, 0.1), (3, 2, 1), 0.1, "perceptual")))
     save_scene(scene, tmp_path / "b.json")
     again = load_scene(tmp_path / "b.json")
     assert again == scene
     # A stroke comparing RGB (the only kind before the perceptual fill) is written as it was, without "similarity".
-    written = json.loads((tmp_path / "b.json").read_text())["paint"]
+    written = json.loads((tmp_path / "b.json").read_text())["objects"][0]["paint"]
     assert "similarity" not in written[0] and written[1]["similarity"] == "perceptual"
     assert again.mesh_path().resolve() == (tmp_path / "chair.obj").resolve()
 
@@ -58,7 +57,7 @@ def test_saving_elsewhere_rewrites_relative_paths(tmp_path):
     (tmp_path / "sub").mkdir()
     scene = scene_from_dict(EXAMPLE, tmp_path / "a.json")
     save_scene(scene, tmp_path / "sub" / "b.json")
-    assert json.loads((tmp_path / "sub" / "b.json").read_text())["object"]["mesh"] == "../chair.obj"
+    assert json.loads((tmp_path / "sub" / "b.json").read_text())["objects"][0]["mesh"] == "../chair.obj"
 
 
 @pytest.mark.parametrize(
@@ -75,7 +74,7 @@ def test_saving_elsewhere_rewrites_relative_paths(tmp_path):
         ("object.up", "x", "object.up"),
         ("object.color", [2.0, 0.0, 0.0], "object.color"),
         ("object.translation", [0.0], "object.translation: must be a list of 2"),
-        ("version", 2, "unsupported scene version"),
+        ("version", 3, "unsupported scene version"),
         ("paint", [{"target": "region", "color": [0, 0, 0], "seed": [1, 1, 1], "similarity": "hsv"}],
          "paint[0].similarity: must be one of rgb, perceptual"),
     ],

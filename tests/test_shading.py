@@ -88,7 +88,7 @@ def ball(n: int = 40, color=(0.8, 0.8, 0.8)) -> np.ndarray:
 
 
 def scene_of(spec: ObjectSpec, light, elevation=30.0, size=SIZE) -> Scene:
-    return Scene(object=spec, light=LightSpec(tuple(float(v) for v in light)), camera=CameraSpec(elevation),
+    return Scene.single(object=spec, light=LightSpec(tuple(float(v) for v in light)), camera=CameraSpec(elevation),
                  image_size=size)
 
 
@@ -666,7 +666,7 @@ def test_the_staged_shader_equals_shading_from_scratch_after_every_edit(grid_siz
     rgba = ball(24, color=(0.7, 0.3, 0.2))
     painted = rgba.copy()
     painted[:12, ..., :3] = (0.1, 0.5, 0.9)
-    scene = Scene(object=ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7)), light=LightSpec((0.6, 2.7, 0.4)),
+    scene = Scene.single(object=ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7)), light=LightSpec((0.6, 2.7, 0.4)),
                   image_size=SIZE)
     moved = scene.with_changes(object=ObjectSpec(voxels="v.npz", translation=(0.3, -0.2), rotation_deg=40.0,
                                                  scale=(0.7, 0.7, 0.7)))
@@ -710,7 +710,7 @@ def test_an_image_of_another_size_not_kept_leaves_the_live_stages():
     """`keep=False` (the editor's redraw of a settled image at its panel's size): the image at that size equals the
     shader's from scratch, and the stages kept for the live size stay, so the next live render reruns nothing."""
     rgba = ball(24, color=(0.7, 0.3, 0.2))
-    scene = Scene(object=ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7)), light=LightSpec((0.6, 2.7, 0.4)))
+    scene = Scene.single(object=ObjectSpec(voxels="v.npz", scale=(0.7, 0.7, 0.7)), light=LightSpec((0.6, 2.7, 0.4)))
     staged = StagedShader()
     live = staged.render(scene, "ball", rgba, FLOOR, SIZE).image
     larger = staged.render(scene, "ball", rgba, FLOOR, 2 * SIZE, keep=False).image

@@ -77,7 +77,7 @@ def test_one_voxel_lands_on_the_pinhole_pixel():
 def test_placement_follows_the_scene_object():
     # Rotation by 90 degrees maps object (x, y, z) to world (z, y, -x), then the x/z translation applies.
     n, size = 8, 128
-    scene = Scene(object=ObjectSpec(voxels="v.npz", rotation_deg=90.0, translation=(0.2, -0.1)),
+    scene = Scene.single(object=ObjectSpec(voxels="v.npz", rotation_deg=90.0, translation=(0.2, -0.1)),
                   image_size=size)
     x, y, z = centre(1, 3, 6, n)
     u, v = hand_project(np.array([z + 0.2, y, -x - 0.1]), scene.camera.elevation_deg, size)

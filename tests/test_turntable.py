@@ -24,14 +24,14 @@ def scene_file(tmp_path) -> Path:
     rgba = np.zeros((8, 8, 8, 4), np.float32)
     rgba[1:4, 0:6, 2:6] = (0.8, 0.3, 0.2, 1.0)  # off-centre, so a turn changes the image
     save_voxels(tmp_path / "box.npz", rgba)
-    scene = Scene(object=ObjectSpec(voxels="box.npz", rotation_deg=170.0), light=LightSpec((1.0, 2.75, 0.5)),
+    scene = Scene.single(object=ObjectSpec(voxels="box.npz", rotation_deg=170.0), light=LightSpec((1.0, 2.75, 0.5)),
                   camera=CameraSpec(30.0), image_size=32, base_dir=tmp_path)
     save_scene(scene, tmp_path / "scene.json")
     return tmp_path / "scene.json"
 
 
 def test_a_turn_steps_the_rotation_evenly_and_a_light_sweep_keeps_height_and_distance():
-    scene = Scene(object=ObjectSpec(voxels="x.npz", rotation_deg=170.0), light=LightSpec((1.0, 2.75, 0.5)))
+    scene = Scene.single(object=ObjectSpec(voxels="x.npz", rotation_deg=170.0), light=LightSpec((1.0, 2.75, 0.5)))
     turned = list(frame_scenes(scene, 4, "rotation"))
     assert [s.object.rotation_deg for s in turned] == pytest.approx([170.0, -100.0, -10.0, 80.0])
     swept = list(frame_scenes(scene, 4, "light"))

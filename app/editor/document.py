@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from app.editor.history import History
+from renderer.errors import InputError
 from renderer.scene import Scene, load_scene
 
 
@@ -26,8 +27,13 @@ class Document:
 
     @classmethod
     def open(cls, path: str | Path) -> Document:
-        """Load a scene file (InputError on a bad file)."""
-        return cls(load_scene(path), Path(path))
+        """Load a scene file (InputError on a bad file, or on a scene of several objects, which the editor cannot
+        edit yet: `nvr render` draws them)."""
+        scene = load_scene(path)
+        if len(scene.objects) > 1:
+            raise InputError(f"the editor edits scenes of one object; this one holds {len(scene.objects)} "
+                             "(nvr render draws it)", path)
+        return cls(scene, Path(path))
 
     @property
     def dirty(self) -> bool:

@@ -171,7 +171,9 @@ def place_object(scene: Scene, translation: tuple[float, float] | None = None, r
 
 
 def paint(scene: Scene, op: PaintOp) -> Scene:
-    """One more paint stroke (bucket fill of a region, the whole object or the floor)."""
+    """One more paint stroke (bucket fill of a region or the whole object), or a floor fill: the floor's new color."""
+    if op.target == "floor":
+        return set_floor_color(scene, op.color)
     return scene.with_changes(paint=(*scene.paint, op))
 
 
@@ -184,6 +186,5 @@ def replace_object_source(scene: Scene, mesh: Path | None = None, voxels: Path |
     o = replace(scene.object, mesh=None if mesh is None else str(Path(mesh).resolve()),
                 voxels=None if voxels is None else str(Path(voxels).resolve()), up=up,
                 color=scene.object.color if same else None,
-                resolution=scene.object.resolution if resolution is None else resolution)
-    floor_strokes = tuple(op for op in scene.paint if op.target == "floor")
-    return scene.with_changes(object=o, paint=floor_strokes)
+                resolution=scene.object.resolution if resolution is None else resolution, paint=())
+    return scene.with_changes(object=o)

@@ -32,7 +32,7 @@ def shipped(path: str | Path | None) -> bool:
 
 def new_scene() -> Scene:
     """What File > New starts from: the demo chair (by absolute path) in the default set-up, no file yet."""
-    return Scene(object=ObjectSpec(mesh=str(SHIPPED_ASSETS / "demo" / "chair.obj"), rotation_deg=30.0))
+    return Scene.single(object=ObjectSpec(mesh=str(SHIPPED_ASSETS / "demo" / "chair.obj"), rotation_deg=30.0))
 
 
 def finer_for_export(scene: Scene, resolution: int) -> Scene:

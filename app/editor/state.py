@@ -22,7 +22,7 @@ import numpy as np
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_json, save_json
-from renderer.scene import Scene, load_scene, save_scene
+from renderer.scene import Scene, load_scene, replaced, save_scene
 from renderer.voxels import save_voxels
 
 
@@ -124,4 +124,4 @@ def adopt_capture(scene: Scene, scene_file: str | Path) -> Scene:
     copy = Path(scene_file).with_name(f"{Path(scene_file).stem}.voxels.npz")
     with atomic_path(copy) as tmp:
         shutil.copyfile(voxels, tmp)
-    return replace(scene, object=replace(scene.object, voxels=str(copy.resolve())))
+    return replaced(scene, object=replace(scene.object, voxels=str(copy.resolve())))

@@ -43,7 +43,7 @@ def procedural_scenes(folder: Path, count: int) -> list[BenchScene]:
         mesh, floor, _ = apply_appearance(generate_object(category, seed), setting, seed, "test")
         with atomic_path(folder / f"{category}.obj") as tmp:
             mesh.export(tmp, file_type="obj", include_normals=False, include_texture=False)
-        scene = Scene(object=ObjectSpec(mesh=f"{category}.obj", **placement), floor=FloorSpec(floor),
+        scene = Scene.single(object=ObjectSpec(mesh=f"{category}.obj", **placement), floor=FloorSpec(floor),
                       light=LightSpec(light), camera=CameraSpec(elevation), base_dir=folder)
         scenes.append(BenchScene(f"{category} ({setting})", scene, object_mesh(scene)))
     return scenes

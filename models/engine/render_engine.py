@@ -28,13 +28,13 @@ computed from, and reruns only when those change. This table is the one list of 
                   reads them)
     light         all of the above and the light position                 image (render_from_latent)
 
-Floor color is the scene's floor color after its floor paint strokes. Hence, per edit (plus the shader's own stages
+Floor color is the scene's floor color (a floor fill sets it). Hence, per edit (plus the shader's own stages
 for a network that reads it, floor_light only for one that reads the lit floor, and lighting, with a light,
 environment or material edit, for one that reads the environment):
 
     edit                          stages rerun
     light move                    floor_light, splat_branch, light
-    floor color / floor paint     background, gather, voxel_branch, splat, floor_light, splat_branch, light
+    floor color (a floor fill)    background, gather, voxel_branch, splat, floor_light, splat_branch, light
     paint stroke, object color    paint, pool, gather, voxel_branch, splat, splat_branch, light
     object move or rotation       placement, gather, voxel_branch, splat_layout, splat, splat_branch, light
     object scale                  pool (if the merge factors change), placement, gather, voxel_branch,
@@ -44,6 +44,10 @@ environment or material edit, for one that reads the environment):
     new mesh, up or resolution    voxels, paint, pool, placement, gather, voxel_branch, shell, splat_layout,
                                   splat, splat_branch, light
     nothing                       none (the last image again)
+
+A scene of several objects, which no network is trained on yet, renders as the voxel shader's own image: each object's
+voxels, paint and shader stages are kept under its index ("voxels[1]"), so an edit of one object reruns its own stages
+and the joins after them (renderer/shading/staged.py).
 
 The voxel branch runs only around the object (models/engine/cropped_encoder.py): the ground's features come from the
 background stage (a ground grid a few columns wide, since the ground is the same in every column), the object's from
@@ -95,16 +99,16 @@ from renderer.grid import (
     repool_voxels,
     sample_indices,
 )
-from renderer.paint import apply_paint
+from renderer.limits import MAX_OBJECTS
 from renderer.pipeline import object_voxels
-from renderer.scene import Scene
+from renderer.scene import Scene, replaced
 from renderer.shading import (
     ShadedImage,
     network_buffers,
     quality_named,
 )
 from renderer.shading.environment_shading import lighting_key
-from renderer.shading.staged import StagedShader
+from renderer.shading.staged import ObjectVoxels, StagedShader
 from renderer.splat import SplatLayout, color_splat, splat_layout
 from renderer.stage_cache import RenderReport, StageCache
 from renderer.surface import Shell, occupancy
@@ -113,6 +117,7 @@ from renderer.transform import object_to_world
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
 # What a render of a scene the network does not read (an environment, the area light off, a glossy object) shows.
 UNCORRECTED_NOTE = "this network is not trained for environment light or glossy materials: the voxel shader's image"
+SEVERAL_OBJECTS_NOTE = "this network is not trained on scenes of several objects: the voxel shader's image"
 # bfloat16 against float32 on the same scene, 0-255 scale: largest pixel difference and MSE (measured by
 # benchmarks/bench_precision.py).
 BF16_BOUND = {"max_abs": 4.0, "mse": 0.5}
@@ -138,7 +143,7 @@ class _PaintedObject(NamedTuple):
     """The paint stage's result and what it was made from."""
 
     voxels: np.ndarray  # the painted object voxels (painted again in place by the next paint edit)
-    floor: tuple  # the floor color after the floor's paint strokes
+    floor: tuple  # the scene's floor color
     key: tuple  # (source, object color, strokes): what the voxels depend on
     replay: PaintReplay  # the voxels stage's result: the object's occupied voxels and their box
 
@@ -224,6 +229,9 @@ class RenderEngine:
         # The voxel shader's stages, in this cache: without the floor's reflection, which the network does not read.
         self._shader = StagedShader(self.config.shading_grid_size, self._quality, cache=self._cache, prefix="shade_",
                                     reflection=False)
+        # A scene of several objects, which no network reads yet: the shader's own image, the floor's reflection too.
+        self._scene_shader = StagedShader(self.config.shading_grid_size, self._quality, cache=self._cache,
+                                          prefix="scene_")
 
     @classmethod
     def load(cls, path: str | Path | None, architecture: str = "nvr_plus", **options: Any) -> RenderEngine:
@@ -263,7 +271,7 @@ class RenderEngine:
         """The image (S, S, 3) float32 sRGB of `scene` at the model's output size S (scene.image_size is not used)."""
         start = self._begin(scene)
         with torch.inference_mode():
-            image = self._render(scene)
+            image = self._shaded_objects(scene) if len(scene.objects) > 1 else self._render(scene)
         self._finish(start, preview=False)
         return image.copy()
 
@@ -271,6 +279,8 @@ class RenderEngine:
         """A fast image while the user drags: the full render when only the light changed (that is cheap), else for a
         network that reads the shader the shaded image (its geometry kept through every placement and camera edit),
         else the splatted object over the lit empty floor; from stages the full render then reuses."""
+        if len(scene.objects) > 1:
+            return self.render(scene)  # the shader's image: as quick as a preview
         start = self._begin(scene)
         with torch.inference_mode():
             painted = self._painted(scene)
@@ -301,6 +311,11 @@ class RenderEngine:
         stages. A network that draws the image itself renders its own size only (InputError)."""
         if size == self.output_size:
             return self.render(scene)
+        if len(scene.objects) > 1:
+            start = self._begin(scene)
+            image = self._shaded_objects(scene, size)
+            self._finish(start, preview=False)
+            return image
         if not self.renders_any_size:
             raise InputError(f"the model renders {self.output_size}x{self.output_size} only ({self.config.name} draws "
                              f"the image itself), not {size}x{size}")
@@ -372,14 +387,14 @@ class RenderEngine:
     # --- stages ---------------------------------------------------------------------------
 
     def _painted(self, scene: Scene) -> _PaintedObject:
-        """Painted object voxels, the floor color after floor strokes, and the paint stage's key."""
+        """Painted object voxels, the floor color, and the paint stage's key."""
         source = _voxel_source(scene)
-        plain = replace(scene, object=replace(scene.object, color=None))  # the base color is painted below
+        plain = replaced(scene, object=replace(scene.object, color=None))  # the base color is painted below
         replay = self._stage("voxels", source, lambda: PaintReplay(self._object_source(plain)))
-        strokes = tuple(op for op in scene.paint if op.target != "floor")
+        strokes = scene.paint
         paint_key = (source, scene.object.color, strokes)
         painted = self._stage("paint", paint_key, lambda: replay.painted(scene.object.color, strokes))
-        _, floor = apply_paint(painted, scene.floor.color, [op for op in scene.paint if op.target == "floor"])
+        floor = scene.floor.color
         return _PaintedObject(painted, tuple(floor), paint_key, replay)
 
     def _keys(self, scene: Scene, painted: _PaintedObject) -> _Keys:
@@ -503,6 +518,24 @@ class RenderEngine:
         return self._shader.run(scene, keys.paint, painted.voxels, painted.floor, size, shape_key=keys.source,
                                 keep=size == self.output_size, pool=pool)
 
+    def _shaded_objects(self, scene: Scene, size: int | None = None) -> np.ndarray:
+        """The voxel shader's image of a scene of several objects (each object's voxels and paint in stages of its
+        own, so an edit of one object reruns its stages alone), at `size` (default the network's)."""
+        objects = []
+        for i, o in enumerate(scene.objects):
+            one = replaced(scene, objects=(replace(o, color=None),))  # the base color is painted below
+            source = _voxel_source(one)
+            replay = self._stage(f"voxels[{i}]", source, lambda one=one: PaintReplay(self._object_source(one)))
+            key = (source, o.color, o.paint)
+            painted = self._stage(f"paint[{i}]", key, lambda o=o, replay=replay: replay.painted(o.color, o.paint))
+            objects.append(ObjectVoxels(o, key, painted, source))
+        for i in range(len(objects), MAX_OBJECTS):  # a scene that held more objects: their voxels' memory
+            self._cache.forget(f"voxels[{i}]")
+            self._cache.forget(f"paint[{i}]")
+        size = size or self.output_size
+        shaded = self._scene_shader.run_objects(scene, objects, scene.floor.color, size, keep=size == self.output_size)
+        return np.clip(shaded.image, 0.0, 1.0)
+
     def _shading(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
         return network_buffers(self._shaded(scene, painted, keys))
@@ -530,7 +563,8 @@ class RenderEngine:
     def _begin(self, scene: Scene) -> float:
         self._cache.begin()
         self._grid_fraction = None
-        self._note = "" if self.reads_scene(scene) else UNCORRECTED_NOTE
+        self._note = ("" if self.reads_scene(scene) else
+                      SEVERAL_OBJECTS_NOTE if len(scene.objects) > 1 else UNCORRECTED_NOTE)
         return time.perf_counter()
 
     def _finish(self, start: float, preview: bool) -> None:

@@ -253,7 +253,7 @@ def captured_scene(mesh_path: str | Path, voxels_path: str | Path, pose: PhotoPo
     """
     obj = ObjectSpec(mesh=str(mesh_path), up=up, resolution=resolution, voxels=str(voxels_path),
                      rotation_deg=pose.rotation_deg, translation=pose.translation, scale=pose.scale)
-    scene = Scene(object=obj, camera=CameraSpec(elevation_deg=pose.camera.elevation_deg), image_size=image_size,
+    scene = Scene.single(object=obj, camera=CameraSpec(elevation_deg=pose.camera.elevation_deg), image_size=image_size,
                   base_dir=Path.cwd())
     validate(scene)
     return scene

@@ -115,7 +115,7 @@ def lit_photo_scene(pose: PhotoPose, floor_color: tuple[float, float, float] = F
     c = pose.camera
     if c != Camera(c.elevation_deg, width=c.width, height=c.width):
         raise InputError("the photo's camera is not the scene camera (a square photo from its orbit, 40 mm lens)")
-    return Scene(object=pose.placed(ObjectSpec()), floor=FloorSpec(tuple(float(v) for v in floor_color)),
+    return Scene.single(object=pose.placed(ObjectSpec()), floor=FloorSpec(tuple(float(v) for v in floor_color)),
                  light=LightSpec(tuple(float(v) for v in pose.light)), camera=CameraSpec(c.elevation_deg),
                  image_size=c.width)
 

@@ -3,7 +3,7 @@
 Run `python -m renderer.objects.demo`; the same code always writes the same files, so the
 assets are traceable to this seed:
     chair.obj           a generated chair in the `default` appearance, with vertex colors
-    scene.json          the scene `make run` opens (format version 1)
+    scene.json          the scene `make run` opens (format version 2)
     photo.png           a path-traced "photo" of the chair from another view and light,
     photo_camera.json   and the camera that took it (the format the data generator writes)
 """
@@ -23,7 +23,7 @@ DEMO_SEED = 10  # a swivel chair: wooden seat and slatted back, metal armrests a
 DEMO_DIR = Path(__file__).resolve().parents[2] / "assets" / "demo"
 DEMO_PATH = DEMO_DIR / "chair.obj"
 
-DEMO_SCENE = Scene(
+DEMO_SCENE = Scene.single(
     object=ObjectSpec(mesh="chair.obj", rotation_deg=30.0),
     floor=FloorSpec((0.53, 0.64, 0.78)),
     light=LightSpec((1.0, 2.75, 0.5)),

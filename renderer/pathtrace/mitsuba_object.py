@@ -16,12 +16,14 @@ otherwise its `principled` BSDF with the same three values (specular 0.5 is a di
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 
 from renderer.color import srgb_to_linear
 from renderer.errors import InputError
-from renderer.scene import MaterialSpec, Scene
+from renderer.scene import MaterialSpec, ObjectSpec
 from renderer.transform import apply_transform, object_to_world
 
 DEFAULT_OBJECT_SRGB = (0.5, 0.5, 0.5)  # an object with neither a set color nor its own colors
@@ -30,32 +32,32 @@ MIN_ROUGHNESS = 0.05  # the smoothest drawn: roughness 0 is a near-perfect mirro
 SLIVER_SIN2 = 1e-4  # squared sine of a corner's angle below which float32 barycentrics are unreliable
 
 
-def object_shapes(scene: Scene, mesh: trimesh.Trimesh) -> dict:
-    """Mitsuba meshes for the object by scene-dictionary key ("object", and "object_slivers" if needed)."""
-    _check_mesh(mesh, scene)
-    material = scene.object.material
+def object_shapes(obj: ObjectSpec, mesh: trimesh.Trimesh, where: Path | None = None, key: str = "object") -> dict:
+    """Mitsuba meshes for the object `obj` made of `mesh` (object coordinates; `where`: its file, for messages), by
+    scene-dictionary key (`key`, and `key`_slivers if needed)."""
+    _check_mesh(mesh, where)
+    material = obj.material
     if mesh.visual.kind == "face":  # one vertex per face corner keeps each face's own color
         mesh = mesh.copy()
         mesh.unmerge_vertices()
-    vertices = apply_transform(object_to_world(scene.object), np.asarray(mesh.vertices)).astype(np.float32)
+    vertices = apply_transform(object_to_world(obj), np.asarray(mesh.vertices)).astype(np.float32)
     good, slivers = condition_faces(vertices, np.asarray(mesh.faces))
     everything = np.concatenate([good, slivers])
     if len(everything) == 0:
-        raise InputError("the mesh has no face with an area to render", scene.mesh_path())
+        raise InputError("the mesh has no face with an area to render", where)
 
-    if scene.object.color is not None:
-        return {"object": _mesh("object", vertices, everything, _rgb(srgb_to_linear(scene.object.color)), material)}
+    if obj.color is not None:
+        return {key: _mesh(key, vertices, everything, _rgb(srgb_to_linear(obj.color)), material)}
     if mesh.visual.kind in ("vertex", "face"):
         colors = srgb_to_linear(np.asarray(mesh.visual.vertex_colors)[:, :3] / 255.0)
         shapes = {}
         if len(good):
             reflectance = {"type": "mesh_attribute", "name": "vertex_color"}
-            shapes["object"] = _mesh("object", vertices, good, reflectance, material,
-                                     attribute=("vertex_color", colors))
+            shapes[key] = _mesh(key, vertices, good, reflectance, material, attribute=("vertex_color", colors))
         if len(slivers):
             reflectance = {"type": "mesh_attribute", "name": "face_color"}
             flat = colors[slivers].mean(axis=1)
-            shapes["object_slivers"] = _mesh("object_slivers", vertices, slivers, reflectance, material,
+            shapes[f"{key}_slivers"] = _mesh(f"{key}_slivers", vertices, slivers, reflectance, material,
                                              attribute=("face_color", flat))
         return shapes
     texture = _texture_image(mesh)
@@ -65,8 +67,8 @@ def object_shapes(scene: Scene, mesh: trimesh.Trimesh) -> dict:
         uv = np.asarray(mesh.visual.uv, dtype=np.float64)
         uv = np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1)  # trimesh: v up from the bottom; Mitsuba: from the top
         reflectance = {"type": "bitmap", "bitmap": mi.Bitmap(texture), "raw": True, "wrap_mode": "repeat"}
-        return {"object": _mesh("object", vertices, everything, reflectance, material, uv=uv)}
-    return {"object": _mesh("object", vertices, everything, _rgb(srgb_to_linear(DEFAULT_OBJECT_SRGB)), material)}
+        return {key: _mesh(key, vertices, everything, reflectance, material, uv=uv)}
+    return {key: _mesh(key, vertices, everything, _rgb(srgb_to_linear(DEFAULT_OBJECT_SRGB)), material)}
 
 
 def condition_faces(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -136,8 +138,7 @@ def numpy_mesh(name: str, vertices: np.ndarray, faces: np.ndarray, bsdf: dict, u
     return out
 
 
-def _check_mesh(mesh: trimesh.Trimesh, scene: Scene) -> None:
-    where = scene.mesh_path()
+def _check_mesh(mesh: trimesh.Trimesh, where: Path | None) -> None:
     if len(mesh.faces) == 0 or len(mesh.vertices) == 0:
         raise InputError("the mesh has no faces to render", where)
     if not np.all(np.isfinite(mesh.vertices)):

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +80,9 @@ class PathTracer:
     Mitsuba's AOV integrator doubled its cost.
     """
 
-    def __init__(self, scene: Scene, mesh: trimesh.Trimesh, size: int | None = None, floor: bool = True):
+    def __init__(self, scene: Scene, mesh: trimesh.Trimesh | Sequence[trimesh.Trimesh], size: int | None = None,
+                 floor: bool = True):
+        """`mesh`: the object's mesh (object coordinates), or one per object of the scene, in its order."""
         if size is not None and not MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE:
             raise InputError(f"image size must be in [{MIN_IMAGE_SIZE}, {MAX_IMAGE_SIZE}], got {size}")
         start = time.perf_counter()
@@ -131,9 +134,9 @@ class PathTracer:
         return np.nan_to_num(total / taken, nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32), taken
 
 
-def render_pathtraced(scene: Scene, mesh: trimesh.Trimesh, size: int | None = None, spp: int = 64,
-                      seed: int = 0, denoise: bool = False, floor: bool = True) -> PathtraceResult:
-    """Path trace one image of `scene` with `mesh` (object coordinates) as its object."""
+def render_pathtraced(scene: Scene, mesh: trimesh.Trimesh | Sequence[trimesh.Trimesh], size: int | None = None,
+                      spp: int = 64, seed: int = 0, denoise: bool = False, floor: bool = True) -> PathtraceResult:
+    """Path trace one image of `scene` with `mesh` (object coordinates) as its object, or one mesh per object."""
     return PathTracer(scene, mesh, size, floor).render(spp, seed, denoise)
 
 
@@ -159,15 +162,20 @@ def denoise_layers(layers: RenderLayers) -> np.ndarray:
 # --- the Mitsuba scene ----------------------------------------------------------------------
 
 
-def _scene_dict(scene: Scene, mesh: trimesh.Trimesh, camera: Camera, floor: bool = True) -> dict:
-    """The Mitsuba scene; without `floor` the object floats in the ambient light (a studio photo's plain backdrop)."""
+def _scene_dict(scene: Scene, mesh: trimesh.Trimesh | Sequence[trimesh.Trimesh], camera: Camera,
+                floor: bool = True) -> dict:
+    """The Mitsuba scene; without `floor` the objects float in the ambient light (a studio photo's plain backdrop)."""
+    meshes = [mesh] if isinstance(mesh, trimesh.Trimesh) else list(mesh)
+    if len(meshes) != len(scene.objects):
+        raise ValueError(f"{len(meshes)} meshes for a scene of {len(scene.objects)} objects")
     parts = {
         "type": "scene",
         "integrator": _path_integrator(),
         "sensor": _sensor(camera),
         **_environment(environment_light(scene)),
-        **object_shapes(scene, mesh),
     }
+    for i, (obj, one) in enumerate(zip(scene.objects, meshes)):
+        parts.update(object_shapes(obj, one, scene.file(obj.mesh), key="object" if i == 0 else f"object{i}"))
     if scene.light.enabled:
         parts["light"] = _light(scene.light.position)
     if floor:

@@ -18,8 +18,10 @@ metal, with Schlick's Fresnel and, for the environment, Karis's fitted split-sum
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
@@ -306,9 +308,12 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
                       environment: EnvironmentLight, material: MaterialSpec = DIFFUSE,
                       reflection: FloorReflection | None = None,
                       quality: ShaderQuality = FULL_QUALITY, floor_cones: np.ndarray | None = None,
-                      floor_texture: FloorTexture | None = None, floor_shape: str = "square") -> ShadedImage:
+                      floor_texture: FloorTexture | None = None, floor_shape: str = "square",
+                      owners: tuple[np.ndarray, np.ndarray | None] | None = None) -> ShadedImage:
     """The shaded image under `environment` and, unless `light_position` is None, the area light; the object of
-    `material`. `reflection`: the floor's mirror image of the object, if drawn. `floor_cones`: the sky the object
+    `material`, or of several objects each of its material (`material` a sequence, `owners` the object of each
+    surface point and of each reflection point: renderer/shading/compose.py). `reflection`: the floor's mirror image
+    of the object, if drawn. `floor_cones`: the sky the object
     leaves open to each floor point, per direction (surface.floor_sky_cones), which the sky's light weighs.
     `floor_texture`: the floor's albedo instead of `floor_color` (whose place its mean takes). `floor_shape`: one of
     renderer.scene.FLOOR_SHAPES; past a disk's edge the environment shows."""
@@ -339,9 +344,10 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
-        radiance, seen = _object_radiance(surface.points, surface.normals, surface.albedo, surface.occlusion,
-                                          camera.position, light_position, area, suns, lights, ready, environment,
-                                          material, block, sky_up, floor_albedo)
+        radiance, seen = _radiance_by_material(
+            owners[0] if owners else None, material, surface.points, surface.normals, surface.albedo,
+            surface.occlusion, camera.position, light_position, area, suns, lights, ready, environment,
+            block=block, sky_up=sky_up, floor_albedo=floor_albedo)
     r, c = surface.pixels[:, 0], surface.pixels[:, 1]
     cover = surface.coverage[r, c]
     floor_occlusion = surface.images.floor_occlusion
@@ -385,7 +391,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
                                           * shown[floor_rows, floor_cols, None]).astype(np.float32)
     if reflection is not None and len(reflection.points):
         _add_reflection(image, surface, reflection, camera, light_position, area, suns, lights, ready, environment,
-                        material, block, sky_up, floor_albedo, floor)
+                        material, block, sky_up, floor_albedo, floor, owners[1] if owners else None)
     visibility[r, c] = seen
     images = surface.images
     return ShadedImage(image=linear_to_srgb(np.maximum(image, 0.0)), coverage=surface.coverage, albedo=images.albedo,
@@ -529,6 +535,21 @@ class _ShadowMaps:
         return seen
 
 
+def _radiance_by_material(owner: np.ndarray | None, material: MaterialSpec | Sequence[MaterialSpec], points: np.ndarray,
+                          *args: Any, **kwargs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """_object_radiance of points of one `material`, or of several objects' points, `owner` (N,) naming each point's
+    object and `material` a sequence of the objects' materials: each material's points apart."""
+    if isinstance(material, MaterialSpec):
+        return _object_radiance(points, *args, material=material, **kwargs)
+    radiance, seen = np.zeros((len(points), 3), dtype=np.float32), np.ones(len(points), dtype=np.float32)
+    for kind in dict.fromkeys(material):
+        mine = np.isin(owner, [k for k, m in enumerate(material) if m == kind])
+        if mine.any():
+            radiance[mine], seen[mine] = _object_radiance(points[mine], *(a[mine] for a in args[:3]), *args[3:],
+                                                          material=kind, **kwargs)
+    return radiance, seen
+
+
 def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray, occlusion: np.ndarray,
                      eye: np.ndarray, light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps],
                      lights: _Lights, ready: PreparedEnvironment, environment: EnvironmentLight,
@@ -656,16 +677,17 @@ def _split_sum(cos_view: np.ndarray, roughness: float) -> tuple[np.ndarray, np.n
 
 def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection, camera: Camera,
                     light_position, area: _ShadowMaps | None, suns: list[_ShadowMaps], lights: _Lights,
-                    ready: PreparedEnvironment, environment: EnvironmentLight, material: MaterialSpec, block: float,
-                    sky_up: np.ndarray, floor_albedo: np.ndarray, floor: np.ndarray) -> None:
+                    ready: PreparedEnvironment, environment: EnvironmentLight,
+                    material: MaterialSpec | Sequence[MaterialSpec], block: float, sky_up: np.ndarray,
+                    floor_albedo: np.ndarray, floor: np.ndarray, owner: np.ndarray | None = None) -> None:
     """The floor's reflection of the object at the pixels that show the `floor`, where the coat mirrored the
     environment: the object's points lit and seen from the camera mirrored below the floor, less the environment the
-    coat showed there."""
+    coat showed there (`material`, `owner`: as _radiance_by_material's)."""
     mirror_camera = Camera(camera.elevation_deg, width=reflection.side, height=reflection.side)
     below = mirror_camera.position * np.array([1.0, -1.0, 1.0])
-    radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
-                                   below, light_position, area, suns, lights, ready, environment, material, block,
-                                   sky_up, floor_albedo)
+    radiance, _ = _radiance_by_material(owner, material, reflection.points, reflection.normals, reflection.albedo,
+                                        reflection.occlusion, below, light_position, area, suns, lights, ready,
+                                        environment, block=block, sky_up=sky_up, floor_albedo=floor_albedo)
     _, rays = mirror_camera.pixel_rays(reflection.pixels[:, 1] + 0.5, reflection.pixels[:, 0] + 0.5)
     theta, phi = direction_angles(rays * np.array([1.0, -1.0, 1.0]))
     replaced = (sample_angles(ready.coat_specular.at(FLOOR_COAT_ROUGHNESS), theta, phi, environment.rotation_deg)

@@ -133,7 +133,7 @@ def visible_surface(geometry: ObjectGeometry, size: int, cover_behind: bool = Tr
                        if quality.ambient_occlusion else np.ones(len(floor_points), dtype=np.float32))
     lookup = color_voxels if colors else np.full_like(color_voxels, -1)  # -1: no voxel, grey
     srgb, albedo = _surface_colors(geometry, lookup, points_crop, color_spread)
-    images = _surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
+    images = surface_images(size, pixels, srgb, albedo, normals_world, depth, occlusion, floor, floor_occlusion)
     return VisibleSurface(size=size, coverage=coverage, pixels=pixels, points=points_world, normals=normals_world,
                           color_voxels=color_voxels, color_points=points_crop, color_spread=color_spread,
                           albedo=albedo, occlusion=occlusion, depth=depth, floor=floor, floor_points=floor_points,
@@ -294,7 +294,7 @@ def _any_in_3x3(mask: np.ndarray) -> np.ndarray:
     return rows[:, :-2] | rows[:, 1:-1] | rows[:, 2:]
 
 
-def _surface_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
+def surface_images(size: int, pixels: np.ndarray, colors: np.ndarray, albedo: np.ndarray, normals: np.ndarray,
                     depth: np.ndarray, occlusion: np.ndarray, floor: np.ndarray, floor_occlusion: np.ndarray) -> SurfaceImages:
     """The visible points' values drawn into images (the floor's occlusion too); read-only, as they are shared."""
     r, c = pixels[:, 0], pixels[:, 1]
