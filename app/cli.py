@@ -274,12 +274,27 @@ def add_info_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_import_vox(args: argparse.Namespace) -> None:
+    from renderer.limits import MAX_OBJECTS
     from renderer.scene import ObjectSpec, Scene, save_scene
-    from renderer.vox import read_vox
+    from renderer.vox import placed_objects, read_vox, read_vox_scene
     from renderer.voxels import save_voxels
 
     scene_out = _output_path(args.output, args.force)
     voxels_out = _output_path(f"{scene_out.with_suffix('')}_voxels.npz", args.force)
+    models = read_vox_scene(args.model_file) if args.model is None else []
+    if len(models) > 1:  # every model the file's scene shows, where it stands
+        if len(models) > MAX_OBJECTS:
+            raise InputError(f"shows {len(models)} models; a scene holds at most {MAX_OBJECTS} (pick one with --model)",
+                             args.model_file)
+        files = [voxels_out] + [_output_path(f"{scene_out.with_suffix('')}_voxels{k}.npz", args.force)
+                                for k in range(1, len(models))]
+        for model, file in zip(models, files):
+            save_voxels(file, model.rgba)
+        save_scene(Scene(objects=placed_objects(models, [str(f.resolve()) for f in files]), base_dir=Path(".")),
+                   scene_out)
+        print(f"wrote {scene_out} and {len(files)} voxel files ({len(models)} models as objects: "
+              f"{', '.join(m.name for m in models)})")
+        return
     rgba = read_vox(args.model_file, model=args.model)
     save_voxels(voxels_out, rgba)
     n = rgba.shape[0]
@@ -289,10 +304,13 @@ def cmd_import_vox(args: argparse.Namespace) -> None:
 
 
 def add_import_vox_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("import-vox", help="a MagicaVoxel .vox model as a scene (its colored voxels are the object)")
+    p = sub.add_parser("import-vox", help="a MagicaVoxel .vox file as a scene: its models as objects where the file "
+                                         "places them, in their palette colors")
     p.add_argument("model_file", metavar="MODEL.vox")
-    p.add_argument("-o", "--output", required=True, help="scene file to write; NAME_voxels.npz goes beside it")
-    p.add_argument("--model", type=int, default=None, help="which model of a multi-model file, from 0 (default: the largest)")
+    p.add_argument("-o", "--output", required=True,
+                   help="scene file to write; NAME_voxels.npz (NAME_voxels1.npz ... for more models) go beside it")
+    p.add_argument("--model", type=int, default=None,
+                   help="one model of a multi-model file alone, from 0 (default: every model the file shows)")
     p.add_argument("--force", action="store_true", help="overwrite the output files if they exist")
     p.set_defaults(func=cmd_import_vox)
 

@@ -14,10 +14,12 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer
+import numpy as np
+
+from models.renderers import RENDERERS, RendererOptions, check_draws, fixed_size, make_renderer
 from renderer.errors import InputError
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
-from renderer.scene import replaced
+from renderer.transform import rotation_y
 
 if TYPE_CHECKING:  # the command line reads TurntableConfig at start-up: the image and scene modules load when used
     import numpy as np
@@ -56,16 +58,23 @@ class TurntableConfig:
 
 
 def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
-    """The scene of each frame: the object turned by 360 / frames degrees a frame, or the light moved as far
-    around the vertical axis through the scene centre, at its height and distance (the environment turned when it
+    """The scene of each frame: the object turned by 360 / frames degrees a frame in place (several objects: each
+    about its own axis, and their places about the vertical axis through the scene centre, as on a turntable's
+    platter), or the light moved as far around that axis, at its height and distance (the environment turned when it
     lights the scene alone)."""
     x, y, z = scene.light.position
     radius, start = max(math.hypot(x, z), MIN_LIGHT_RADIUS), math.atan2(z, x)
     for f in range(frames):
         turn = 2.0 * math.pi * f / frames
         if sweep == "rotation":
-            rotation = (scene.object.rotation_deg + math.degrees(turn) + 180.0) % 360.0 - 180.0
-            yield replaced(scene, object=replace(scene.object, rotation_deg=rotation))
+            turned = rotation_y(math.degrees(turn))
+            objects = []
+            for o in scene.objects:
+                x, _, z = turned @ np.array([o.translation[0], 0.0, o.translation[1]])
+                place = o.translation if len(scene.objects) == 1 else (float(x), float(z))
+                rotation = (o.rotation_deg + math.degrees(turn) + 180.0) % 360.0 - 180.0
+                objects.append(replace(o, rotation_deg=rotation, translation=place))
+            yield replace(scene, objects=tuple(objects))
         elif not scene.light.enabled and scene.environment is not None:  # the environment alone lights it: turn that
             env = scene.environment
             yield replace(scene, environment=replace(env, rotation_deg=env.rotation_deg + math.degrees(turn)))
@@ -96,6 +105,7 @@ def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = Tru
     from renderer.color import to_uint8
 
     config.check()
+    check_draws(config.renderer, scene)
     render, name = frame_renderer(scene, config)
     images, seconds = [], []
     for frame_scene in tqdm(frame_scenes(scene, config.frames, config.sweep), total=config.frames, unit="frame",

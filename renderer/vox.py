@@ -1,4 +1,5 @@
-"""MagicaVoxel .vox files in and out: a model's palette colors become the object voxels, and back.
+"""MagicaVoxel .vox files in and out: a model's palette colors become the object voxels, and back; a file's models
+where its scene graph places them become several objects (read_vox_scene, placed_objects).
 
 Written here rather than taken from the registry: the two .vox packages there either configure the
 process's logging and pull in matplotlib when imported (midvoxio) or are unmaintained since 2017
@@ -15,6 +16,7 @@ a rotation, so a model keeps its handedness.
 from __future__ import annotations
 
 import struct
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +25,7 @@ from PIL import Image
 from renderer.errors import InputError
 from renderer.io import atomic_path
 from renderer.limits import MAX_RESOLUTION, MAX_VOXEL_FILE_BYTES, MIN_RESOLUTION
+from renderer.scene import ObjectSpec
 from renderer.surface import occupancy
 
 VOX_VERSIONS = (150, 200)
@@ -46,12 +49,7 @@ def read_vox(path: str | Path, model: int | None = None) -> np.ndarray:
     The model stands on the grid's floor, centred across; N is its longest side (at least MIN_RESOLUTION).
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError("file not found", path)
-    size = path.stat().st_size
-    if size > MAX_VOXEL_FILE_BYTES:
-        raise InputError(f"file is {size / 2**20:.0f} MB; .vox files are read up to {MAX_VOXEL_FILE_BYTES // 2**20} MB", path)
-    data = path.read_bytes()
+    data = _read_file(path)
     models, palette = _parse(data, path)
     if not models:
         raise InputError("holds no model (no SIZE and XYZI chunks)", path)
@@ -167,3 +165,181 @@ def _palette_of(colors: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _chunk(chunk_id: bytes, content: bytes) -> bytes:
     return struct.pack("<4sii", chunk_id, len(content), 0) + content
+
+
+# --- several models, where the file's scene puts them ----------------------------------------------------------
+
+MAX_NODES = 100_000  # scene graph nodes read at most (a hostile file may claim millions)
+MAX_DICT_ENTRIES = 256  # entries of one node's attribute dictionary
+
+
+@dataclass(frozen=True)
+class PlacedModel:
+    """One model of a .vox file as its scene graph places it: object voxels (N^3, y up) standing at the height the
+    file gives the model above its lowest one, and where the grid's centre stands on the floor."""
+
+    rgba: np.ndarray
+    centre: tuple[float, float]  # world x and z of the grid's centre, in the file's voxels (z towards the viewer)
+    name: str
+
+
+def read_vox_scene(path: str | Path) -> list[PlacedModel]:
+    """Every model the file's scene graph shows (hidden ones left out), each where the graph puts it (rotations are
+    the graph's quarter turns); empty for a file whose graph shows none, or that has none (read_vox reads one model)."""
+    path = Path(path)
+    data = _read_file(path)
+    models, palette = _parse(data, path)
+    if not models:
+        raise InputError("holds no model (no SIZE and XYZI chunks)", path)
+    instances = _scene_instances(data, path, len(models))
+    if not instances:
+        return []
+    placed = []
+    for model, rotation, translation, name in instances:
+        (sx, sy, sz), voxels = models[model]
+        if len(voxels) == 0:
+            continue
+        local = voxels[:, :3].astype(np.int64) - np.array([sx, sy, sz]) // 2
+        world = np.rint(local @ rotation.T + translation).astype(np.int64)  # MagicaVoxel's frame, z up
+        placed.append((np.stack([world[:, 0], world[:, 2], -world[:, 1]], axis=1), voxels[:, 3], name))  # y up
+    if not placed:
+        raise InputError("its models hold no voxels", path)
+    lowest = min(int(p[:, 1].min()) for p, _, _ in placed)
+    out = []
+    for points, colors, name in placed:
+        lo, hi = points.min(axis=0), points.max(axis=0) + 1
+        ex, ez, height = int(hi[0] - lo[0]), int(hi[2] - lo[2]), int(hi[1] - lowest)
+        n = max(ex, ez, height, MIN_RESOLUTION)
+        if n > MAX_RESOLUTION:
+            raise InputError(f"model {name!r} spans {n} voxels with its height above the floor; object grids go up to "
+                             f"{MAX_RESOLUTION}", path)
+        i = points[:, 0] - lo[0] + (n - ex) // 2
+        j = points[:, 1] - lowest
+        k = points[:, 2] - lo[2] + (n - ez) // 2
+        rgba = np.zeros((n, n, n, 4), np.float32)
+        rgba[i, j, k, :3] = palette[colors] / 255.0
+        rgba[i, j, k, 3] = 1.0
+        centre = (float(lo[0] - (n - ex) // 2 + n / 2), float(lo[2] - (n - ez) // 2 + n / 2))
+        out.append(PlacedModel(rgba, centre, name))
+    return out
+
+
+def placed_objects(models: list[PlacedModel], voxel_files: list[str]) -> tuple[ObjectSpec, ...]:
+    """Scene objects for `models`, each read from its file in `voxel_files`: one file voxel is as wide in the world
+    for all of them (the largest grid one unit, the whole group at most two across), and the group stands centred on
+    the floor's origin."""
+    xs = [c for m in models for c in (m.centre[0] - m.rgba.shape[0] / 2, m.centre[0] + m.rgba.shape[0] / 2)]
+    zs = [c for m in models for c in (m.centre[1] - m.rgba.shape[0] / 2, m.centre[1] + m.rgba.shape[0] / 2)]
+    largest = max(m.rgba.shape[0] for m in models)
+    unit = min(1.0 / largest, 2.0 / max(max(xs) - min(xs), max(zs) - min(zs)))
+    cx, cz = (max(xs) + min(xs)) / 2, (max(zs) + min(zs)) / 2
+    names: set[str] = set()
+    objects = []
+    for model, voxels in zip(models, voxel_files):
+        name = model.name if model.name not in names else f"{model.name}.{len(names):03d}"
+        names.add(name)
+        n = model.rgba.shape[0]
+        objects.append(ObjectSpec(voxels=voxels, resolution=n, scale=(n * unit,) * 3, name=name,
+                                  translation=((model.centre[0] - cx) * unit, (model.centre[1] - cz) * unit)))
+    return tuple(objects)
+
+
+def _read_file(path: Path) -> bytes:
+    if not path.is_file():
+        raise InputError("file not found", path)
+    size = path.stat().st_size
+    if size > MAX_VOXEL_FILE_BYTES:
+        raise InputError(f"file is {size / 2**20:.0f} MB; .vox files are read up to {MAX_VOXEL_FILE_BYTES // 2**20} MB", path)
+    return path.read_bytes()
+
+
+def _scene_instances(data: bytes, path: Path, model_count: int) -> list[tuple[int, np.ndarray, np.ndarray, str]]:
+    """(model index, 3x3 rotation, translation, name) of each model the scene graph shows, in MagicaVoxel's frame."""
+    transforms: dict[int, tuple[dict, int, dict]] = {}  # node: attributes, child, first frame
+    groups: dict[int, list[int]] = {}
+    shapes: dict[int, list[int]] = {}
+    offset, end = 20 + struct.unpack_from("<i", data, 12)[0], len(data)
+    while offset + 12 <= end and len(transforms) + len(groups) + len(shapes) < MAX_NODES:
+        chunk_id, content, children = _chunk_header(data, offset, path)
+        body, stop = offset + 12, offset + 12 + content
+        if stop > end:
+            break  # _parse has refused a cut file already; a node past the end is not read
+        if chunk_id == b"nTRN":
+            node, at = _int(data, body, stop, path), body + 4
+            attributes, at = _dict(data, at, stop, path)
+            child = _int(data, at, stop, path)
+            frames = _int(data, at + 12, stop, path)
+            frame, _ = _dict(data, at + 16, stop, path) if frames > 0 else ({}, at)
+            transforms[node] = (attributes, child, frame)
+        elif chunk_id == b"nGRP":
+            node, at = _int(data, body, stop, path), body + 4
+            _, at = _dict(data, at, stop, path)
+            count = _int(data, at, stop, path)
+            if not 0 <= count <= (stop - at - 4) // 4:
+                raise InputError(f"a group node claims {count} children", path)
+            groups[node] = [_int(data, at + 4 + 4 * c, stop, path) for c in range(count)]
+        elif chunk_id == b"nSHP":
+            node, at = _int(data, body, stop, path), body + 4
+            _, at = _dict(data, at, stop, path)
+            count, at = _int(data, at, stop, path), at + 4
+            ids = []
+            for _ in range(max(0, min(count, MAX_NODES))):
+                ids.append(_int(data, at, stop, path))
+                _, at = _dict(data, at + 4, stop, path)
+            shapes[node] = ids
+        offset = stop + children
+    if 0 not in transforms:  # no scene graph
+        return []
+    out: list[tuple[int, np.ndarray, np.ndarray, str]] = []
+    pending = [(0, np.eye(3), np.zeros(3), "")]
+    while pending and len(out) < MAX_NODES:
+        node, rotation, translation, name = pending.pop()
+        if node in transforms:
+            attributes, child, frame = transforms[node]
+            if attributes.get("_hidden") == "1":
+                continue
+            local_rotation = _rotation(int(frame.get("_r", "4")))
+            local_translation = np.array([float(v) for v in frame.get("_t", "0 0 0").split()[:3]] + [0.0] * 3)[:3]
+            pending.append((child, rotation @ local_rotation, rotation @ local_translation + translation,
+                            attributes.get("_name", name)))
+        elif node in groups:
+            pending.extend((c, rotation, translation, name) for c in reversed(groups[node]))
+        elif node in shapes:
+            out.extend((m, rotation, translation, name or f"model{m}") for m in shapes[node] if 0 <= m < model_count)
+    return out
+
+
+def _rotation(packed: int) -> np.ndarray:
+    """MagicaVoxel's packed rotation: the column of row 0's and row 1's non-zero entry in bits 0-1 and 2-3, their signs
+    (and row 2's) in bits 4, 5 and 6; an impossible packing is read as no rotation."""
+    first, second = packed & 3, (packed >> 2) & 3
+    if first > 2 or second > 2 or first == second:
+        return np.eye(3)
+    matrix = np.zeros((3, 3))
+    for row, column in enumerate((first, second, 3 - first - second)):
+        matrix[row, column] = -1.0 if packed >> (4 + row) & 1 else 1.0
+    return matrix
+
+
+def _int(data: bytes, offset: int, stop: int, path: Path) -> int:
+    if offset + 4 > stop:
+        raise InputError(f"a scene graph node is cut at byte {offset}", path)
+    return struct.unpack_from("<i", data, offset)[0]
+
+
+def _dict(data: bytes, offset: int, stop: int, path: Path) -> tuple[dict[str, str], int]:
+    """A .vox DICT (a count, then key and value strings, each a length and bytes) and where it ends."""
+    count, offset = _int(data, offset, stop, path), offset + 4
+    if not 0 <= count <= MAX_DICT_ENTRIES:
+        raise InputError(f"a scene graph node claims {count} attributes", path)
+    out = {}
+    for _ in range(count):
+        texts = []
+        for _ in range(2):
+            length = _int(data, offset, stop, path)
+            if not 0 <= length <= stop - offset - 4:
+                raise InputError(f"a scene graph string at byte {offset} runs past its node", path)
+            texts.append(data[offset + 4:offset + 4 + length].decode("utf-8", "replace"))
+            offset += 4 + length
+        out[texts[0]] = texts[1]
+    return out, offset

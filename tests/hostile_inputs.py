@@ -123,7 +123,7 @@ def glb_claiming(json_length: int) -> bytes:
 
 def scene_json(**changes) -> dict:
     scene = json.loads(DEMO_SCENE.read_text())
-    scene["object"]["mesh"] = "chair.obj"
+    scene["objects"][0]["mesh"] = "chair.obj"
     for key, value in changes.items():
         scene[key] = value
     return scene
@@ -131,7 +131,7 @@ def scene_json(**changes) -> dict:
 
 def scene_with_object(**object_changes) -> bytes:
     scene = scene_json()
-    scene["object"].update(object_changes)
+    scene["objects"][0].update(object_changes)
     return json.dumps(scene).encode()
 
 
@@ -221,7 +221,7 @@ def scene_cases() -> list[Case]:
         "dir_mesh.json": scene_with_object(mesh="."),
         "float_resolution.json": scene_with_object(resolution=1e300),
         "string_scale.json": scene_with_object(scale="big"),
-        "huge_paint.json": json.dumps(scene_json(paint=[{"target": "region", "color": [1, 0, 0], "seed": [10**30, 0, 0]}])).encode(),
+        "huge_paint.json": scene_with_object(paint=[{"target": "region", "color": [1, 0, 0], "seed": [10**30, 0, 0]}]),
         "binary.json": random_bytes(2048, 7),
         "huge_file.json": b'{"version": 1, "pad": "' + b" " * (80 << 20) + b'"}',
     }

@@ -103,13 +103,13 @@ def test_voxelize_and_info(scene_dir):
 @pytest.mark.parametrize(
     ("change", "fragments"),
     [
-        (lambda d, folder: d["object"].update(mesh="missing.obj"), ("missing.obj", "file not found")),
+        (lambda d, folder: d["objects"][0].update(mesh="missing.obj"), ("missing.obj", "file not found")),
         (lambda d, folder: (folder / "bad.obj").write_text("v 1 2\nf 1 2 9\nrubbish"), ("bad.obj",)),
         (lambda d, folder: (folder / "empty.obj").write_text("# nothing\n"), ("empty.obj",)),
-        (lambda d, folder: d["object"].update(scale=[1, 0, 1]), ("object.scale", "positive")),
+        (lambda d, folder: d["objects"][0].update(scale=[1, 0, 1]), ("objects[0].scale", "positive")),
         (lambda d, folder: d.update(image_size="big"), ("image_size", "integer")),
         (lambda d, folder: d["light"].update(position=[0, -1, 0]), ("above the floor",)),
-        (lambda d, folder: d.update(paint=[{"target": "region", "seed": [0, 0, 0], "color": [1, 0, 0]}]),
+        (lambda d, folder: d["objects"][0].update(paint=[{"target": "region", "seed": [0, 0, 0], "color": [1, 0, 0]}]),
          ("scene.json: paint seed [0, 0, 0] is on an empty voxel",)),
     ],
 )
@@ -118,7 +118,7 @@ def test_bad_scenes_give_one_line_and_exit_2(scene_dir, change, fragments):
     change(data, scene_dir)
     for name in ("bad.obj", "empty.obj"):
         if (scene_dir / name).exists():
-            data["object"]["mesh"] = name
+            data["objects"][0]["mesh"] = name
     (scene_dir / "scene.json").write_text(json.dumps(data))
     assert_user_error(nvr("render", scene_dir / "scene.json", "-o", scene_dir / "out.png"), *fragments)
     assert not (scene_dir / "out.png").exists()

@@ -101,10 +101,10 @@ def test_new_parts_round_trip_through_a_file(tmp_path):
 
 @pytest.mark.parametrize(("change", "fragments"), [
     (lambda d: d.update(enviroment={"sky": {}}), ('enviroment: unknown key (did you mean "environment"?)',)),
-    (lambda d: d["object"].update(materal={}), ('object.materal', '"material"')),
-    (lambda d: d["object"].update(material={"roughnes": 0.2}), ('object.material.roughnes', '"roughness"')),
-    (lambda d: d["object"].update(material={"roughness": 7}), ("object.material.roughness", "[0, 1]")),
-    (lambda d: d["object"].update(material={"metallic": "yes"}), ("object.material.metallic", "number")),
+    (lambda d: d["objects"][0].update(materal={}), ('objects[0].materal', '"material"')),
+    (lambda d: d["objects"][0].update(material={"roughnes": 0.2}), ('objects[0].material.roughnes', '"roughness"')),
+    (lambda d: d["objects"][0].update(material={"roughness": 7}), ("objects[0].material.roughness", "[0, 1]")),
+    (lambda d: d["objects"][0].update(material={"metallic": "yes"}), ("objects[0].material.metallic", "number")),
     (lambda d: d.update(environment={"sky": {}, "image": "a.hdr"}), ("environment", "not both")),
     (lambda d: d.update(environment={"strength": 1.0}), ("environment", "neither")),
     (lambda d: d.update(environment={"sky": {"turbidity": 20}}), ("environment.sky.turbidity", "[1, 10]")),
@@ -531,7 +531,7 @@ def test_info_and_range_warnings_say_what_lights_the_scene_and_that_no_network_i
     data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
     assert not any("no network" in w for w in range_warnings(scene_from_dict(data, tmp_path / "scene.json")))
     data["environment"] = {"sky": {"sun_elevation_deg": 20}, "strength": 2}
-    data["object"]["material"] = {"roughness": 0.2, "specular": 0.5}
+    data["objects"][0]["material"] = {"roughness": 0.2, "specular": 0.5}
     (tmp_path / "scene.json").write_text(json.dumps(data))
     assert not any("trained" in w for w in range_warnings(load_scene(tmp_path / "scene.json")))  # the renderer says
     info = subprocess.run([sys.executable, "-m", "app.cli", "info", str(tmp_path / "scene.json")], capture_output=True,
@@ -570,7 +570,7 @@ def test_the_floors_shadow_of_a_wide_low_light_equals_the_shadow_maps_read_every
     """The floor reads the shadow maps only inside the box the object's shadow can reach: that box must hold the
     whole soft shadow of a wide light (a window low in the sky), so the floor equals the maps read at every point."""
     from renderer.shading.environment_shading import _ShadowMaps
-    from renderer.shading.lighting import FLOOR_SHADOW_BIAS, light_visibility
+    from renderer.shading.lighting import FLOOR_SHADOW_BIAS
 
     rgba = cube(16)
     spec = ObjectSpec(voxels="cube.npz")
@@ -583,8 +583,7 @@ def test_the_floors_shadow_of_a_wide_low_light_equals_the_shadow_maps_read_every
     maps = _ShadowMaps.directional(geometry, direction, spread, block)
     boxed = maps.floor_visibility(surface, geometry, block)
     everywhere = np.ones(len(surface.floor_points))
-    light_visibility(surface.floor_points, FLOOR_SHADOW_BIAS * block, maps.points, maps.maps, maps.bounds, maps.nearest,
-                     maps.spacing, everywhere)
+    maps.shadows.visibility(surface.floor_points, FLOOR_SHADOW_BIAS * block, maps.spacing, everywhere)
     assert everywhere.min() < 0.5  # the cube shadows the floor
     # Outside the box the floor sees all the light: no point of the shadow (beyond the unit cube's far side, along
     # +x) may be left there.

@@ -93,7 +93,7 @@ def test_a_texture_that_is_not_an_image_is_refused_in_one_line_with_exit_2_and_n
     if content is not None:
         (tmp_path / name).write_bytes(content)
     data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
-    data["object"]["mesh"] = str(ROOT / "assets" / "demo" / "chair.obj")
+    data["objects"][0]["mesh"] = str(ROOT / "assets" / "demo" / "chair.obj")
     data["floor"] = {"color": [0.5, 0.5, 0.5], "texture": name}
     (tmp_path / "scene.json").write_text(json.dumps(data))
     out = tmp_path / "render.png"
@@ -228,7 +228,7 @@ def test_mixed_grounds_put_some_views_on_a_plain_floor_and_some_on_a_texture(tmp
 def test_info_says_what_the_floor_is_and_that_no_network_corrects_a_textured_one(tmp_path):
     quadrant_texture(tmp_path / "tiles.png")
     data = json.loads((ROOT / "assets" / "demo" / "scene.json").read_text())
-    data["object"]["mesh"] = str(ROOT / "assets" / "demo" / "chair.obj")
+    data["objects"][0]["mesh"] = str(ROOT / "assets" / "demo" / "chair.obj")
     data["floor"] = {"color": [0.5, 0.5, 0.5], "texture": "tiles.png", "texture_scale": 0.5, "shape": "disk"}
     (tmp_path / "scene.json").write_text(json.dumps(data))
     info = subprocess.run([sys.executable, "-m", "app.cli", "info", str(tmp_path / "scene.json")], capture_output=True,

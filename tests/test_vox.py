@@ -119,3 +119,58 @@ def test_import_vox_and_export_vox_commands(tmp_path):
     np.testing.assert_allclose(read_vox(tmp_path / "again.vox"), read_vox(tmp_path / "m.vox"), atol=0.5 / 255)
     again = subprocess.run([*run, "export-vox", "scene.json", "-o", "again.vox"], cwd=tmp_path, capture_output=True, text=True)
     assert again.returncode == 2 and "exists" in again.stderr  # never overwritten without --force
+
+
+def _node(chunk_id: bytes, *ints_and_dicts) -> bytes:
+    """A scene graph chunk: ints as they are, dicts ({key: value}) as .vox DICTs."""
+    out = b""
+    for item in ints_and_dicts:
+        if isinstance(item, dict):
+            out += struct.pack("<i", len(item))
+            for key, value in item.items():
+                for text in (key, value):
+                    out += struct.pack("<i", len(text)) + text.encode()
+        else:
+            out += struct.pack("<i", item)
+    return chunk(chunk_id, out)
+
+
+def test_a_files_models_become_objects_where_its_scene_graph_puts_them(tmp_path):
+    from renderer.vox import placed_objects, read_vox_scene
+
+    palette = np.full((256, 4), 255, np.uint8)
+    cube = [(x, y, z, 1) for x in range(4) for y in range(4) for z in range(4)]  # 4^3, centre at 2
+    tall = [(x, y, z, 2) for x in range(2) for y in range(2) for z in range(8)]  # 2 x 2 x 8
+    body = b""
+    for size, voxels in (((4, 4, 4), cube), ((2, 2, 8), tall), ((4, 4, 4), cube)):
+        body += chunk(b"SIZE", struct.pack("<3i", *size))
+        body += chunk(b"XYZI", struct.pack("<i", len(voxels)) + bytes(np.asarray(voxels, np.uint8).ravel()))
+    # root transform 0 -> group 1 -> (transform 2 -> shape 3: the cube at x -10 on the ground,
+    #                                  transform 4 -> shape 5: the pillar at x +10, y 6, turned a quarter about z,
+    #                                  standing 3 voxels up; transform 6 hidden -> shape 7)
+    body += _node(b"nTRN", 0, {}, 1, -1, -1, 1, {})
+    body += _node(b"nGRP", 1, {}, 3, 2, 4, 6)
+    body += _node(b"nTRN", 2, {"_name": "box"}, 3, -1, 0, 1, {"_t": "-10 0 2"})
+    body += _node(b"nSHP", 3, {}, 1, 0, {})
+    body += _node(b"nTRN", 4, {"_name": "pillar"}, 5, -1, 0, 1, {"_t": "10 6 7", "_r": str(1 | 0 << 2 | 1 << 4)})
+    body += _node(b"nSHP", 5, {}, 1, 1, {})
+    body += _node(b"nTRN", 6, {"_hidden": "1"}, 7, -1, 0, 1, {})
+    body += _node(b"nSHP", 7, {}, 1, 2, {})
+    body += chunk(b"RGBA", bytes(palette.ravel()))
+    path = tmp_path / "scene.vox"
+    path.write_bytes(b"VOX " + struct.pack("<i", 200) + chunk(b"MAIN", b"", body))
+    box, pillar = read_vox_scene(path)
+    assert (box.name, pillar.name) == ("box", "pillar")
+    assert box.rgba.shape[0] == 4 and (box.rgba[..., 3] > 0).sum() == 64
+    # The pillar's lowest voxel is 3 above the box's (z 7 - 4); the grid keeps that gap below it.
+    lowest = np.nonzero((pillar.rgba[..., 3] > 0).any(axis=(0, 2)))[0].min()
+    assert lowest == 3 and pillar.rgba.shape[0] == 11  # 3 + 8 voxels high
+    # The quarter turn (x' = -y) puts the pillar's voxels at x 10 and 11, the box's at -12 to -9: centres 21 apart (the
+    # pillar's grid, wider than its footprint, is centred within half a voxel). MagicaVoxel's y (6 against 0) points
+    # away from the viewer: -6 in z.
+    assert pillar.centre[0] - box.centre[0] == pytest.approx(21.0, abs=0.6)
+    assert pillar.centre[1] - box.centre[1] == pytest.approx(-6.0, abs=0.6)
+    box_spec, pillar_spec = placed_objects([box, pillar], ["a.npz", "b.npz"])
+    unit = pillar_spec.scale[0] / 11
+    assert box_spec.scale[0] == pytest.approx(4 * unit)  # one file voxel is as wide in both
+    assert (pillar_spec.translation[0] - box_spec.translation[0]) == pytest.approx(21.0 * unit, abs=unit)

@@ -30,7 +30,7 @@ from app.editor.viewport import ViewportRenderer
 from app.editor.window import Screenshots, Window, upload_image
 from renderer.camera import Camera
 from renderer.errors import InputError
-from renderer.scene import PaintOp, Scene
+from renderer.scene import ObjectSpec, PaintOp, Scene, replaced
 from renderer.surface import occupancy
 from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN, apply_transform, object_to_world
 from renderer.voxel_cache import VoxelCache, source_key
@@ -49,6 +49,16 @@ class Message:
     text: str
     error: bool
     shown_at: float = field(default_factory=time.monotonic)
+
+
+@dataclass(frozen=True)
+class ShownObject:
+    """An object as the viewport shows it: its painted voxels, what they were read from (source_key: paint on the
+    same object keeps the viewport's faces) and their occupancy (for picking; paint keeps it, and it is slow to find)."""
+
+    rgba: np.ndarray
+    source: tuple
+    occupancy: np.ndarray
 
 
 @dataclass
@@ -90,10 +100,9 @@ class EditorApp:
         self.stats = FrameStats()
         self.quit_requested = False
         self._synced = -1  # document revision the viewport and render were last updated for
-        self.shown_rgba = None  # the painted voxels the viewport shows (for picking)
-        self.shown_source = None  # their object's source_key: paint on it keeps the viewport's faces
-        self.shown_occupancy = None  # their occupancy (for picking; paint keeps it, and it is slow to find)
-        self.unloadable_source = None  # the object (mesh or voxels file) that failed to load, if any
+        self.shown: list[ShownObject | None] = []  # per object, what the viewport shows (None: not loaded)
+        self.unloadable: set[tuple] = set()  # objects (their source_key) whose mesh or voxels file failed to load
+        self.submitted: Scene | None = None  # what the render was last asked for: the scene, less unloadable objects
         # Its parts, each with its own commands (a selection of objects will join them).
         self.jobs = JobRunner(self.say)
         self.screenshots = Screenshots(window, self.say)
@@ -134,8 +143,80 @@ class EditorApp:
     def scene(self) -> Scene:
         return self.doc.scene
 
-    def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool:
-        """Apply `make_scene(current scene)`: shown as a preview, or committed as one undo step."""
+    @property
+    def selected(self) -> int:
+        """Index of the selected object: the one the Object, Paint and Photo tabs and G, R, S act on."""
+        return self.doc.selected
+
+    @property
+    def selected_object(self) -> ObjectSpec:
+        return self.scene.objects[self.doc.selected]
+
+    def object_view(self, scene: Scene | None = None) -> Scene:
+        """`scene` (default: the shown one) holding the selected object alone: what the object tools read."""
+        scene = self.scene if scene is None else scene
+        return replaced(scene, objects=(scene.objects[min(self.doc.selected, len(scene.objects) - 1)],))
+
+    def edit_object(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool:
+        """`edit` the selected object: `make_scene` gets object_view(scene) and its result's object takes the selected
+        one's place (the rest of its result, a floor fill's color say, is kept too)."""
+        index = self.doc.selected
+
+        def whole(scene: Scene) -> Scene:
+            changed = make_scene(self.object_view(scene))
+            return changed.with_changes(objects=scene.objects[:index] + (changed.object,) + scene.objects[index + 1:])
+
+        return self.edit(whole, preview)
+
+    def select(self, index: int) -> None:
+        """Select object `index` (one undo step): the tools act on it from now on."""
+        if not 0 <= index < len(self.scene.objects):
+            self.say(f"no object {index}: the scene holds {len(self.scene.objects)}", error=True)
+            return
+        self.commit_preview()
+        self.doc.select(index)
+
+    def duplicate_selected(self) -> None:
+        """A copy of the selected object beside it, selected (Shift+D): one undo step."""
+        self.commit_preview()
+        if self.edit(lambda s: edits.duplicate_object(s, self.selected), select=len(self.scene.objects)):
+            self.say(f"duplicated as {edits.object_label(self.scene, self.selected)}")
+
+    def delete_selected(self) -> None:
+        """Delete the selected object (X, Delete): one undo step; the one before it is selected."""
+        self.commit_preview()
+        name, index = edits.object_label(self.scene, self.selected), self.selected
+        if self.edit(lambda s: edits.delete_object(s, index), select=max(index - 1, 0)):
+            self.say(f"deleted {name} (Ctrl+Z brings it back)")
+
+    def rename_object(self, index: int, name: str) -> None:
+        self.edit(lambda s: edits.rename_object(s, index, name))
+
+    def add_object(self, path: str | Path, up: str = "y") -> None:
+        """Voxelise a mesh (or read a MagicaVoxel model) in the background, then add it where the floor has room,
+        selected: one undo step."""
+        path = Path(path)
+        if path.suffix.lower() == ".vox":
+            self.files.import_vox(path, add=True)
+            return
+        try:
+            candidate = edits.add_object(self.scene, ObjectSpec(mesh=str(path.resolve()), up=up))
+        except InputError as exc:
+            self.say(str(exc), error=True)
+            return
+
+        def done(_rgba) -> None:
+            if self.edit(lambda s: edits.add_object(s, ObjectSpec(mesh=str(path.resolve()), up=up)),
+                         select=len(self.scene.objects)):
+                self.say(f"added {path.name}")
+                self.warn_missing_materials(path, self.selected_object)
+
+        one = replaced(candidate, objects=(candidate.objects[-1],))
+        self.jobs.start(f"Voxelising {path.name}", lambda progress: self.voxels.object_rgba(one, progress), done)
+
+    def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False, select: int | None = None) -> bool:
+        """Apply `make_scene(current scene)`: shown as a preview, or committed as one undo step (with object `select`
+        selected in it, if given)."""
         try:
             scene = make_scene(self.doc.scene)
         except InputError as exc:
@@ -146,7 +227,7 @@ class EditorApp:
         if preview:
             self.doc.preview(scene)
             return True
-        return self.doc.commit(scene)
+        return self.doc.commit(scene, select)
 
     def commit_preview(self) -> None:
         if self.doc.previewing:
@@ -170,7 +251,7 @@ class EditorApp:
         """The viewport aims at the object and comes as close as shows all of it (F)."""
         corners = np.array([[x, y, z] for x in (OBJECT_BOX_MIN[0], OBJECT_BOX_MAX[0])
                             for y in (OBJECT_BOX_MIN[1], OBJECT_BOX_MAX[1]) for z in (OBJECT_BOX_MIN[2], OBJECT_BOX_MAX[2])])
-        world = apply_transform(object_to_world(self.scene.object), corners)
+        world = apply_transform(object_to_world(self.selected_object), corners)
         centre = world.mean(axis=0)
         self.view = framed(self.view, centre, float(np.linalg.norm(world - centre, axis=1).max()))
 
@@ -186,15 +267,15 @@ class EditorApp:
         """Bucket fill: the connected region of similar color around voxel `seed` takes the palette color."""
         op = PaintOp("region", tuple(self.paint_color), tuple(int(s) for s in seed), float(self.tolerance),
                      self.similarity)
-        rgba, _ = self.voxels.painted(self.scene)
+        rgba, _ = self.voxels.painted(self.object_view())
         if not (all(0 <= s < rgba.shape[0] for s in op.seed) and rgba[op.seed][3] >= 0.5):
             self.say(f"voxel {list(op.seed)} is not part of the object", error=True)
             return
-        self.edit(lambda s: edits.paint(s, op))
+        self.edit_object(lambda s: edits.paint(s, op))
 
     def pick_color(self, voxel: tuple[int, int, int]) -> None:
         """The eyedropper (Alt+click with the bucket): the palette color becomes the voxel's, as it shows now."""
-        rgba, _ = self.voxels.painted(self.scene)
+        rgba, _ = self.voxels.painted(self.object_view())
         if not (all(0 <= v < rgba.shape[0] for v in voxel) and rgba[tuple(voxel)][3] >= 0.5):
             self.say(f"voxel {list(voxel)} is not part of the object", error=True)
             return
@@ -202,7 +283,7 @@ class EditorApp:
         self.say("picked {:.2f}, {:.2f}, {:.2f} (sRGB)".format(*self.paint_color))
 
     def fill_object(self) -> None:
-        self.edit(lambda s: edits.paint(s, PaintOp("object", tuple(self.paint_color))))
+        self.edit_object(lambda s: edits.paint(s, PaintOp("object", tuple(self.paint_color))))
 
     def fill_floor(self) -> None:
         self.edit(lambda s: edits.paint(s, PaintOp("floor", tuple(self.paint_color))))
@@ -240,7 +321,8 @@ class EditorApp:
             return self.jobs.current.title
         if not self.live.idle:
             return "rendering"
-        if not self.synced or self.shown_frame is None or self.shown_frame.scene != self.scene:
+        if not self.synced or (self.submitted is not None and (self.shown_frame is None
+                                                               or self.shown_frame.scene != self.submitted)):
             return "showing the latest edit"
         return None
 
@@ -279,46 +361,84 @@ class EditorApp:
             self.live.error = None
         self.autosave.tick()
 
+    @property
+    def shown_rgba(self) -> np.ndarray | None:
+        """The selected object's painted voxels as the viewport shows them (the bucket's), None until loaded."""
+        shown = self.shown[self.selected] if self.selected < len(self.shown) else None
+        return None if shown is None else shown.rgba
+
+    @property
+    def shown_occupancy(self) -> np.ndarray | None:
+        shown = self.shown[self.selected] if self.selected < len(self.shown) else None
+        return None if shown is None else shown.occupancy
+
+    @property
+    def loaded_nothing(self) -> bool:
+        """Whether no object of the scene could be loaded (and none is loading): there is nothing to show."""
+        return self.jobs.current is None and all(source_key(one) in self.unloadable for one in self._object_views())
+
+    def _object_views(self, scene: Scene | None = None) -> list[Scene]:
+        scene = self.doc.scene if scene is None else scene
+        return [replaced(scene, objects=(o,)) for o in scene.objects]
+
     def _sync(self) -> None:
-        """Show the document's scene: upload its voxels (voxelising in the background first if needed), render it."""
+        """Show the document's scene: upload each object's voxels (voxelising in the background first if needed),
+        render it. An object that cannot be loaded is named in a message and left out; the others are shown."""
         scene = self.doc.scene
-        if not self.voxels.has_object(scene):
-            if self.jobs.current is not None:
+        views = self._object_views(scene)
+        for one in views:
+            if not self.voxels.has_object(one) and source_key(one) not in self.unloadable:
+                if self.jobs.current is None:
+                    self.jobs.start(f"Loading {Path(one.object.mesh or one.object.voxels).name}",
+                                    lambda progress, one=one: self.voxels.object_rgba(one, progress),
+                                    lambda _rgba, one=one: self._object_loaded(one),
+                                    on_error=lambda one=one: self.unloadable.add(source_key(one)))
                 return  # voxelising (or another job): the scene is shown when it is done
-            if source_key(scene) == self.unloadable_source:  # its error is shown; retried only once the object changes
+        self.floor_color = scene.floor.color
+        self.viewport.keep_objects(len(views))
+        self.shown = (self.shown + [None] * len(views))[:len(views)]
+        drawn = []
+        for index, one in enumerate(views):
+            if source_key(one) in self.unloadable:
+                self.viewport.forget(index)
+                self.shown[index] = None
+                continue
+            try:
+                rgba, _ = self.voxels.painted(one)
+            except InputError as exc:
+                self.say(str(exc), error=True)
                 self._synced = self.doc.revision
-            else:
-                self.unloadable_source = source_key(scene)  # until the job succeeds
-                self.jobs.start(f"Loading {Path(scene.object.mesh or scene.object.voxels).name}",
-                                lambda progress: self.voxels.object_rgba(scene, progress), self._object_loaded)
-            return
-        try:
-            rgba, self.floor_color = self.voxels.painted(scene)
-        except InputError as exc:
-            self.say(str(exc), error=True)
-            self._synced = self.doc.revision
-            return
-        if rgba is not self.shown_rgba:
-            source = source_key(scene)
-            if self.shown_source == source and self.shown_rgba is not None:
-                self.viewport.recolor(rgba)  # paint: the same object's voxels, other colors
-            else:
-                self.viewport.set_voxels(rgba)
-                self.shown_occupancy = occupancy(rgba)
-            self.shown_rgba, self.shown_source = rgba, source
-        self.live.submit(scene, preview=self.doc.previewing)
+                return
+            self._show_object(index, one, rgba)
+            drawn.append(one.object)
+        self.submitted = None
+        if drawn:
+            self.submitted = scene if len(drawn) == len(views) else replaced(scene, objects=tuple(drawn))
+            self.live.submit(self.submitted, preview=self.doc.previewing)
         self._synced = self.doc.revision
 
-    def _object_loaded(self, _rgba) -> None:
-        self.unloadable_source = None
-        self.warn_missing_materials(self.scene.mesh_path())
+    def _show_object(self, index: int, one: Scene, rgba: np.ndarray) -> None:
+        """Object `index` (`one`: the scene holding it alone) in the viewport with its painted voxels `rgba`."""
+        shown, source = self.shown[index], source_key(one)
+        if shown is not None and shown.rgba is rgba:
+            return
+        if shown is not None and shown.source == source:
+            self.viewport.recolor(rgba, index=index)  # paint: the same object's voxels, other colors
+            self.shown[index] = ShownObject(rgba, source, shown.occupancy)
+        else:
+            self.viewport.set_voxels(rgba, index)
+            self.shown[index] = ShownObject(rgba, source, occupancy(rgba))
 
-    def warn_missing_materials(self, mesh: Path | None) -> None:
-        """Say that the mesh's material file is missing, unless the scene colors the object itself (then it does not
-        matter)."""
+    def _object_loaded(self, one: Scene) -> None:
+        self.warn_missing_materials(one.mesh_path(), one.object)
+
+    def warn_missing_materials(self, mesh: Path | None, obj: ObjectSpec | None = None) -> None:
+        """Say that the mesh's material file is missing, unless the scene colors the object (`obj`, default the
+        selected one) itself (then it does not matter)."""
         from renderer.mesh import missing_material_files
 
-        missing = missing_material_files(mesh) if mesh and self.scene.object.color is None else []
+        obj = self.selected_object if obj is None else obj
+        missing = missing_material_files(mesh) if mesh and obj.color is None else []
         if missing:
             self.say(f"{mesh.name}: material file {', '.join(missing)} not found: the mesh is grey", error=True)
 

@@ -11,16 +11,21 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from renderer.environment import environment_light
 from renderer.errors import InputError
 from renderer.floor_texture import floor_texture
+from renderer.limits import MAX_OBJECTS
 from renderer.scene import (
     FLOOR_HALF_SIZE,
     FLOOR_SHAPES,
     MAX_TEXTURE_SCALE,
+    OBJECT_SIZE,
     CameraSpec,
     EnvironmentSpec,
     MaterialSpec,
+    ObjectSpec,
     PaintOp,
     Scene,
     SkySpec,
@@ -188,3 +193,92 @@ def replace_object_source(scene: Scene, mesh: Path | None = None, voxels: Path |
                 color=scene.object.color if same else None,
                 resolution=scene.object.resolution if resolution is None else resolution, paint=())
     return scene.with_changes(object=o)
+
+
+# --- the object list ---------------------------------------------------------------------------
+
+ROOM_STEP = 0.1  # world units between the places add_object and duplicate_object try
+ROOM_MARGIN = 0.05  # the gap they leave between two objects' footprints
+
+
+def object_label(scene: Scene, index: int) -> str:
+    """What the object list shows for object `index`: its name, else its mesh's or voxel file's name."""
+    o = scene.objects[index]
+    return o.name if o.name is not None else Path(o.mesh or o.voxels or f"object {index + 1}").stem
+
+
+def add_object(scene: Scene, obj: ObjectSpec) -> Scene:
+    """The scene with `obj` added last, named after its file (unique), on the floor nearest the scene's centre
+    where its footprint meets no other object's."""
+    if len(scene.objects) >= MAX_OBJECTS:
+        raise InputError(f"a scene holds at most {MAX_OBJECTS} objects")
+    base = obj.name or Path(obj.mesh or obj.voxels or "object").stem
+    placed = replace(obj, name=_unique_name(scene, base), translation=_free_place(scene, obj, (0.0, 0.0)))
+    return scene.with_changes(objects=(*scene.objects, placed))
+
+
+def duplicate_object(scene: Scene, index: int) -> Scene:
+    """The scene with a copy of object `index` added last (paint and material too), named as Blender names a copy
+    ("chair.001"), beside the original where there is room."""
+    if len(scene.objects) >= MAX_OBJECTS:
+        raise InputError(f"a scene holds at most {MAX_OBJECTS} objects")
+    o = scene.objects[index]
+    base = object_label(scene, index).rsplit(".", 1)
+    stem = base[0] if len(base) == 2 and base[1].isdigit() else object_label(scene, index)
+    name = next(f"{stem}.{k:03d}" for k in range(1, MAX_OBJECTS + 2) if f"{stem}.{k:03d}" not in _names(scene))
+    copy = replace(o, name=name, translation=_free_place(scene, o, o.translation))
+    return scene.with_changes(objects=(*scene.objects, copy))
+
+
+def delete_object(scene: Scene, index: int) -> Scene:
+    """The scene without object `index` (refused for the last one: a scene holds at least one object)."""
+    if len(scene.objects) == 1:
+        raise InputError("a scene holds at least one object: load another in its place in the Object tab")
+    return scene.with_changes(objects=scene.objects[:index] + scene.objects[index + 1:])
+
+
+def rename_object(scene: Scene, index: int, name: str) -> Scene:
+    """Object `index` named `name` (spaces around it dropped; empty: no name); a name another object has is refused."""
+    name = name.strip() or None
+    if name is not None and name in _names(scene, but=index):
+        raise InputError(f"another object is named {name!r}: names are unique")
+    o = scene.objects[index]
+    return scene.with_changes(objects=scene.objects[:index] + (replace(o, name=name),) + scene.objects[index + 1:])
+
+
+def _names(scene: Scene, but: int | None = None) -> set[str]:
+    """What the object list shows for every object but `but`: names, and the file names of unnamed objects."""
+    return {object_label(scene, i) for i in range(len(scene.objects)) if i != but}
+
+
+def _unique_name(scene: Scene, base: str) -> str:
+    """`base`, or base.001, base.002 ... when an object has that name already."""
+    taken = _names(scene)
+    return base if base not in taken else next(f"{base}.{k:03d}" for k in range(1, MAX_OBJECTS + 2)
+                                                 if f"{base}.{k:03d}" not in taken)
+
+
+def footprint_radius(obj: ObjectSpec) -> float:
+    """Radius of a circle on the floor that holds the object's footprint, whatever its turn (its box is at most one
+    unit a side, scaled)."""
+    return 0.5 * OBJECT_SIZE * math.hypot(obj.scale[0], obj.scale[2])
+
+
+def _free_place(scene: Scene, obj: ObjectSpec, near: tuple[float, float]) -> tuple[float, float]:
+    """The floor point nearest `near`, on a grid of ROOM_STEP, where `obj`'s footprint meets no object's in `scene`
+    (with ROOM_MARGIN between them), within the floor the editor allows. Written here: a grid search over circles is
+    a few lines, and the editor needs no packing library's generality."""
+    radius = footprint_radius(obj)
+    others = [(np.asarray(o.translation), footprint_radius(o) + radius + ROOM_MARGIN) for o in scene.objects]
+    steps = np.arange(-MAX_POSITION, MAX_POSITION + 1e-9, ROOM_STEP)
+    x, z = np.meshgrid(steps, steps, indexing="ij")
+    points = np.stack([x.ravel(), z.ravel()], axis=1)
+    free = np.ones(len(points), dtype=bool)
+    for centre, reach in others:
+        free &= np.linalg.norm(points - centre, axis=1) >= reach
+    if not free.any():
+        raise InputError("there is no room left on the floor for another object")
+    candidates = points[free]
+    # Beside rather than in front or behind: the render camera looks along -z, so a place off in z is weighed double.
+    best = candidates[np.argmin(np.linalg.norm((candidates - np.asarray(near)) * [1.0, 2.0], axis=1))]
+    return round(float(best[0]), 6) + 0.0, round(float(best[1]), 6) + 0.0  # + 0.0: no -0.0 in files

@@ -19,6 +19,7 @@ from app.editor.render_panel import export_render, final_render
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import save_png
+from renderer.limits import MAX_OBJECTS
 from renderer.mesh import MESH_EXTENSIONS
 from renderer.scene import ObjectSpec, Scene, save_scene
 
@@ -36,13 +37,17 @@ def new_scene() -> Scene:
 
 
 def finer_for_export(scene: Scene, resolution: int) -> Scene:
-    """The scene with its object's mesh voxelised at `resolution` for an export; refused (InputError) for an object
-    without a mesh, or painted stroke by stroke (the strokes name voxels of its own resolution)."""
-    if scene.object.mesh is None:
-        raise InputError("the object has no mesh to voxelise more finely: it exports at its own voxels")
-    if any(op.target == "region" for op in scene.paint):
-        raise InputError(f"the object's paint strokes are on its {scene.object.resolution}^3 voxels: it exports at them")
-    return scene.with_changes(object=replace(scene.object, resolution=int(resolution)))  # validated as any edit
+    """The scene with its objects' meshes voxelised at `resolution` for an export; an object without a mesh, or
+    painted stroke by stroke (the strokes name voxels of its own resolution), keeps its voxels. Refused (InputError)
+    when no object can be voxelised more finely."""
+    finer = [o.mesh is not None and not any(op.target == "region" for op in o.paint) for o in scene.objects]
+    if not any(finer):
+        if all(o.mesh is None for o in scene.objects):
+            raise InputError("the object has no mesh to voxelise more finely: it exports at its own voxels")
+        raise InputError(f"the object's paint strokes are on its {scene.objects[0].resolution}^3 voxels: it exports "
+                         "at them")
+    objects = tuple(replace(o, resolution=int(resolution)) if fine else o for o, fine in zip(scene.objects, finer))
+    return scene.with_changes(objects=objects)  # validated as any edit
 
 
 class FileCommands:
@@ -142,7 +147,7 @@ class FileCommands:
         resolution for this export alone (finer voxels for a large image; the scene keeps its own)."""
         app = self.app
         scene = app.doc.history.current
-        if voxels is not None and voxels != scene.object.resolution:
+        if voxels is not None and any(voxels != o.resolution for o in scene.objects):
             try:
                 scene = finer_for_export(scene, voxels)
             except InputError as exc:
@@ -151,7 +156,8 @@ class FileCommands:
 
         def write() -> str:
             used = export_render(scene, path, app.live.model_path, app.live.renderer, app.voxels, size)
-            return f"exported {Path(path).resolve()} ({used}, {scene.object.resolution}^3 voxels)"
+            finest = max(o.resolution for o in scene.objects)
+            return f"exported {Path(path).resolve()} ({used}, {finest}^3 voxels)"
 
         return self.write_file(path, overwrite, write)
 
@@ -177,7 +183,7 @@ class FileCommands:
         from renderer.vox import write_vox
 
         def write() -> str:
-            rgba, _ = self.app.voxels.painted(self.app.doc.history.current)
+            rgba, _ = self.app.voxels.painted(self.app.object_view(self.app.doc.history.current))
             colors = write_vox(path, rgba)
             return f"exported {Path(path).resolve()} ({rgba.shape[0]}^3 voxels, {colors} colors)"
 
@@ -205,32 +211,72 @@ class FileCommands:
 
     # --- objects from files -------------------------------------------------------------------
 
-    def import_vox(self, path: str | Path) -> None:
-        """Make a MagicaVoxel model the object (its palette colors; the largest model of the file): one undo step."""
-        from renderer.vox import read_vox
+    def import_vox(self, path: str | Path, add: bool = False) -> None:
+        """Make a MagicaVoxel model (its palette colors; the largest model of the file) the selected object, or with
+        `add` a new object where the floor has room: one undo step. A file whose scene shows several models asks
+        whether they all become the scene's objects, where the file places them."""
+        from renderer.vox import read_vox, read_vox_scene
 
-        def work(_progress: Progress) -> tuple[Path, int]:
+        def work(_progress: Progress) -> tuple[Path, int, list]:
             rgba = read_vox(path)
-            return state.save_capture(rgba), rgba.shape[0]  # kept in the state folder; Save copies it beside the scene
+            models = read_vox_scene(path)
+            # Kept in the state folder; Save copies them beside the scene.
+            placed = [(model, state.save_capture(model.rgba)) for model in models] if len(models) > 1 else []
+            return state.save_capture(rgba), rgba.shape[0], placed
 
-        def done(result: tuple[Path, int]) -> None:
-            voxels, n = result
-            if self.app.edit(lambda s: edits.replace_object_source(s, voxels=voxels, resolution=n)):
-                self.app.say(f"imported {Path(path).name} ({n}^3 voxels)")
+        def done(result: tuple[Path, int, list]) -> None:
+            voxels, n, placed = result
+            if placed:
+                self._offer_models(path, placed, lambda: one(voxels, n))
+            else:
+                one(voxels, n)
+
+        def one(voxels: Path, n: int) -> None:
+            app = self.app
+            if add:
+                named = ObjectSpec(voxels=str(voxels), resolution=n, name=Path(path).stem)
+                done_ = app.edit(lambda s: edits.add_object(s, named), select=len(app.scene.objects))
+            else:
+                done_ = app.edit_object(lambda s: edits.replace_object_source(s, voxels=voxels, resolution=n))
+            if done_:
+                app.say(f"{'added' if add else 'imported'} {Path(path).name} ({n}^3 voxels)")
 
         self.app.jobs.start(f"Importing {Path(path).name}", work, done)
+
+    def _offer_models(self, path: str | Path, placed: list, largest: Callable[[], None]) -> None:
+        """Ask whether a .vox file's models all become the scene's objects (one undo step) or its largest alone."""
+        from renderer.vox import placed_objects
+
+        app = self.app
+        if len(placed) > MAX_OBJECTS:
+            app.say(f"{Path(path).name} shows {len(placed)} models; a scene holds at most {MAX_OBJECTS}: the largest "
+                    "alone is imported")
+            largest()
+            return
+
+        def choose(choice: str) -> None:
+            if choice == "Largest alone":
+                largest()
+            elif choice == "All models":
+                objects = placed_objects([m for m, _ in placed], [str(file) for _, file in placed])
+                if app.edit(lambda s: s.with_changes(objects=objects), select=0):
+                    app.say(f"imported {len(objects)} models of {Path(path).name} as the scene's objects")
+
+        app.ask("Import the models", f"{Path(path).name} shows {len(placed)} models: "
+                f"{', '.join(m.name for m, _ in placed)}. Import them all, where the file places them, in place of "
+                "the scene's objects?", ("All models", "Largest alone", "Cancel"), choose)
 
     def load_mesh(self, path: str | Path, up: str = "y") -> None:
         """Voxelise a mesh in the background (progress in the window), then put it in place of the object."""
         app = self.app
         try:
-            candidate = edits.replace_object_source(app.doc.history.current, mesh=Path(path), up=up)
+            candidate = edits.replace_object_source(app.object_view(app.doc.history.current), mesh=Path(path), up=up)
         except InputError as exc:
             app.say(str(exc), error=True)
             return
 
         def done(_rgba) -> None:
-            if app.edit(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)):
+            if app.edit_object(lambda s: edits.replace_object_source(s, mesh=Path(path), up=up)):
                 app.say(f"loaded {Path(path).name}")
                 app.warn_missing_materials(Path(path))
 

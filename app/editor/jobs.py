@@ -56,14 +56,17 @@ class JobRunner:
         self._say = say
         self.current: BackgroundJob | None = None  # the job under way (or done and not yet handed over)
         self._on_result: Callable[[Any], None] | None = None
+        self._on_error: Callable[[], None] | None = None
 
-    def start(self, title: str, work: Callable[[Progress], Any], on_result: Callable[[Any], None]) -> None:
-        """Run `work(progress)` in the background; `on_result` gets its result on the UI thread (`finish`)."""
+    def start(self, title: str, work: Callable[[Progress], Any], on_result: Callable[[Any], None],
+              on_error: Callable[[], None] | None = None) -> None:
+        """Run `work(progress)` in the background; `on_result` gets its result on the UI thread (`finish`), and
+        `on_error`, if given, is called there after a failure is shown."""
         if self.current is not None and not self.current.done:
             self._say(f"busy: {self.current.title}", error=True)
             return
         self.current = BackgroundJob(title, work)
-        self._on_result = on_result
+        self._on_result, self._on_error = on_result, on_error
 
     def finish(self) -> None:
         """Once per frame: hand a finished job's result to its handler, or show its error."""
@@ -72,5 +75,7 @@ class JobRunner:
         job, self.current = self.current, None
         if job.error:
             self._say(job.error, error=True)
+            if self._on_error is not None:
+                self._on_error()
         else:
             self._on_result(job.result)

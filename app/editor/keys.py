@@ -1,7 +1,7 @@
 """Every key and mouse binding of the editor, listed once: the Help window shows this table, docs/editor.md follows it.
 
-Also the keys that act on the viewport's view (Blender's numpad views, F to frame the object) and the keys users of
-other editors try that mean nothing in a one-object scene: those say why instead of doing nothing.
+Also the keys that act on the viewport's view (Blender's numpad views, F to frame the object), on the object list
+(Blender's Shift+D, X and Delete), and Tab, which users of other editors try: it says why it does nothing.
 """
 
 from __future__ import annotations
@@ -19,7 +19,9 @@ BINDINGS = (
     ("Home", "look through the render camera"),
     ("left-drag the light square", "move the light; with Shift its height"),
     ("drag the border left of the render", "widen or narrow the render and tools column"),
-    ("G, R, S", "grab, rotate, scale the object; then X, Y or Z for one axis"),
+    ("G, R, S", "grab, rotate, scale the selected object; then X, Y or Z for one axis"),
+    ("click an object, or its row in the object list", "select it: the tools act on it"),
+    ("Shift+D, X or Delete", "duplicate, delete the selected object"),
     ("click or Enter / right click or Escape", "confirm / cancel a grab, rotate or scale"),
     ("click a voxel (Paint tab)", "bucket fill; with Alt, pick its color"),
     ("Ctrl+Z, Ctrl+Shift+Z or Ctrl+Y", "undo, redo"),
@@ -32,12 +34,12 @@ BINDINGS = (
 )
 VIEW_KEYS = ((imgui.Key.keypad1, "front", "back"), (imgui.Key.keypad3, "right", "left"),
              (imgui.Key.keypad7, "top", "bottom"))
-ONE_OBJECT = "a scene holds one object: load another in the Object tab, or start over with File > New"
 
 
 def view_keys(app: Any, transforming: bool) -> None:
-    """Numpad views, F or numpad . to frame the object; Delete, X, Shift+D and Tab say what they would do elsewhere.
-    Not while text is typed, a question is open or a grab, rotate or scale runs (X is its axis key then)."""
+    """Numpad views, F or numpad . to frame the selected object; Delete or X deletes it, Shift+D duplicates it; Tab
+    says what it would do elsewhere. Not while text is typed, a question is open or a grab, rotate or scale runs (X
+    is its axis key then)."""
     io = imgui.get_io()
     if io.want_text_input or app.prompt is not None or transforming:
         return
@@ -49,9 +51,9 @@ def view_keys(app: Any, transforming: bool) -> None:
     if imgui.is_key_pressed(imgui.Key.f, False) or imgui.is_key_pressed(imgui.Key.keypad_decimal, False):
         app.frame_object()
     elif imgui.is_key_pressed(imgui.Key.delete, False) or imgui.is_key_pressed(imgui.Key.x, False):
-        app.say(f"nothing deleted: {ONE_OBJECT}", error=True)
+        app.delete_selected()
     elif io.key_shift and imgui.is_key_pressed(imgui.Key.d, False):
-        app.say(f"nothing duplicated: {ONE_OBJECT}", error=True)
+        app.duplicate_selected()
     elif imgui.is_key_pressed(imgui.Key.tab, False):
         app.say("no edit mode: paint voxels in the Paint tab, move the object with G, R and S", error=True)
 

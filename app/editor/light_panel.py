@@ -30,7 +30,7 @@ class Interface(Protocol):
     fields: Any  # the path fields (panels.Fields)
     environment_preview: EnvironmentPreview
 
-    def edit_field(self, key: str, changed: bool, make_scene: Callable[[Scene], Scene]) -> None: ...
+    def edit_field(self, key: str, changed: bool, make_scene: Callable[[Scene], Scene], of_object: bool = False) -> None: ...
 
     def browse_button(self, key: str, kind: FileKind, field_name: str) -> None: ...
 
@@ -213,7 +213,7 @@ def _area_light_position(ui: Interface) -> None:
 
 def draw_material(ui: Interface) -> None:
     """The object's material: a preset, then roughness, specular and metallic."""
-    material = ui.app.scene.object.material
+    material = ui.app.selected_object.material
     names = list(edits.MATERIAL_PRESETS)
     current = next((i for i, n in enumerate(names) if edits.MATERIAL_PRESETS[n] == material), -1)
     imgui.set_next_item_width(150)
@@ -222,11 +222,11 @@ def draw_material(ui: Interface) -> None:
     if changed:
         name = names[chosen] if current >= 0 else (None if chosen == 0 else names[chosen - 1])
         if name is not None:
-            ui.app.edit(lambda s: edits.set_material(s, edits.MATERIAL_PRESETS[name]))
+            ui.app.edit_object(lambda s: edits.set_material(s, edits.MATERIAL_PRESETS[name]))
     for key, label in (("roughness", "roughness"), ("specular", "specular"), ("metallic", "metallic")):
         changed, value = imgui.slider_float(label, getattr(material, key), 0.0, 1.0, "%.2f")
-        ui.edit_field(f"material {key}", changed,
-                  lambda s, k=key, v=value: edits.set_material(s, _with(material, k, v)))
+        ui.edit_field(f"material {key}", changed, lambda s, k=key, v=value: edits.set_material(s, _with(material, k, v)),
+                      of_object=True)
 
 
 def _with(material: MaterialSpec, key: str, value: float) -> MaterialSpec:

@@ -125,8 +125,8 @@ def _main_loop(window, document, replay, args: argparse.Namespace) -> int:
                 app.request_quit()
             if app.quit_requested or finishing:
                 break
-            if headless and app.unloadable_source is not None and app.jobs.current is None:
-                return EXIT_USER_ERROR  # the start-up scene's object cannot be loaded; its error is printed
+            if headless and app.loaded_nothing:
+                return EXIT_USER_ERROR  # no object of the start-up scene can be loaded; their errors are printed
             if headless and frame >= args.frames and (replay is None or replay.done) and not app.busy:
                 finishing = True  # one more frame, with everything finished, for the screenshot
                 if args.screenshot:

@@ -23,11 +23,12 @@ from app.editor.keys import HelpWindow, view_keys
 from app.editor.layout import RIGHT_WIDTH, Layout, Rect, layout_for
 from app.editor.light_panel import EnvironmentPreview, draw_floor, draw_lighting, draw_material
 from app.editor.orbit_view import viewport_camera
+from app.editor.outliner import ADD_FILES, draw_outliner
 from app.editor.photo_panel import GRAY, PhotoPanel
 from app.editor.viewport_input import ViewportInput
 from models.renderers import INTERACTIVE, RENDERERS
 from renderer.errors import InputError
-from renderer.limits import MAX_RESOLUTION
+from renderer.limits import MAX_OBJECTS, MAX_RESOLUTION
 from renderer.mesh import MESH_EXTENSIONS
 from renderer.paint import fill_region_voxels
 from renderer.scene import range_warnings
@@ -72,6 +73,9 @@ class Fields:
     environment_path: str = ""
     floor_texture_path: str = ""
     show_environment_field: bool = False  # the environment image's path field, before an image is loaded
+    add_object_path: str = ""
+    object_name: str = ""  # the selected object's name, as typed
+    object_name_for: tuple | None = None  # the document, object and name the name field was last set from
 
 
 OUTPUT_FIELDS = ("export_path", "side_by_side_path", "turntable_path", "vox_out_path")  # written beside the scene
@@ -132,6 +136,8 @@ class Interface:
         self._column_border(panels, width)
         self.photo_panel.shown = None  # set again if the photo is drawn (over the viewport or in the Photo tab)
         self._viewport(panels.viewport)
+        if not self.photo_panel.fills_viewport():
+            draw_outliner(self, panels.viewport)
         self._render_panel(panels.render, panels.render_image)
         self._tools(panels.tools)
         self._status(panels.status)
@@ -158,7 +164,7 @@ class Interface:
             if imgui.menu_item_simple("New", "Ctrl+N"):
                 app.files.new_scene()
             if imgui.menu_item_simple("Open...", "Ctrl+O"):
-                self._ask_path(SCENE_FILES, "scene_path", app.files.open)
+                self.ask_path(SCENE_FILES, "scene_path", app.files.open)
             if imgui.begin_menu("Open recent", enabled=bool(self._recent)):
                 for path in self._recent:
                     if imgui.menu_item_simple(str(path)):
@@ -167,7 +173,7 @@ class Interface:
             if imgui.menu_item_simple("Save", "Ctrl+S"):
                 app.files.save()
             if imgui.menu_item_simple("Save as...", "Ctrl+Shift+S"):
-                self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
+                self.ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
             imgui.separator()
             if imgui.menu_item_simple("Export render", "Ctrl+E"):
                 app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size],
@@ -178,7 +184,7 @@ class Interface:
                 app.files.export_turntable(self.fields.turntable_path)
             imgui.separator()
             if imgui.menu_item_simple("Import .vox..."):
-                self._ask_path(VOX_FILES, "vox_in_path", app.files.import_vox)
+                self.ask_path(VOX_FILES, "vox_in_path", app.files.import_vox)
             if imgui.menu_item_simple("Export .vox"):
                 app.files.export_vox(self.fields.vox_out_path)
             imgui.separator()
@@ -187,6 +193,14 @@ class Interface:
             imgui.end_menu()
         else:
             self._recent = state.recent_scenes()  # read while the menu is closed, not every frame it is open
+        if imgui.begin_menu("Object"):
+            if imgui.menu_item_simple("Add...", enabled=len(app.scene.objects) < MAX_OBJECTS):
+                self.ask_path(ADD_FILES, "add_object_path", app.add_object)
+            if imgui.menu_item_simple("Duplicate", "Shift+D"):
+                app.duplicate_selected()
+            if imgui.menu_item_simple("Delete", "X, Delete", enabled=len(app.scene.objects) > 1):
+                app.delete_selected()
+            imgui.end_menu()
         if imgui.begin_menu("View"):
             if imgui.menu_item_simple("Through the render camera", "Home"):
                 app.view_through_render_camera()
@@ -226,15 +240,15 @@ class Interface:
             app.redo()
         elif imgui.is_key_pressed(imgui.Key.s, False):
             if io.key_shift:
-                self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
+                self.ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
             elif app.doc.path is None:
-                self._ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
+                self.ask_path(NEW_SCENE_FILE, "save_path", app.files.save)
             else:
                 app.files.save()
         elif imgui.is_key_pressed(imgui.Key.n, False):
             app.files.new_scene()
         elif imgui.is_key_pressed(imgui.Key.o, False):
-            self._ask_path(SCENE_FILES, "scene_path", app.files.open)
+            self.ask_path(SCENE_FILES, "scene_path", app.files.open)
         elif imgui.is_key_pressed(imgui.Key.e, False):
             app.files.export(self.fields.export_path, size=EXPORT_SIZES[self.fields.export_size],
                              voxels=self._export_voxels())
@@ -276,7 +290,7 @@ class Interface:
         framebuffer = app.viewport.draw(w, h, viewport_camera(app.view, w, h), app.scene, app.floor_color,
                                         light_active=inputs.light_drag is not None or inputs.light_hovered,
                                         picked_voxel=inputs.hovered_voxel,
-                                        moving=inputs.interacting or app.doc.previewing)
+                                        moving=inputs.interacting or app.doc.previewing, selected=app.selected)
         self.underlay = (framebuffer, int(origin.x), int(origin.y))  # copied under the interface (Window.end_frame)
         if self.photo_panel.fills_viewport():  # the photo being aligned covers the view, with its own gestures
             self.photo_panel.draw_in_viewport(origin, w, h)
@@ -347,7 +361,7 @@ class Interface:
         if frame is None:
             imgui.text_colored(AMBER, "rendering...")
         else:
-            stale = frame.scene != app.scene
+            stale = frame.scene != app.submitted
             if stale:
                 imgui.text_colored(AMBER, "STALE")
             elif frame.preview:
@@ -398,11 +412,13 @@ class Interface:
         app.requested_tab = None
         imgui.end()
 
-    def edit_field(self, key: str, changed: bool, make_scene) -> None:
+    def edit_field(self, key: str, changed: bool, make_scene, of_object: bool = False) -> None:
         """Preview an edited numeric field; commit one undo step when the field is released. A value the
-        scene cannot take is refused: the message shows under the field and the previous value stays."""
+        scene cannot take is refused: the message shows under the field and the previous value stays. `of_object`:
+        the field is the selected object's (`make_scene` edits the scene holding it alone: EditorApp.edit_object)."""
         if changed:
-            if self.app.edit(make_scene, preview=True):
+            edit = self.app.edit_object if of_object else self.app.edit
+            if edit(make_scene, preview=True):
                 self.field_error = None if self.field_error and self.field_error[0] == key else self.field_error
             else:
                 self.field_error = (key, self.app.message.text if self.app.message else "value refused")
@@ -414,16 +430,16 @@ class Interface:
             imgui.pop_style_color()
 
     def _object_tab(self) -> None:
-        o = self.app.scene.object
+        o = self.app.selected_object
         changed, t = imgui.drag_float2("position x, z", list(o.translation), 0.01, -edits.MAX_POSITION, edits.MAX_POSITION, "%.3f")
-        self.edit_field("position", changed, lambda s: edits.place_object(s, translation=tuple(t)))
+        self.edit_field("position", changed, lambda s: edits.place_object(s, translation=tuple(t)), of_object=True)
         changed, r = imgui.drag_float("rotation (deg)", o.rotation_deg, 0.5, -180.0, 180.0, "%.1f")
-        self.edit_field("rotation", changed, lambda s: edits.place_object(s, rotation_deg=r))
+        self.edit_field("rotation", changed, lambda s: edits.place_object(s, rotation_deg=r), of_object=True)
         changed, sc = imgui.drag_float3("scale x, y, z", list(o.scale), 0.01, edits.MIN_SCALE, edits.MAX_SCALE, "%.3f")
-        self.edit_field("scale", changed, lambda s: edits.place_object(s, scale=tuple(sc)))
+        self.edit_field("scale", changed, lambda s: edits.place_object(s, scale=tuple(sc)), of_object=True)
         imgui.separator()
         f = self.fields
-        mesh = self.app.scene.mesh_path()
+        mesh = self.app.scene.file(o.mesh)
         if mesh != self._mesh_shown:  # the field shows the object's mesh (after loading, opening, undo)
             f.mesh_path, self._mesh_shown = str(mesh.resolve()) if mesh else "", mesh
         _, f.mesh_path = imgui.input_text("mesh file", f.mesh_path)
@@ -498,7 +514,7 @@ class Interface:
                 _, f.export_size = imgui.combo("export size", f.export_size,
                                                [scene_size] + [f"{s} px" + ("" if any_size else " (upscaled)")
                                                                for s in EXPORT_SIZES[1:]])
-                o = app.scene.object
+                o = app.selected_object
                 imgui.text_colored(GRAY, f"the object's voxels: {o.resolution}^3")
                 if o.mesh is not None and o.resolution < MAX_RESOLUTION:
                     imgui.same_line()
@@ -506,7 +522,7 @@ class Interface:
 
     def _export_voxels(self) -> int | None:
         """The voxels an export draws the object with: MAX_RESOLUTION when the File tab asks for finer ones."""
-        o = self.app.scene.object
+        o = self.app.selected_object
         return MAX_RESOLUTION if self.fields.export_finer and o.mesh is not None and o.resolution < MAX_RESOLUTION else None
 
     def browse_button(self, key: str, kind: FileKind, field_name: str) -> None:
@@ -515,7 +531,7 @@ class Interface:
         if imgui.button(f"Browse##{key}") and self._file_dialog is None:
             self._file_dialog = (self._dialog(kind, getattr(self.fields, field_name)), field_name, None)
 
-    def _ask_path(self, kind: FileKind, field_name: str, then) -> None:
+    def ask_path(self, kind: FileKind, field_name: str, then) -> None:
         """A file for a menu command, from a file dialog (`then` gets it)."""
         if self._file_dialog is None:
             self._file_dialog = (self._dialog(kind, getattr(self.fields, field_name)), field_name, then)

@@ -37,7 +37,7 @@ class PhotoTool:
 
     def load(self, photo: str | Path, camera: str | Path | None = None) -> None:
         """Load a photo to align: its pose starts from the camera file when given, else from the scene's view."""
-        scene = self.app.doc.history.current
+        scene = self.app.object_view(self.app.doc.history.current)
         voxels = self.app.voxels
 
         def work(_progress: Progress) -> PhotoAlignment:
@@ -92,7 +92,7 @@ class PhotoTool:
         alignment = self._needed()
         if alignment is None:
             return
-        scene, voxels = self.app.doc.history.current, self.app.voxels
+        scene, voxels = self.app.object_view(self.app.doc.history.current), self.app.voxels
         pose = alignment.pose  # as it is now: the user may go on dragging while the job runs
 
         def work(_progress: Progress) -> Path:
@@ -100,7 +100,7 @@ class PhotoTool:
             return state.save_capture(alignment.colors(rgba, pose))
 
         def done(capture: Path) -> None:
-            if self.app.edit(lambda s: recolored(s, capture)):
+            if self.app.edit_object(lambda s: recolored(s, capture)):
                 self.app.say(f"colored the object from {alignment.path.name}")
 
         self.app.jobs.start(f"Coloring from {alignment.path.name}", work, done)
@@ -119,7 +119,7 @@ class PhotoTool:
     def match_view(self) -> None:
         """Place the object and set the camera elevation as in the photo: one undo step."""
         alignment = self._needed()
-        if alignment is not None and self.app.edit(lambda s: scene_with_photo_view(s, alignment.pose)):
+        if alignment is not None and self.app.edit_object(lambda s: scene_with_photo_view(s, alignment.pose)):
             self.app.say(f"the scene now shows {alignment.path.name}'s view")
 
     def follow_object(self) -> None:
@@ -127,7 +127,7 @@ class PhotoTool:
         alignment, app = self.alignment, self.app
         if alignment is None or app.jobs.current is not None:
             return
-        scene = app.doc.history.current
+        scene = app.object_view(app.doc.history.current)
         key = shape_key(scene)
         if key == self._shape_tried:
             return

@@ -1,4 +1,4 @@
-"""What the mouse points at: a voxel of the placed object, a point on a horizontal plane, the light.
+"""What the mouse points at: a voxel of a placed object, the nearest object, a point on a horizontal plane, the light.
 
 Voxel picking walks the ray through the object's grid voxel by voxel (Amanatides & Woo's
 traversal) in the grid coordinates of renderer/surface.py, where voxel (i, j, k) is the unit
@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 
-from renderer.scene import LIGHT_SIZE, ObjectSpec
+from renderer.scene import LIGHT_SIZE, OBJECT_SIZE, ObjectSpec
 from renderer.surface import grid_from_world
-from renderer.transform import object_to_world
+from renderer.transform import OBJECT_BOX_MIN, apply_transform, object_to_world
 
 
 def pick_voxel(occupied: np.ndarray, spec: ObjectSpec, origin: np.ndarray, direction: np.ndarray) -> tuple[int, int, int] | None:
@@ -62,6 +62,22 @@ def _first_occupied(occupied: np.ndarray, start: np.ndarray, d: np.ndarray) -> t
         cell[a] += step[a]
         t_max[a] += t_delta[a]
     return None
+
+
+def nearest_object(objects: list[tuple[ObjectSpec, np.ndarray]], origin: np.ndarray, direction: np.ndarray,
+                   labels: list[int] | None = None) -> int | None:
+    """Of `objects` ((placement, occupancy) pairs), the one whose occupied voxel the ray meets nearest the origin:
+    its label (default: its position in the list), or None when the ray meets none."""
+    best, chosen = math.inf, None
+    for k, (spec, occupied) in enumerate(objects):
+        voxel = pick_voxel(occupied, spec, origin, direction)
+        if voxel is None:
+            continue
+        centre = OBJECT_BOX_MIN + (np.asarray(voxel) + 0.5) * (OBJECT_SIZE / occupied.shape[0])
+        distance = float(np.linalg.norm(apply_transform(object_to_world(spec), centre) - origin))
+        if distance < best:
+            best, chosen = distance, (k if labels is None else labels[k])
+    return chosen
 
 
 def ray_at_height(origin: np.ndarray, direction: np.ndarray, height: float) -> np.ndarray | None:

@@ -40,15 +40,15 @@ class ReferenceRender:
     def start(self, spp: int = REFERENCE_SPP) -> None:
         """Path trace the committed scene (edits included) in the background, to show beside the live render."""
         from renderer.pathtrace.path_tracer import PathTracer
-        from renderer.reference_object import reference_scene
+        from renderer.reference_object import reference_objects
 
         scene = self.app.doc.history.current
 
         def work(progress: Progress) -> Reference:
             start = time.perf_counter()
-            traced_scene, mesh = reference_scene(scene)
+            traced_scene, meshes = reference_objects(scene)
             progress(0.15)
-            tracer = PathTracer(traced_scene, mesh)
+            tracer = PathTracer(traced_scene, meshes)
             progress(0.3)
             result = tracer.render(spp, seed=0, denoise=True)
             return Reference(result.image, scene, f"path traced, {result.spp} spp + OIDN, {time.perf_counter() - start:.1f} s")

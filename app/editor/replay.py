@@ -3,6 +3,10 @@
 High-level actions call the same commands as the interface:
     {"action": "drag_light", "to": [x, y, z], "steps": 8}     preview on the way, one undo step
     {"action": "move_object", "translation": [x, z]}          also "rotate_object" {"deg"}, "scale_object" {"scale"}
+                                                              (the selected object, as every object tool)
+    {"action": "select", "index": 1}                          {"action": "rename", "name": "table"} (the selected)
+    {"action": "add_object", "path": "table.obj", "up": "y"}  a mesh or .vox, where the floor has room, selected
+    {"action": "duplicate"} {"action": "delete"}              the selected object (as Shift+D, X)
     {"action": "set_elevation", "deg": 20}                    {"action": "set_floor_color", "color": [r, g, b]}
     {"action": "use_sky"} {"action": "set_sky", "elevation": 35, "azimuth": 120, "turbidity": 3}
     {"action": "load_environment", "path": "studio.hdr"}     {"action": "no_environment"} (the ambient light again)
@@ -127,7 +131,7 @@ def _color(action: dict[str, Any]) -> tuple[float, float, float]:
 
 def _material(scene, action: dict[str, Any]):
     """A preset by "preset", or the scene's material with the given "roughness", "specular", "metallic"."""
-    material = edits.MATERIAL_PRESETS[action["preset"]] if "preset" in action else scene.object.material
+    material = edits.MATERIAL_PRESETS[action["preset"]] if "preset" in action else scene.object.material  # one-object view
     return replace(material, **{k: float(action[k]) for k in ("roughness", "specular", "metallic") if k in action})
 
 
@@ -152,7 +156,7 @@ def _paint(app, action) -> None:
 
 def _fill(target: str):
     def run(app, action) -> None:
-        app.edit(lambda s: edits.paint(s, PaintOp(target, _color(action))))
+        app.edit_object(lambda s: edits.paint(s, PaintOp(target, _color(action))))
     return run
 
 
@@ -280,9 +284,9 @@ def _type(app, action) -> None:
 
 ACTIONS = {
     "drag_light": _drag_light,
-    "move_object": lambda app, a: app.edit(lambda s: edits.place_object(s, translation=tuple(a["translation"]))),
-    "rotate_object": lambda app, a: app.edit(lambda s: edits.place_object(s, rotation_deg=float(a["deg"]))),
-    "scale_object": lambda app, a: app.edit(lambda s: edits.place_object(s, scale=tuple(a["scale"]))),
+    "move_object": lambda app, a: app.edit_object(lambda s: edits.place_object(s, translation=tuple(a["translation"]))),
+    "rotate_object": lambda app, a: app.edit_object(lambda s: edits.place_object(s, rotation_deg=float(a["deg"]))),
+    "scale_object": lambda app, a: app.edit_object(lambda s: edits.place_object(s, scale=tuple(a["scale"]))),
     "set_elevation": lambda app, a: app.edit(lambda s: edits.set_elevation(s, float(a["deg"]))),
     "set_floor_color": lambda app, a: app.edit(lambda s: edits.set_floor_color(s, _color(a))),
     "use_sky": lambda app, a: app.edit(edits.use_sky),
@@ -297,10 +301,15 @@ ACTIONS = {
     "turn_environment": lambda app, a: app.edit(lambda s: edits.turn_environment(
         s, rotation_deg=a.get("deg"), strength=a.get("strength"))),
     "area_light": lambda app, a: app.edit(lambda s: edits.switch_area_light(s, bool(a["on"]))),
-    "material": lambda app, a: app.edit(lambda s: edits.set_material(s, _material(s, a))),
+    "material": lambda app, a: app.edit_object(lambda s: edits.set_material(s, _material(s, a))),
     "paint": _paint,
     "fill_object": _fill("object"),
     "fill_floor": _fill("floor"),
+    "select": lambda app, a: app.select(int(a["index"])),
+    "rename": lambda app, a: app.rename_object(app.selected, str(a["name"])),
+    "add_object": lambda app, a: app.add_object(a["path"], up=a.get("up", "y")),
+    "duplicate": lambda app, a: app.duplicate_selected(),
+    "delete": lambda app, a: app.delete_selected(),
     "undo": lambda app, a: app.undo(),
     "redo": lambda app, a: app.redo(),
     "open": lambda app, a: app.files.open(a["path"]),

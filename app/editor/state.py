@@ -22,7 +22,7 @@ import numpy as np
 from renderer.color import to_uint8
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_json, save_json
-from renderer.scene import Scene, load_scene, replaced, save_scene
+from renderer.scene import Scene, load_scene, save_scene
 from renderer.voxels import save_voxels
 
 
@@ -116,12 +116,17 @@ def age_text(saved_at: float) -> str:
 
 
 def adopt_capture(scene: Scene, scene_file: str | Path) -> Scene:
-    """The scene to write to `scene_file`: captured voxels kept in the state folder are copied beside it first."""
-    voxels = scene.voxels_path()
+    """The scene to write to `scene_file`: captured voxels kept in the state folder are copied beside it first (the
+    first object's as SCENE.voxels.npz, as before there were several; the others' as SCENE.voxels2.npz and on)."""
     captures = (state_dir() / "captures").resolve()
-    if voxels is None or voxels.resolve().parent != captures:
-        return scene
-    copy = Path(scene_file).with_name(f"{Path(scene_file).stem}.voxels.npz")
-    with atomic_path(copy) as tmp:
-        shutil.copyfile(voxels, tmp)
-    return replaced(scene, object=replace(scene.object, voxels=str(copy.resolve())))
+    objects = []
+    for index, o in enumerate(scene.objects):
+        voxels = scene.file(o.voxels)
+        if voxels is None or voxels.resolve().parent != captures:
+            objects.append(o)
+            continue
+        copy = Path(scene_file).with_name(f"{Path(scene_file).stem}.voxels{index + 1 if index else ''}.npz")
+        with atomic_path(copy) as tmp:
+            shutil.copyfile(voxels, tmp)
+        objects.append(replace(o, voxels=str(copy.resolve())))
+    return scene if tuple(objects) == scene.objects else replace(scene, objects=tuple(objects))

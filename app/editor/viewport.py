@@ -1,6 +1,6 @@
 """The 3D viewport, drawn with moderngl into an offscreen framebuffer the window shows: voxels, ground, light, render camera.
 
-Voxels are quads (renderer/voxel_faces.py) placed by the object's placement matrix,
+Voxels are quads (renderer/voxel_faces.py) placed by each object's placement matrix,
 shaded by the direction to the light plus ambient. Each quad's four corners are stored as
 vertices of their own rather than drawn as instances: Mesa's software OpenGL shades long
 vertex arrays in wide batches but instances of four vertices one by one (the demo chair's
@@ -37,6 +37,8 @@ SUN_DISTANCE = 20.0  # the viewport lights its voxels from this far along the su
 LIGHT_ACTIVE_COLOR = (1.0, 0.6, 0.2)
 FRUSTUM_COLOR = (0.95, 0.55, 0.25)
 BOX_COLOR = (0.9, 0.9, 0.95)
+SELECTED_BOX_COLOR = (1.0, 0.62, 0.15)  # the selected object's box, when there are several (Blender's outline)
+SELECTED_BOX_MARGIN = 0.03  # of the box's side, on each side
 PICK_COLOR = (1.0, 1.0, 1.0)
 GROUND_OFFSET = -0.003  # the ground is drawn a hair below y = 0 so lines on the floor do not flicker into it
 FRUSTUM_DEPTH = 0.9  # depth of the drawn camera pyramid, world units
@@ -145,9 +147,7 @@ class ViewportRenderer:
         self._voxel_program = ctx.program(vertex_shader=_VOXEL_VS, fragment_shader=_SHADED_FS)
         self._ground_program = ctx.program(vertex_shader=_GROUND_VS, fragment_shader=_GROUND_FS)
         self._flat_program = ctx.program(vertex_shader=_FLAT_VS, fragment_shader=_FLAT_FS)
-        self._levels: list[_FaceLevel] = []  # every voxel, then (for a fine object) the blocks drawn in motion
-        self._resolution = 1  # the object's voxels a side
-        self._unmerged: np.ndarray | None = None  # a fine object's voxels until its blocks are made
+        self._objects: list[_ObjectFaces | None] = []  # per object of the scene, in order (None: nothing to draw)
         h, y = FLOOR_HALF_SIZE, GROUND_OFFSET
         ground = np.array([[-h, y, -h], [h, y, -h], [h, y, h], [-h, y, -h], [h, y, h], [-h, y, h]], dtype=np.float32)
         self._ground_vao = ctx.vertex_array(self._ground_program, [(ctx.buffer(ground.tobytes()), "3f", "position")])
@@ -176,64 +176,72 @@ class ViewportRenderer:
             self._ground_texture = (texture, gl)
         return self._ground_texture[1]
 
-    def set_voxels(self, rgba: np.ndarray) -> int:
-        """Upload the object's visible faces, one group per face direction (and those of its merged blocks, drawn in
-        motion, if it is finer than MOTION_RESOLUTION); returns how many quads there are at rest."""
+    def set_voxels(self, rgba: np.ndarray, index: int = 0) -> int:
+        """Upload object `index`'s visible faces, one group per face direction (and those of its merged blocks, drawn
+        in motion, if it is finer than MOTION_RESOLUTION); returns how many quads there are at rest."""
         self._voxels_version += 1
-        self._resolution = rgba.shape[0]
-        for level in self._levels:
-            level.release()
-        self._levels = [_FaceLevel(self.ctx, self._voxel_program, rgba, 1)]
-        # Merged on the first drag, not here: the bucket's previews upload the voxels at every voxel it rests on.
-        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
-        return self._levels[0].quads
+        self.keep_objects(max(len(self._objects), index + 1))
+        if self._objects[index] is not None:
+            self._objects[index].release()
+        self._objects[index] = _ObjectFaces(self.ctx, self._voxel_program, rgba)
+        return self._objects[index].levels[0].quads
 
-    def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None = None) -> None:
-        """Show new colors on the faces set_voxels made: `rgba` must have the same occupancy (paint never changes
-        it). `overrides`: (sorted flat voxel indices, their colors (K, 3)) shown instead of rgba's (the bucket's
-        preview tint). Only the faces' colors are written: finding the faces is slow at 200^3, and the bucket's previews and
-        strokes would pay it at each voxel the bucket rests on."""
-        if not self._levels or rgba.shape[0] != self._resolution:
+    def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None = None, index: int = 0) -> None:
+        """Show new colors on the faces set_voxels made for object `index`: `rgba` must have the same occupancy
+        (paint never changes it). `overrides`: (sorted flat voxel indices, their colors (K, 3)) shown instead of
+        rgba's (the bucket's preview tint). Only the faces' colors are written: finding the faces is slow at 200^3,
+        and the bucket's previews and strokes would pay it at each voxel the bucket rests on."""
+        faces = self._objects[index] if index < len(self._objects) else None
+        if faces is None or rgba.shape[0] != faces.resolution:
             raise ValueError("recolor needs the voxels set_voxels was given, with other colors")
         self._voxels_version += 1
-        for level in self._levels[1:]:  # the merged blocks' colors are made again on the next drag
-            level.release()
-        self._levels = self._levels[:1]
-        self._levels[0].recolor(rgba, overrides)
-        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
+        faces.recolor(rgba, overrides)
+
+    def keep_objects(self, count: int) -> None:
+        """Hold faces for `count` objects: those past them are released, new places are empty."""
+        for faces in self._objects[count:]:
+            if faces is not None:
+                faces.release()
+        self._objects = self._objects[:count] + [None] * (count - len(self._objects))
+        self._voxels_version += 1
+
+    def forget(self, index: int) -> None:
+        """Draw nothing for object `index` (its voxels could not be loaded)."""
+        if index < len(self._objects) and self._objects[index] is not None:
+            self._objects[index].release()
+            self._objects[index] = None
+            self._voxels_version += 1
 
     @property
     def quads_in_motion(self) -> int:
         """How many faces a frame draws while the user drags (0 before any voxels are set)."""
-        level = self._motion_level()
-        return 0 if level is None else level.quads
+        levels = [faces.motion_level() for faces in self._objects if faces is not None]
+        return sum(level.quads for level in levels)
 
-    def _motion_level(self) -> _FaceLevel | None:
-        """What a frame draws while the user drags: a fine object's merged blocks (made once per set_voxels)."""
-        if self._unmerged is not None:
-            block = -(-self._resolution // MOTION_RESOLUTION)
-            merged = pool_voxels(self._unmerged, (block,) * 3)
-            self._levels.append(_FaceLevel(self.ctx, self._voxel_program, merged, block))
-            self._unmerged = None
-        return self._levels[-1] if self._levels else None
+    def _levels(self, moving: bool) -> list[tuple[int, _ObjectFaces, _FaceLevel]]:
+        """(object index, its faces, the level a frame draws: merged blocks while the user drags)."""
+        return [(i, faces, faces.motion_level() if moving else faces.levels[0])
+                for i, faces in enumerate(self._objects) if faces is not None]
 
     def draw(self, width: int, height: int, view: Camera, scene: Scene, floor_color, light_active: bool = False,
-             picked_voxel: tuple[int, int, int] | None = None, moving: bool = False) -> moderngl.Framebuffer:
+             picked_voxel: tuple[int, int, int] | None = None, moving: bool = False,
+             selected: int = 0) -> moderngl.Framebuffer:
         """Render the scene seen by `view` (already sized width x height) into the returned framebuffer; `moving`: a
-        drag is in progress (a fine object is drawn in merged blocks).
+        drag is in progress (a fine object is drawn in merged blocks); `selected`: the object outlined by its box
+        (`picked_voxel` is one of its voxels).
 
         llvmpipe (software OpenGL) needs tens of milliseconds for a frame, so a frame identical
         to the last one is not drawn again.
         """
-        level = self._motion_level() if moving else (self._levels[0] if self._levels else None)
+        levels = self._levels(moving)
         drawn = (width, height, view, scene, tuple(floor_color), light_active, picked_voxel, self._voxels_version,
-                 None if level is None else level.block)
+                 tuple(level.block for _, _, level in levels), selected)
         if drawn == self._drawn:
             return self._fbo
         self._drawn = drawn
         self.version += 1
         fbo = self._framebuffer(width, height)
-        self._render(fbo, view, scene, floor_color, light_active, picked_voxel, level)
+        self._render(fbo, view, scene, floor_color, light_active, picked_voxel, levels, selected)
         return fbo
 
     def image(self, width: int, height: int, view: Camera, scene: Scene, floor_color) -> np.ndarray:
@@ -242,7 +250,7 @@ class ViewportRenderer:
         attachments = (self.ctx.renderbuffer(size, 4), self.ctx.depth_renderbuffer(size))
         fbo = self.ctx.framebuffer(*attachments)
         try:
-            self._render(fbo, view, scene, floor_color, level=self._levels[0] if self._levels else None)
+            self._render(fbo, view, scene, floor_color, levels=self._levels(moving=False))
             pixels = fbo.read(components=3)
         finally:
             fbo.release()
@@ -251,7 +259,8 @@ class ViewportRenderer:
         return np.frombuffer(pixels, dtype=np.uint8).reshape(height, width, 3)[::-1].copy()
 
     def _render(self, fbo: moderngl.Framebuffer, view: Camera, scene: Scene, floor_color, light_active: bool = False,
-                picked_voxel: tuple[int, int, int] | None = None, level: _FaceLevel | None = None) -> None:
+                picked_voxel: tuple[int, int, int] | None = None,
+                levels: list[tuple[int, _ObjectFaces, _FaceLevel]] = (), selected: int = 0) -> None:
         width, height = fbo.size
         fbo.use()
         ctx = self.ctx
@@ -274,28 +283,38 @@ class ViewportRenderer:
             self._ground_program["floor_texture"].value = 0
         self._ground_vao.render()
 
-        if level is not None and level.groups:
-            placement = object_to_world(scene.object)
-            p = self._voxel_program
-            p["view_projection"].write(vp)
+        p = self._voxel_program
+        p["view_projection"].write(vp)
+        p["eye"].value = tuple(float(c) for c in view.position)
+        p["box_min"].value = tuple(float(c) for c in OBJECT_BOX_MIN)
+        p["light_position"].value = light
+        for index, faces, level in levels:
+            if index >= len(scene.objects) or not level.groups:
+                continue
+            placement = object_to_world(scene.objects[index])
             p["object_to_world"].write(_gl_matrix(placement))
             p["normal_to_world"].write(np.linalg.inv(placement[:3, :3]).T.astype("f4").tobytes(order="F"))
-            p["eye"].value = tuple(float(c) for c in view.position)
-            p["voxel_size"].value = OBJECT_SIZE / self._resolution * level.block
-            p["box_min"].value = tuple(float(c) for c in OBJECT_BOX_MIN)
-            p["light_position"].value = light
-            eye_grid = apply_transform(grid_from_world(placement, self._resolution), view.position) / level.block
+            p["voxel_size"].value = OBJECT_SIZE / faces.resolution * level.block
+            eye_grid = apply_transform(grid_from_world(placement, faces.resolution), view.position) / level.block
             for group in level.groups:
                 if group.may_face(eye_grid):
                     group.vao.render(moderngl.TRIANGLES)
 
         light_color = LIGHT_ACTIVE_COLOR if light_active else LIGHT_COLOR
-        shapes = [(moderngl.LINES, _frustum_lines(Camera.from_scene(scene)), FRUSTUM_COLOR),
-                  (moderngl.LINES, _box_lines(object_to_world(scene.object), OBJECT_BOX_MIN, OBJECT_BOX_MAX), BOX_COLOR)]
-        if picked_voxel is not None:
-            n = self._resolution
-            lo = OBJECT_BOX_MIN + np.asarray(picked_voxel) * (OBJECT_SIZE / n)
-            shapes.append((moderngl.LINES, _box_lines(object_to_world(scene.object), lo, lo + OBJECT_SIZE / n), PICK_COLOR))
+        shapes = [(moderngl.LINES, _frustum_lines(Camera.from_scene(scene)), FRUSTUM_COLOR)]
+        if selected < len(scene.objects):
+            chosen = object_to_world(scene.objects[selected])
+            if len(scene.objects) == 1:
+                shapes.append((moderngl.LINES, _box_lines(chosen, OBJECT_BOX_MIN, OBJECT_BOX_MAX), BOX_COLOR))
+            else:  # a little outside the box, so that it shows on an object that fills its box
+                margin = SELECTED_BOX_MARGIN * (OBJECT_BOX_MAX - OBJECT_BOX_MIN)
+                shapes.append((moderngl.LINES, _box_lines(chosen, OBJECT_BOX_MIN - margin, OBJECT_BOX_MAX + margin),
+                               SELECTED_BOX_COLOR))
+            faces = self._objects[selected] if selected < len(self._objects) else None
+            if picked_voxel is not None and faces is not None:
+                side = OBJECT_SIZE / faces.resolution
+                lo = OBJECT_BOX_MIN + np.asarray(picked_voxel) * side
+                shapes.append((moderngl.LINES, _box_lines(chosen, lo, lo + side), PICK_COLOR))
         if scene.light.enabled:
             shapes.append((moderngl.LINES, _light_lines(scene), light_color))
             shapes.append((moderngl.TRIANGLES, _light_corners(scene)[[0, 1, 2, 0, 2, 3]],
@@ -329,6 +348,38 @@ class ViewportRenderer:
             self._flat_program["color"].value = color
             self._lines_vao.render(mode, vertices=len(points), first=first)
             first += len(points)
+
+
+class _ObjectFaces:
+    """One object's faces: every voxel's, then (for an object finer than MOTION_RESOLUTION) its merged blocks' for
+    frames drawn while the user drags, made on the first drag (the bucket's previews upload the voxels at every voxel
+    it rests on)."""
+
+    def __init__(self, ctx: moderngl.Context, program: moderngl.Program, rgba: np.ndarray):
+        self.ctx, self.program = ctx, program
+        self.resolution = rgba.shape[0]
+        self.levels = [_FaceLevel(ctx, program, rgba, 1)]
+        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
+
+    def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None) -> None:
+        for level in self.levels[1:]:  # the merged blocks' colors are made again on the next drag
+            level.release()
+        self.levels = self.levels[:1]
+        self.levels[0].recolor(rgba, overrides)
+        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
+
+    def motion_level(self) -> _FaceLevel:
+        """What a frame draws while the user drags: a fine object's merged blocks, else every voxel."""
+        if self._unmerged is not None:
+            block = -(-self.resolution // MOTION_RESOLUTION)
+            merged = pool_voxels(self._unmerged, (block,) * 3)
+            self.levels.append(_FaceLevel(self.ctx, self.program, merged, block))
+            self._unmerged = None
+        return self.levels[-1]
+
+    def release(self) -> None:
+        for level in self.levels:
+            level.release()
 
 
 class _FaceLevel:

@@ -5,7 +5,8 @@
   changes its height instead. The render follows while dragging; releasing commits one undo step.
 - G, R, S grab, rotate or scale the object; X, Y, Z limit the change to one axis; a left click
   or Enter confirms, a right click or Esc cancels.
-- With the bucket tool, a left click on a voxel fills its connected region of similar color.
+- With the bucket tool, a left click on a voxel fills its connected region of similar color; otherwise a left
+  click on an object selects it.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from imgui_bundle import imgui
 
 from app.editor import edits
 from app.editor.orbit_view import orbit, pan_in_viewport, viewport_camera, zoom
-from app.editor.picking import hits_light, pick_voxel, ray_at_height
+from app.editor.picking import hits_light, nearest_object, pick_voxel, ray_at_height
 from renderer.camera import Camera
 from renderer.scene import Scene
 
@@ -100,11 +101,15 @@ class ViewportInput:
                 app.paint_region(self.hovered_voxel)
             elif self.light_hovered:
                 self._start_light_drag(app, mouse)
+            elif not app.bucket_active:  # a click on an object selects it
+                index = self._object_under(app, ray)
+                if index is not None and index != app.selected:
+                    app.select(index)
         io = imgui.get_io()
         if not io.want_text_input:
             for key, kind in TRANSFORM_KEYS.items():
                 if imgui.is_key_pressed(key, False) and not io.key_ctrl:
-                    self.transform = Transform(kind, app.doc.history.current, mouse)
+                    self.transform = Transform(kind, app.object_view(app.doc.history.current), mouse)
 
     # --- navigation -----------------------------------------------------------------------
 
@@ -127,9 +132,15 @@ class ViewportInput:
     # --- picking --------------------------------------------------------------------------
 
     def _voxel_under(self, app, ray) -> tuple[int, int, int] | None:
+        """The selected object's voxel under the mouse (the bucket's)."""
         if app.jobs.current is not None or app.shown_occupancy is None:
             return None
-        return pick_voxel(app.shown_occupancy, app.scene.object, *ray)
+        return pick_voxel(app.shown_occupancy, app.selected_object, *ray)
+
+    def _object_under(self, app, ray) -> int | None:
+        """The index of the object whose voxel the mouse ray meets first, None if it meets none."""
+        shown = [(i, s.occupancy) for i, s in enumerate(app.shown) if s is not None and i < len(app.scene.objects)]
+        return nearest_object([(app.scene.objects[i], occupied) for i, occupied in shown], *ray, [i for i, _ in shown])
 
     # --- the light ------------------------------------------------------------------------
 
@@ -185,13 +196,13 @@ class ViewportInput:
         confirm = imgui.is_mouse_clicked(imgui.MouseButton_.left) or imgui.is_key_pressed(imgui.Key.enter)
         scene = self._transformed(t, mouse, ray)
         if scene is not None:
-            app.edit(lambda _: scene, preview=True)
+            app.edit_object(lambda _: scene, preview=True)
         if confirm:
             self.transform = None
             app.commit_preview()
 
     def _transformed(self, t: Transform, mouse: tuple[float, float], ray) -> Scene | None:
-        o = t.start_scene.object
+        o = t.start_scene.object  # the selected object's one-object view (EditorApp.object_view)
         if t.kind == "grab":
             start_origin, start_dir = self.camera.pixel_rays(np.array(t.start_mouse[0]), np.array(t.start_mouse[1]))
             start, now = ray_at_height(start_origin, np.asarray(start_dir), 0.0), ray_at_height(*ray, 0.0)

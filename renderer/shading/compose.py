@@ -7,7 +7,8 @@ lighting stage reads the joins as it reads one object's stages:
 - join_surfaces: per pixel the nearest object's point (least view depth); coverage and the floor's open sky combine
   as independent occluders (one minus the product of what each leaves).
 - join_reflections: per pixel of the floor's reflection the nearest mirrored point.
-- join_occluders: every object's shadow occluders in one geometry, so each object shadows the others and the floor.
+- join_occluders: every object's shadow occluders in one geometry, each object's kept apart, so each object shadows
+  the others and the floor from shadow maps of its own (as fine as when it stands alone).
 """
 
 from __future__ import annotations
@@ -89,9 +90,9 @@ def _pick(values: Sequence[np.ndarray], owner: np.ndarray, index: np.ndarray) ->
 
 
 def join_occluders(geometries: Sequence[ObjectGeometry]) -> ObjectGeometry:
-    """The placed geometry the lighting reads, with every object's shadow occluders and their joint box. Its voxel
-    size and occluder block (the occluders' radius and the shadows' biases) are those of the object with the widest
-    block, so that no object's occluders leave gaps between them."""
+    """The placed geometry the lighting reads, with every object's shadow occluders, where each object's end (its
+    shadow maps are its own: renderer.shading.lighting.ShadowMaps), and their joint box. Its voxel size and
+    occluder block (the shadows' biases) are those of the object with the widest block."""
     if len(geometries) == 1:
         return geometries[0]
     widest = max(geometries, key=occluder_width)
@@ -99,7 +100,9 @@ def join_occluders(geometries: Sequence[ObjectGeometry]) -> ObjectGeometry:
     boxes = [g.occluder_box for g in geometries if not g.empty]
     box = (np.stack([np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)])
            if boxes else widest.occluder_box)
-    return replace(widest, occluders=occluders, occluder_box=box)
+    ends = np.cumsum([len(g.occluders) for g in geometries])
+    parts = tuple((int(end), occluder_width(g)) for end, g in zip(ends, geometries))
+    return replace(widest, occluders=occluders, occluder_box=box, occluder_parts=parts)
 
 
 def occluder_width(geometry: ObjectGeometry) -> float:

@@ -65,13 +65,12 @@ from renderer.scene import (
 from renderer.shading.geometry import ObjectGeometry
 from renderer.shading.lighting import (
     ShadedImage,
+    ShadowMaps,
     _floor_visibility,
     add_reflection_change,
-    build_shadow_maps,
     composite,
     light_form_factors,
     light_points,
-    light_visibility,
     shadow_receivers,
 )
 from renderer.shading.quality import (
@@ -80,10 +79,8 @@ from renderer.shading.quality import (
     FLOOR_BOUNCE,
     FLOOR_SHADOW_BIAS,
     FULL_QUALITY,
-    OCCLUDER_RADIUS,
     SHADOW_BIAS,
     SHADOW_GRAZING_OFFSET,
-    SHADOW_MAP_SIZE,
     SHADOW_NORMAL_OFFSET,
     ShaderQuality,
 )
@@ -495,11 +492,7 @@ class _ShadowMaps:
     def __init__(self, geometry: ObjectGeometry, points: np.ndarray, spacing: float, block: float):
         self.points = points
         self.spacing = spacing  # the side of the light's square each point stands for (0: a point)
-        self.maps = np.empty((len(points), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
-        self.bounds = np.zeros((len(points), 3))
-        build_shadow_maps(geometry.occluders, OCCLUDER_RADIUS * block, block / math.sqrt(2.0), points,
-                          SHADOW_MAP_SIZE, self.maps, self.bounds)
-        self.nearest = self.maps.reshape(len(points), -1).min(axis=1).astype(np.float64)
+        self.shadows = ShadowMaps(geometry, points, block)
 
     @classmethod
     def area(cls, geometry: ObjectGeometry, light_position, quality: ShaderQuality, block: float) -> _ShadowMaps:
@@ -516,11 +509,11 @@ class _ShadowMaps:
 
     def visibility(self, receivers: np.ndarray, bias: float) -> np.ndarray:
         out = np.empty(len(receivers))
-        light_visibility(receivers, bias, self.points, self.maps, self.bounds, self.nearest, self.spacing, out)
+        self.shadows.visibility(receivers, bias, self.spacing, out)
         return out
 
     def floor_visibility(self, surface: VisibleSurface, geometry: ObjectGeometry, block: float) -> np.ndarray:
-        return _floor_visibility(surface, geometry, self.points, self.maps, self.bounds, self.nearest,
+        return _floor_visibility(surface, geometry, self.shadows,
                                  FLOOR_SHADOW_BIAS * block, self.spacing)
 
     def object_visibility(self, points: np.ndarray, normals: np.ndarray, toward: np.ndarray, block: float,

@@ -60,6 +60,39 @@ class ShadedImage:
     occlusion: np.ndarray  # share of the sky seen: object points, and floor points
 
 
+class ShadowMaps:
+    """Shadow maps of one light, seen from its `points`: one set per object whose occluders the geometry holds (its
+    own bounds, so its texels stay as fine as the object alone makes them). A receiver sees the light past every
+    object: the product of its visibility past each set."""
+
+    def __init__(self, geometry: ObjectGeometry, points: np.ndarray, block: float):
+        self.points = points
+        self.sets = []  # (maps, bounds, nearest) per object
+        for occluders, width in occluder_groups(geometry, block):
+            maps = np.empty((len(points), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
+            bounds = np.zeros((len(points), 3))
+            build_shadow_maps(occluders, OCCLUDER_RADIUS * width, width / math.sqrt(2.0), points, SHADOW_MAP_SIZE,
+                              maps, bounds)
+            self.sets.append((maps, bounds, maps.reshape(len(points), -1).min(axis=1).astype(np.float64)))
+
+    def visibility(self, receivers: np.ndarray, bias: float, spread: float, out: np.ndarray) -> None:
+        """out[i]: the share of the light receiver i sees (light_visibility, multiplied over the sets)."""
+        out[:] = 1.0
+        part = np.empty(len(receivers))
+        for maps, bounds, nearest in self.sets:
+            light_visibility(receivers, bias, self.points, maps, bounds, nearest, spread, part)
+            out *= part
+
+
+def occluder_groups(geometry: ObjectGeometry, block: float) -> list[tuple[np.ndarray, float]]:
+    """The geometry's shadow occluders per object, each with its block's width in the world (`block` for a
+    geometry of one object; renderer/shading/compose.py joins several)."""
+    if not geometry.occluder_parts:
+        return [(geometry.occluders, block)]
+    starts = [0, *(end for end, _ in geometry.occluder_parts[:-1])]
+    return [(geometry.occluders[start:end], width) for start, (end, width) in zip(starts, geometry.occluder_parts)]
+
+
 def light_points(light_position, per_side: int = LIGHT_POINTS) -> np.ndarray:
     """(per_side^2, 3) world points at the centres of a regular grid over the square light."""
     offsets = ((np.arange(per_side) + 0.5) / per_side - 0.5) * LIGHT_SIZE
@@ -81,29 +114,25 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
     floor = floor_terms.floor
     lights = light_points(light_position, quality.light_points)
     voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
-    maps = np.empty((len(lights), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
-    bounds = np.zeros((len(lights), 3))
     block = geometry.occluder_block * voxel  # the side of an occluder's block in the world
-    build_shadow_maps(geometry.occluders, OCCLUDER_RADIUS * block, block / math.sqrt(2.0), lights,
-                              SHADOW_MAP_SIZE, maps, bounds)
-    nearest = maps.reshape(len(lights), -1).min(axis=1).astype(np.float64)  # each map's occluder nearest the light
+    shadows = ShadowMaps(geometry, lights, block)
 
     size = surface.size
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
-                         _floor_visibility(surface, geometry, lights, maps, bounds, nearest,
-                                           FLOOR_SHADOW_BIAS * block, LIGHT_SIZE / quality.light_points))
+                         _floor_visibility(surface, geometry, shadows, FLOOR_SHADOW_BIAS * block,
+                                           LIGHT_SIZE / quality.light_points))
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
         radiance, seen = _object_radiance(surface.points, surface.normals, surface.albedo, surface.occlusion,
-                                          light_position, lights, maps, bounds, nearest, block, floor_color)
+                                          light_position, shadows, block, floor_color)
     r, c = surface.pixels[:, 0], surface.pixels[:, 1]
     composite(floor_terms.from_light, floor_terms.from_ambient, *floor_terms.row_weights,
                       *floor_terms.col_weights, floor, visibility, surface.images.floor_occlusion,
                       np.full(3, AMBIENT_RADIANCE, dtype=np.float32), r, c, radiance, surface.coverage[r, c], image)
     if reflection is not None and len(reflection.points):
-        _add_reflection(image, surface, reflection, light_position, lights, maps, bounds, nearest, block, floor_color)
+        _add_reflection(image, surface, reflection, light_position, shadows, block, floor_color)
     visibility[r, c] = seen  # the floor's visibility lit the floor behind partly covered pixels; now the object's
     images = surface.images
     return ShadedImage(image=linear_to_srgb(image), coverage=surface.coverage,  # in [0, 1], NaN as 0: no clip needed
@@ -111,20 +140,20 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                        visibility=visibility, occlusion=images.occlusion)
 
 
-def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights: np.ndarray, maps: np.ndarray,
-                      bounds: np.ndarray, nearest: np.ndarray, bias: float, spacing: float) -> np.ndarray:
+def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, shadows: ShadowMaps, bias: float,
+                      spacing: float) -> np.ndarray:
     """Share of the light each of the surface's floor points sees, each light point reading as its square of the
     light (`spacing` on a side). The shadow maps are read on a grid of
     FLOOR_SHADOW_STEP over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
     points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
-    floor_points = surface.floor_points
+    floor_points, lights = surface.floor_points, shadows.points
     seen = np.ones(len(floor_points))
     if not len(floor_points):
         return seen
     lo, hi = geometry.occluder_box
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
-        light_visibility(floor_points, bias, lights, maps, bounds, nearest, spacing, seen)
+        shadows.visibility(floor_points, bias, spacing, seen)
         return seen
     # Opposite corners of the light's square: of the grid of light points, widened by the square each stands for (a
     # wide light's soft shadow reaches past what its points alone cast).
@@ -146,18 +175,18 @@ def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, lights:
     gx, gz = np.meshgrid(xs, zs, indexing="ij")
     samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
     on_grid = np.empty(len(samples))
-    light_visibility(samples, bias, lights, maps, bounds, nearest, spacing, on_grid)
+    shadows.visibility(samples, bias, spacing, on_grid)
     interpolate_grid(on_grid.reshape(gx.shape), x0, z0, FLOOR_SHADOW_STEP, floor_points, x1, z1, seen)
     return seen
 
 
 def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray, occlusion: np.ndarray, light_position,
-                     lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray, nearest: np.ndarray, block: float,
-                     floor_color) -> tuple[np.ndarray, np.ndarray]:
+                     shadows: ShadowMaps, block: float, floor_color) -> tuple[np.ndarray, np.ndarray]:
     """Linear radiance (N, 3) of object points (world points and unit normals, linear albedo, the sky light reaching
     each) and the share of the light each sees (`block`: the side of an occluder's block in the world)."""
     form = np.empty(len(points))
     form_below = np.empty(len(points))
+    lights = shadows.points
     light_form_factors(points, normals, lights, LIGHT_SIZE**2 / len(lights), form, form_below)
     # Shadows matter only where the light reaches the surface at all (points facing away see none of it).
     seen = np.zeros(len(points))
@@ -168,7 +197,7 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
     receivers = np.empty((len(facing), 3))
     shadow_receivers(points, normals, facing, np.asarray(light_position, dtype=np.float64),
                              block * SHADOW_NORMAL_OFFSET, block * SHADOW_GRAZING_OFFSET, receivers)
-    light_visibility(receivers, SHADOW_BIAS * block, lights, maps, bounds, nearest, 0.0, seen_facing)
+    shadows.visibility(receivers, SHADOW_BIAS * block, 0.0, seen_facing)
     seen[facing] = seen_facing
     direct = LIGHT_RADIANCE * seen * form
     # Ambient from the sky above the horizon, and light the floor below sends back up (the floor there
@@ -182,13 +211,12 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
 
 
 def _add_reflection(image: np.ndarray, surface: VisibleSurface, reflection: FloorReflection, light_position,
-                    lights: np.ndarray, maps: np.ndarray, bounds: np.ndarray, nearest: np.ndarray, block: float,
-                    floor_color) -> None:
+                    shadows: ShadowMaps, block: float, floor_color) -> None:
     """Adds to the linear `image` the floor's reflection of the object, where the object leaves the floor uncovered:
     the coat mirrors the lit object where it mirrored the sky (an object darker than the sky darkens the floor). The
     reflection's pixels are blurred (the coat's roughness) and upsampled bilinearly over the box they reach."""
     radiance, _ = _object_radiance(reflection.points, reflection.normals, reflection.albedo, reflection.occlusion,
-                                   light_position, lights, maps, bounds, nearest, block, floor_color)
+                                   light_position, shadows, block, floor_color)
     add_reflection_change(image, surface, reflection, radiance - AMBIENT_RADIANCE)
 
 
