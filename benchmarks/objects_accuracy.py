@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.bench_objects import CATEGORIES
+from models.bench.objects import CATEGORIES
 from models.renderers import RendererOptions, make_renderer
 from renderer.io import atomic_path
 from renderer.objects import apply_appearance, generate_object

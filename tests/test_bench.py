@@ -60,6 +60,11 @@ def test_quick_bench_writes_json_report_and_figure(tmp_path):
         assert set(times) == {"environment turn", "sun move", "strength", "material", "object move"}
         assert all(math.isfinite(ms) and ms > 0.0 for ms in times.values())
     assert "## Under environment light" in text and "- NVR+ object move: " in text
+    # Against the number of objects (1 and 2 when quick): each renderer's three edits.
+    counted = {(row["renderer"], row["objects"]) for row in results["objects"]}
+    assert counted == {(r, n) for r in ("NVR+", "voxel shader") for n in (1, 2)}
+    assert all(math.isfinite(ms) and ms > 0.0 for row in results["objects"] for ms in row["ms"].values())
+    assert "## Against the number of objects" in text and "- Moving one object, 1 to 2 objects: " in text
     with Image.open(tmp_path / "speed_vs_error.png") as figure:
         assert figure.format == "PNG" and figure.width == 1100 and figure.height >= 760  # taller with a key
 

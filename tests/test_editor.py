@@ -949,6 +949,10 @@ def test_a_fine_object_is_drawn_in_merged_blocks_while_the_user_drags(display, m
     assert viewport.quads_in_motion == 0
     quads_at_rest = viewport.set_voxels(rgba)
     assert viewport.quads_in_motion <= quads_at_rest / 3.5
+    one = viewport.quads_in_motion
+    for index in range(1, 4):  # four objects: each drawn coarser in motion, about one object's faces in all
+        viewport.set_voxels(rgba, index)
+    assert viewport.quads_in_motion <= 1.5 * one
 
 
 def test_save_as_and_exports_follow_the_open_scene(display, tmp_path, scene_file):

@@ -1,5 +1,6 @@
 """The editor with several objects, in the real window under Xvfb: selecting by click and in the list, duplicate,
-rename, move, delete and add, each one undo step; a scene whose one object cannot be loaded shows the others."""
+rename, move, delete and add, each one undo step; hiding from the viewport; a scene whose one object cannot be loaded
+shows the others; a .vox file's models as objects."""
 
 from __future__ import annotations
 
@@ -57,6 +58,9 @@ def test_object_list_edits_are_undo_steps_and_a_click_selects(display, tmp_path,
         {"action": "select", "index": 0}, {"action": "key", "key": "x"},  # the left box deleted
         save("deleted"),
         {"action": "screenshot", "path": str(out / "deleted.png")},
+        {"action": "hide", "index": 0}, {"action": "wait", "frames": 2},  # the right box, hidden from the viewport
+        {"action": "screenshot", "path": str(out / "hidden.png")},
+        {"action": "hide", "index": 0},  # shown again (not an undo step)
         {"action": "undo"}, save("undeleted"),
         *[{"action": "undo"}] * 4, save("undone"),  # select, move, rename, duplicate
         *[{"action": "redo"}] * 5, save("redone"),
@@ -87,6 +91,8 @@ def test_object_list_edits_are_undo_steps_and_a_click_selects(display, tmp_path,
         return shot[at[1] + around[0].start:at[1] + around[0].stop, at[0] + around[1].start:at[0] + around[1].stop]
 
     assert share_of(patch(right_at), RED) > 0.3 and share_of(patch(left_at), RED) < 0.05
+    shot = pixels(out / "hidden.png", PANELS.viewport)
+    assert share_of(patch(right_at), RED) < 0.05  # hidden: the viewport draws the right box no more
 
 
 def test_a_scene_whose_object_cannot_be_loaded_shows_the_others_and_names_it(display, tmp_path, two_boxes):

@@ -103,6 +103,7 @@ class EditorApp:
         self.shown: list[ShownObject | None] = []  # per object, what the viewport shows (None: not loaded)
         self.unloadable: set[tuple] = set()  # objects (their source_key) whose mesh or voxels file failed to load
         self.submitted: Scene | None = None  # what the render was last asked for: the scene, less unloadable objects
+        self.hidden: frozenset[int] = frozenset()  # objects the viewport does not draw (the object list's eye)
         # Its parts, each with its own commands (a selection of objects will join them).
         self.jobs = JobRunner(self.say)
         self.screenshots = Screenshots(window, self.say)
@@ -188,6 +189,10 @@ class EditorApp:
         name, index = edits.object_label(self.scene, self.selected), self.selected
         if self.edit(lambda s: edits.delete_object(s, index), select=max(index - 1, 0)):
             self.say(f"deleted {name} (Ctrl+Z brings it back)")
+
+    def toggle_hidden(self, index: int) -> None:
+        """Hide object `index` from the viewport, or show it again (the render still shows it; not an undo step)."""
+        self.hidden = self.hidden ^ {index}
 
     def rename_object(self, index: int, name: str) -> None:
         self.edit(lambda s: edits.rename_object(s, index, name))
@@ -395,6 +400,7 @@ class EditorApp:
                                     on_error=lambda one=one: self.unloadable.add(source_key(one)))
                 return  # voxelising (or another job): the scene is shown when it is done
         self.floor_color = scene.floor.color
+        self.hidden = frozenset(i for i in self.hidden if i < len(views))
         self.viewport.keep_objects(len(views))
         self.shown = (self.shown + [None] * len(views))[:len(views)]
         drawn = []

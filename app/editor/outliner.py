@@ -1,5 +1,5 @@
 """The object list (outliner), in the viewport's top right corner as in Blender: select, rename, add, duplicate and
-delete the scene's objects. Each action is one undo step (EditorApp's commands)."""
+delete the scene's objects, each one undo step (EditorApp's commands); hide one from the viewport (its box)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from renderer.limits import MAX_OBJECTS
 from renderer.mesh import MESH_EXTENSIONS
 
 WIDTH = 210
-ROW_HEIGHT = 19
+ROW_HEIGHT = 24  # a row: its eye's checkbox and its name
 ROWS_SHOWN = 6  # rows before the list scrolls
 SELECTED_TEXT = (1.0, 0.72, 0.35, 1.0)  # the selected row, in the viewport's outline color
 ADD_FILES = FileKind("Add an object", "Meshes, .vox models", (*(f"*{suffix}" for suffix in MESH_EXTENSIONS), "*.vox"))
@@ -33,6 +33,13 @@ def draw_outliner(ui: Any, viewport: Rect) -> None:
     imgui.begin("Objects", None, flags)
     imgui.begin_child("object rows", imgui.ImVec2(0, rows * ROW_HEIGHT + 4))
     for index in range(len(scene.objects)):
+        shown = index not in app.hidden
+        changed, _ = imgui.checkbox(f"##shown{index}", shown)
+        if changed:
+            app.toggle_hidden(index)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("drawn in the viewport (the render shows every object)")
+        imgui.same_line()
         chosen = index == app.selected
         if chosen:
             imgui.push_style_color(imgui.Col_.text, imgui.ImVec4(*SELECTED_TEXT))

@@ -290,7 +290,8 @@ class Interface:
         framebuffer = app.viewport.draw(w, h, viewport_camera(app.view, w, h), app.scene, app.floor_color,
                                         light_active=inputs.light_drag is not None or inputs.light_hovered,
                                         picked_voxel=inputs.hovered_voxel,
-                                        moving=inputs.interacting or app.doc.previewing, selected=app.selected)
+                                        moving=inputs.interacting or app.doc.previewing, selected=app.selected,
+                                        hidden=app.hidden)
         self.underlay = (framebuffer, int(origin.x), int(origin.y))  # copied under the interface (Window.end_frame)
         if self.photo_panel.fills_viewport():  # the photo being aligned covers the view, with its own gestures
             self.photo_panel.draw_in_viewport(origin, w, h)

@@ -7,6 +7,7 @@ High-level actions call the same commands as the interface:
     {"action": "select", "index": 1}                          {"action": "rename", "name": "table"} (the selected)
     {"action": "add_object", "path": "table.obj", "up": "y"}  a mesh or .vox, where the floor has room, selected
     {"action": "duplicate"} {"action": "delete"}              the selected object (as Shift+D, X)
+    {"action": "hide", "index": 0}                           hide from the viewport, or show again (the list's box)
     {"action": "set_elevation", "deg": 20}                    {"action": "set_floor_color", "color": [r, g, b]}
     {"action": "use_sky"} {"action": "set_sky", "elevation": 35, "azimuth": 120, "turbidity": 3}
     {"action": "load_environment", "path": "studio.hdr"}     {"action": "no_environment"} (the ambient light again)
@@ -309,6 +310,7 @@ ACTIONS = {
     "rename": lambda app, a: app.rename_object(app.selected, str(a["name"])),
     "add_object": lambda app, a: app.add_object(a["path"], up=a.get("up", "y")),
     "duplicate": lambda app, a: app.duplicate_selected(),
+    "hide": lambda app, a: app.toggle_hidden(int(a["index"])),
     "delete": lambda app, a: app.delete_selected(),
     "undo": lambda app, a: app.undo(),
     "redo": lambda app, a: app.redo(),

@@ -14,6 +14,8 @@ rectangle with a line down to the floor, and the render camera is drawn as its v
 
 from __future__ import annotations
 
+import math
+
 import moderngl
 import numpy as np
 
@@ -43,6 +45,7 @@ PICK_COLOR = (1.0, 1.0, 1.0)
 GROUND_OFFSET = -0.003  # the ground is drawn a hair below y = 0 so lines on the floor do not flicker into it
 FRUSTUM_DEPTH = 0.9  # depth of the drawn camera pyramid, world units
 MOTION_RESOLUTION = 100  # voxels a side at most while the user drags (finer objects are drawn merged in blocks)
+MIN_MOTION_RESOLUTION = 32  # ... and never coarser than this, however many objects
 
 _VOXEL_VS = """
 #version 330
@@ -215,27 +218,29 @@ class ViewportRenderer:
     @property
     def quads_in_motion(self) -> int:
         """How many faces a frame draws while the user drags (0 before any voxels are set)."""
-        levels = [faces.motion_level() for faces in self._objects if faces is not None]
-        return sum(level.quads for level in levels)
+        return sum(level.quads for _, _, level in self._levels(moving=True))
 
     def _levels(self, moving: bool) -> list[tuple[int, _ObjectFaces, _FaceLevel]]:
-        """(object index, its faces, the level a frame draws: merged blocks while the user drags)."""
-        return [(i, faces, faces.motion_level() if moving else faces.levels[0])
-                for i, faces in enumerate(self._objects) if faces is not None]
+        """(object index, its faces, the level a frame draws). While the user drags, merged blocks: at most
+        MOTION_RESOLUTION a side for one object, fewer for several, so that a drag's frame draws about as many
+        faces whatever the objects (a face count grows with the square of the side)."""
+        shown = [(i, faces) for i, faces in enumerate(self._objects) if faces is not None]
+        most = max(MIN_MOTION_RESOLUTION, int(MOTION_RESOLUTION / math.sqrt(max(len(shown), 1))))
+        return [(i, faces, faces.motion_level(most) if moving else faces.levels[0]) for i, faces in shown]
 
     def draw(self, width: int, height: int, view: Camera, scene: Scene, floor_color, light_active: bool = False,
              picked_voxel: tuple[int, int, int] | None = None, moving: bool = False,
-             selected: int = 0) -> moderngl.Framebuffer:
+             selected: int = 0, hidden: frozenset[int] = frozenset()) -> moderngl.Framebuffer:
         """Render the scene seen by `view` (already sized width x height) into the returned framebuffer; `moving`: a
         drag is in progress (a fine object is drawn in merged blocks); `selected`: the object outlined by its box
-        (`picked_voxel` is one of its voxels).
+        (`picked_voxel` is one of its voxels); `hidden`: objects not drawn (the object list's eye).
 
         llvmpipe (software OpenGL) needs tens of milliseconds for a frame, so a frame identical
         to the last one is not drawn again.
         """
-        levels = self._levels(moving)
+        levels = [level for level in self._levels(moving) if level[0] not in hidden]
         drawn = (width, height, view, scene, tuple(floor_color), light_active, picked_voxel, self._voxels_version,
-                 tuple(level.block for _, _, level in levels), selected)
+                 tuple(level.block for _, _, level in levels), selected, hidden)
         if drawn == self._drawn:
             return self._fbo
         self._drawn = drawn
@@ -351,30 +356,33 @@ class ViewportRenderer:
 
 
 class _ObjectFaces:
-    """One object's faces: every voxel's, then (for an object finer than MOTION_RESOLUTION) its merged blocks' for
-    frames drawn while the user drags, made on the first drag (the bucket's previews upload the voxels at every voxel
-    it rests on)."""
+    """One object's faces: every voxel's, then (for an object finer than the motion resolution) its merged blocks'
+    for frames drawn while the user drags, made on the first drag (the bucket's previews upload the voxels at every
+    voxel it rests on)."""
 
     def __init__(self, ctx: moderngl.Context, program: moderngl.Program, rgba: np.ndarray):
         self.ctx, self.program = ctx, program
         self.resolution = rgba.shape[0]
         self.levels = [_FaceLevel(ctx, program, rgba, 1)]
-        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
+        self._rgba = rgba  # the voxels the merged blocks are made from
 
     def recolor(self, rgba: np.ndarray, overrides: tuple[np.ndarray, np.ndarray] | None) -> None:
         for level in self.levels[1:]:  # the merged blocks' colors are made again on the next drag
             level.release()
         self.levels = self.levels[:1]
         self.levels[0].recolor(rgba, overrides)
-        self._unmerged = rgba if rgba.shape[0] > MOTION_RESOLUTION else None
+        self._rgba = rgba
 
-    def motion_level(self) -> _FaceLevel:
-        """What a frame draws while the user drags: a fine object's merged blocks, else every voxel."""
-        if self._unmerged is not None:
-            block = -(-self.resolution // MOTION_RESOLUTION)
-            merged = pool_voxels(self._unmerged, (block,) * 3)
-            self.levels.append(_FaceLevel(self.ctx, self.program, merged, block))
-            self._unmerged = None
+    def motion_level(self, most: int = MOTION_RESOLUTION) -> _FaceLevel:
+        """What a frame draws while the user drags: merged blocks at most `most` a side, else every voxel."""
+        block = -(-self.resolution // most)
+        if block == 1:
+            return self.levels[0]
+        if self.levels[-1].block != block:
+            for level in self.levels[1:]:
+                level.release()
+            self.levels = [self.levels[0], _FaceLevel(self.ctx, self.program, pool_voxels(self._rgba, (block,) * 3),
+                                                      block)]
         return self.levels[-1]
 
     def release(self) -> None:

@@ -139,7 +139,8 @@ class ViewportInput:
 
     def _object_under(self, app, ray) -> int | None:
         """The index of the object whose voxel the mouse ray meets first, None if it meets none."""
-        shown = [(i, s.occupancy) for i, s in enumerate(app.shown) if s is not None and i < len(app.scene.objects)]
+        shown = [(i, s.occupancy) for i, s in enumerate(app.shown)
+                 if s is not None and i < len(app.scene.objects) and i not in app.hidden]
         return nearest_object([(app.scene.objects[i], occupied) for i, occupied in shown], *ray, [i for i, _ in shown])
 
     # --- the light ------------------------------------------------------------------------

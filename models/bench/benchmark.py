@@ -10,8 +10,9 @@ bench_in_step), peak memory (models/bench/system.py), and MSE, DSSIM and the per
 distance against a raw path-traced reference of the same scene (1024 spp; --quick: 32).
 Also: the engine's latency per edit type with the object crop and with the full grid, the shipped NVR+'s
 frame timed in turn with path tracing at 1 spp + OIDN (bench_in_turn: the Pareto target's ratio), the FLOPs
-per frame of each network configuration, and the share of a measured fp32 matmul peak they imply; and the same scenes
-under a sun and sky with glossy objects (models/bench/environment.py).
+per frame of each network configuration, and the share of a measured fp32 matmul peak they imply; the same scenes
+under a sun and sky with glossy objects (models/bench/environment.py); and edit latencies against the number of
+objects in a scene (models/bench/objects.py).
 
 A network's time per frame is a re-render after an object move along the floor (resampling, voxel
 branch, splat and shading; the mesh is voxelised once per scene): what a drag in the editor costs per
@@ -42,6 +43,7 @@ import torch
 from torch.utils.flop_counter import FlopCounterMode
 
 from models.bench.environment import MATERIALS, SKY, describe, edit_ms, environment_scene
+from models.bench.objects import bench_object_counts
 from models.bench.plot import Point, draw_speed_vs_error, pareto_front
 from models.bench.scenes import BenchScene, data_scenes, procedural_scenes
 from models.bench.system import PeakMemory, cpu_snapshot, machine_description, other_load
@@ -59,7 +61,7 @@ from models.networks.config import (
 from models.networks.inference import prepare_for_inference
 from models.networks.nvr import SHADING_CHANNELS, build_model, reads_floor_light, reads_shading
 from models.networks.shipped import ASSET_MODELS, SHIPPED_WEIGHTS
-from models.renderers import RENDERERS, network_entry
+from models.renderers import RENDERERS, make_renderer, network_entry
 from renderer.errors import InputError
 from renderer.io import save_json
 from renderer.pathtrace.mitsuba_variant import LIBLLVM_ENV, LLVM_VARIANT, active_variant
@@ -88,6 +90,7 @@ class BenchSettings:
     in_turn_rounds: int = 6  # rounds of the shipped NVR+ timed in turn with path tracing (bench_in_turn)
     in_step_rounds: int = 4  # rounds over the scenes of the shader's and the networks' rows (bench_in_step)
     environment_spps: tuple[int, ...] = (1, 4)  # path tracing's rows under environment light (bench_environment)
+    object_counts: tuple[int, ...] = (1, 2, 4, 8)  # scenes of this many objects, their edits timed (bench_object_counts)
 
     def repeats_for(self, spp: int) -> int:
         return self.repeats if spp <= 16 else max(1, self.repeats // (2 if spp <= 64 else 5))
@@ -95,7 +98,7 @@ class BenchSettings:
 
 FULL = BenchSettings()
 QUICK = BenchSettings(spps=(1, 4), reference_spp=32, repeats=3, edit_repeats=3, scenes=1, paper=False, full_grid_edits=False,
-                      matmul_size=1024, in_turn_rounds=1, in_step_rounds=1)
+                      matmul_size=1024, in_turn_rounds=1, in_step_rounds=1, object_counts=(1, 2))
 
 
 @dataclass
@@ -166,6 +169,8 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
                     None) or next((e for e in candidates if e.architecture == "nvr_plus" and e.config.name == "compact"), None)
         edits = bench_edits(live, scenes[0], settings)
         environment = bench_environment(scenes, live, settings, memory, metrics)
+        objects = bench_object_counts({"NVR+": live, "voxel shader": make_renderer("shaded")},
+                                      Path(workdir) / "objects", settings.object_counts, settings.repeats)
         # The Pareto target's ratio, timed in turn with path tracing: the shipped NVR+ in float32 at both shader
         # qualities (the rows above are timed apart from path tracing, and this machine's speed may differ between them).
         fast = next((e for e in trained if e.precision == "fp32" and e.shader_quality == "fast"
@@ -208,6 +213,7 @@ def run_bench(settings: BenchSettings, data: list[str] | None = None, model_path
         "pareto_front_without_bf16": pareto_labels(rows, without_bf16=True),
         "edits": edits,
         "environment": environment,
+        "objects": objects,
         "in_turn": in_turn,
         "networks": networks,
         "matmul_peak_gflops": peak,

@@ -6,6 +6,8 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from models.bench.objects import MOVE_GROWTH_TARGET, TARGETS_MS
+from models.bench.objects import SCALE as OBJECT_SCALE
 from models.renderers import RENDERERS
 from renderer.io import atomic_path
 
@@ -25,7 +27,8 @@ BUSY_SHARE = 0.05  # other processes' CPU time, as a share of the run's wall tim
 
 
 def write_report(results: dict[str, Any], path: Path, figure: Path) -> None:
-    lines = _header(results) + _renderers(results) + _targets(results) + _edits(results) + _environment(results)
+    lines = (_header(results) + _renderers(results) + _targets(results) + _edits(results) + _environment(results)
+             + _objects(results))
     lines += _networks(results)
     lines += ["## Speed against error", "", f"![error against time]({figure.name})", "", *_method(results)]
     with atomic_path(path) as tmp:
@@ -188,6 +191,31 @@ def _environment(r: dict[str, Any]) -> list[str]:
               for name in names]
     lines += ["", *_environment_targets(e), ""]
     return lines
+
+
+def _objects(r: dict[str, Any]) -> list[str]:
+    """Edit latencies against the number of objects (models/bench/objects.py), with the several-objects targets."""
+    rows = r.get("objects")
+    if not rows:
+        return []
+    edits = list(TARGETS_MS)
+    lines = ["## Against the number of objects", "",
+             f"Scenes of procedural objects of 200^3 voxels at scale {OBJECT_SCALE:g}; median ms of each edit from the "
+             "unedited scene. No network is trained on several objects yet: NVR+ shows the voxel shader's image of "
+             "them.", "", "| renderer | objects | " + " | ".join(edits) + " |", "|---|---:|" + "---:|" * len(edits)]
+    lines += [f"| {row['renderer']} | {row['objects']} | " + " | ".join(f"{row['ms'][e]:.1f}" for e in edits) + " |"
+              for row in rows]
+    nvr = {row["objects"]: row["ms"] for row in rows if row["renderer"] == "NVR+"}
+    lines.append("")
+    if 4 in nvr:
+        lines += [f"- NVR+ at 4 objects, {edit}: {nvr[4][edit]:.1f} ms (target {target:.0f}: "
+                  f"{'met' if nvr[4][edit] <= target else 'missed'})." for edit, target in TARGETS_MS.items()]
+    if 1 in nvr and max(nvr) > 1:
+        most = max(nvr)
+        growth = nvr[most]["move one object"] / nvr[1]["move one object"]
+        lines.append(f"- Moving one object, 1 to {most} objects: {growth:.2f} times (target at most "
+                     f"{MOVE_GROWTH_TARGET:g}: {'met' if growth <= MOVE_GROWTH_TARGET else 'missed'}).")
+    return lines + [""]
 
 
 def _environment_targets(e: dict[str, Any]) -> list[str]:
