@@ -49,17 +49,13 @@ def _material_warnings(mesh_path) -> list[str]:
 
 
 def cmd_render(args: argparse.Namespace) -> None:
-    from models.renderers import RendererOptions, check_draws, correction_note, fixed_size, make_renderer
+    from models.renderers import RendererOptions, correction_note, fixed_size, make_renderer
     from renderer.io import save_png
     from renderer.scene import load_scene, range_warnings
 
     if args.size is not None and not MIN_IMAGE_SIZE <= args.size <= MAX_IMAGE_SIZE:
         raise InputError(f"--size must be from {MIN_IMAGE_SIZE} to {MAX_IMAGE_SIZE} pixels, got {args.size}")
     scene = load_scene(args.scene)
-    try:
-        check_draws(args.renderer, scene)
-    except InputError as exc:
-        raise InputError(exc.problem, args.scene) from None
     out = _output_path(args.output, args.force)
     size = args.size or scene.image_size
     start = time.perf_counter()

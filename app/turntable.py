@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from models.renderers import RENDERERS, RendererOptions, check_draws, fixed_size, make_renderer
+from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer
 from renderer.errors import InputError
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
 from renderer.transform import rotation_y
@@ -105,7 +105,6 @@ def render_turntable(scene: Scene, config: TurntableConfig, progress: bool = Tru
     from renderer.color import to_uint8
 
     config.check()
-    check_draws(config.renderer, scene)
     render, name = frame_renderer(scene, config)
     images, seconds = [], []
     for frame_scene in tqdm(frame_scenes(scene, config.frames, config.sweep), total=config.frames, unit="frame",

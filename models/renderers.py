@@ -64,7 +64,6 @@ class RendererEntry:
     summary: str  # what draws the image, for --help
     architecture: str | None = None  # a network's architecture (models.networks), which its weights must hold
     interactive: bool = False  # offered by the editor's render panel
-    several_objects: bool = True  # draws scenes of several objects (else one object alone)
 
 
 def _voxel_cache() -> VoxelCache:
@@ -88,10 +87,12 @@ class SplatRenderer:
         self.last_report: RenderReport | None = None
 
     def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
-        from renderer.splat import splat_scene
+        from renderer.scene import replaced
+        from renderer.splat import splat_objects
 
         start = time.perf_counter()
-        image = splat_scene(scene, *self._voxels.painted(scene))
+        painted = [self._voxels.painted(replaced(scene, objects=(o,)))[0] for o in scene.objects]
+        image = splat_objects(scene, painted, scene.floor.color)
         _timed(self, {"splat": (time.perf_counter() - start) * 1000.0}, start, preview)
         return image
 
@@ -208,7 +209,7 @@ RENDERERS: dict[str, RendererEntry] = {entry.name: entry for entry in (
                   "the voxels lit physically: soft shadows, lit floor (any size)", interactive=True),
     RendererEntry("nvr", "NVR", "network", _network("nvr"), "the paper's network without the splat (256 px)",
                   architecture="nvr"),
-    RendererEntry("splat", "splatting", "splat", SplatRenderer, "the surface voxels' colors", several_objects=False),
+    RendererEntry("splat", "splatting", "splat", SplatRenderer, "the surface voxels' colors"),
     RendererEntry("pathtrace", "path tracing", "pathtrace", PathTraceRenderer, "the mesh in Mitsuba 3, the reference"),
 )}
 INTERACTIVE = tuple(name for name, entry in RENDERERS.items() if entry.interactive)
@@ -225,15 +226,6 @@ def renderer_entry(name: str) -> RendererEntry:
 def network_entry(architecture: str) -> RendererEntry:
     """The entry of the network renderer whose weights hold `architecture`."""
     return next(e for e in RENDERERS.values() if e.architecture == architecture)
-
-
-def check_draws(name: str, scene: Scene) -> None:
-    """Refuse, in one line, a scene the renderer `name` cannot draw (several objects for one that draws one)."""
-    entry = renderer_entry(name)
-    if len(scene.objects) > 1 and not entry.several_objects:
-        several = ", ".join(n for n, e in RENDERERS.items() if e.several_objects)
-        raise InputError(f"renderer {name} draws one object; the scene holds {len(scene.objects)} (these draw "
-                         f"several: {several})")
 
 
 def make_renderer(name: str, options: RendererOptions | None = None) -> Renderer:

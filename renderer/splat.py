@@ -16,6 +16,7 @@ does too. Object pixels are therefore simply drawn over the ground.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -44,6 +45,7 @@ class SplatLayout:
 
     voxel: np.ndarray  # (H, W) int64: flat index of the object voxel seen at the pixel, -1 where none is
     floor: np.ndarray  # (H, W) bool: the pixel's ray meets the floor square (floor_mask)
+    depth: np.ndarray  # (H, W) float32: that voxel's distance along the view axis (inf where none): objects compose
 
 
 def splat(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, floor_color, camera: Camera) -> np.ndarray:
@@ -55,6 +57,21 @@ def splat(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, floor_col
 def splat_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None) -> np.ndarray:
     """`splat` with the scene's render camera (at `size`, default the scene's image size) and object placement."""
     return splat(object_rgba, object_to_world(scene.object), floor_color, Camera.from_scene(scene, size))
+
+
+def splat_objects(scene: Scene, painted: Sequence[np.ndarray], floor_color, size: int | None = None) -> np.ndarray:
+    """The splatted image of every object of the scene (their painted voxels in order), each pixel showing the
+    nearest object's voxel; for one object, splat_scene's image."""
+    camera = Camera.from_scene(scene, size)
+    image = ground_and_background(cached_floor_mask(camera), floor_color)
+    nearest = np.full((camera.height, camera.width), np.inf, dtype=np.float32)
+    for spec, object_rgba in zip(scene.objects, painted):
+        rgba = check_object_voxels(object_rgba)
+        layout = splat_layout(Shell(occupancy(rgba)), object_to_world(spec), camera)
+        nearer = (layout.voxel >= 0) & (layout.depth < nearest)
+        image[nearer] = np.clip(rgba.reshape(-1, 4)[layout.voxel[nearer], :3], 0.0, 1.0)
+        nearest[nearer] = layout.depth[nearer]
+    return image
 
 
 def splat_layout(shell: Shell, object_to_world_matrix: np.ndarray, camera: Camera) -> SplatLayout:
@@ -76,8 +93,9 @@ def splat_layout(shell: Shell, object_to_world_matrix: np.ndarray, camera: Camer
     _splat_shell(shell.coords, shell.faces, apply_transform(grid_from_world(matrix, n), camera.position),
                  np.ascontiguousarray(to_camera), np.ascontiguousarray(edges), f, cx, cy, depth, nearest)
     voxel = np.full((camera.height, camera.width), -1, dtype=np.int64)
-    _merge_runs(depth, nearest, shell.voxels, voxel)
-    return SplatLayout(voxel, cached_floor_mask(camera))
+    nearest_depth = np.full((camera.height, camera.width), np.inf, dtype=np.float32)
+    _merge_runs(depth, nearest, shell.voxels, voxel, nearest_depth)
+    return SplatLayout(voxel, cached_floor_mask(camera), nearest_depth)
 
 
 def color_splat(layout: SplatLayout, object_rgba: np.ndarray, floor_color) -> np.ndarray:
@@ -163,9 +181,10 @@ def _splat_shell(coords, faces, viewpoint, to_camera, edges, f, cx, cy, depth, n
 
 
 @njit(cache=True, parallel=True)
-def _merge_runs(depth, nearest, shell_voxels, voxel):
+def _merge_runs(depth, nearest, shell_voxels, voxel, nearest_depth):
     """voxel[r, c] = the flat grid index of the nearest of the runs' voxels at the pixel (an earlier run's on a tie,
-    as one pass in shell order keeps the first); left as it is where no run drew one."""
+    as one pass in shell order keeps the first), nearest_depth[r, c] its depth; left as they are where no run drew
+    one."""
     for r in prange(voxel.shape[0]):
         for c in range(voxel.shape[1]):
             best, row = np.float32(np.inf), -1
@@ -174,6 +193,7 @@ def _merge_runs(depth, nearest, shell_voxels, voxel):
                     best, row = depth[run, r, c], nearest[run, r, c]
             if row >= 0:
                 voxel[r, c] = shell_voxels[row]
+                nearest_depth[r, c] = best
 
 
 @njit(cache=True, inline="always")
