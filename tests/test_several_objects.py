@@ -207,6 +207,9 @@ def test_the_network_renderer_shows_the_shaders_image_of_several_objects_and_say
     moved = _scene(cube_folder, FAR, replace(WALL, translation=(0.5, 0.2)))
     engine.render(moved)
     assert not any(name.endswith("[0]") for name in engine.last_report.stages_run)
+    engine.render(_scene(cube_folder, FAR))  # down to one object: the network's image, the others' voxels let go
+    assert engine.last_report.note == "" and engine._cache.last("paint[1]") is None
+    assert engine._cache.last("scene_surface[1]") is None
 
 
 def test_the_cli_renders_several_objects(cube_folder):

@@ -330,6 +330,8 @@ class RenderEngine:
         return image
 
     def _render(self, scene: Scene) -> np.ndarray:
+        self._forget_objects_beyond(0)  # a scene that held several objects: their own stages' memory
+        self._scene_shader.forget_objects_beyond(0)
         return self._light(scene, self._network_inputs(scene))[0]
 
     def _light(self, scene: Scene, inputs: _NetworkInputs) -> tuple[np.ndarray, torch.Tensor | None]:
@@ -529,12 +531,17 @@ class RenderEngine:
             key = (source, o.color, o.paint)
             painted = self._stage(f"paint[{i}]", key, lambda o=o, replay=replay: replay.painted(o.color, o.paint))
             objects.append(ObjectVoxels(o, key, painted, source))
-        for i in range(len(objects), MAX_OBJECTS):  # a scene that held more objects: their voxels' memory
-            self._cache.forget(f"voxels[{i}]")
-            self._cache.forget(f"paint[{i}]")
+        self._forget_objects_beyond(len(objects))
         size = size or self.output_size
         shaded = self._scene_shader.run_objects(scene, objects, scene.floor.color, size, keep=size == self.output_size)
         return np.clip(shaded.image, 0.0, 1.0)
+
+    def _forget_objects_beyond(self, count: int) -> None:
+        """Drop the voxels and paint kept for objects past the first `count` of a scene that held more (a 200^3
+        object's painted voxels take 128 MB); 0 when the scene is down to one object, drawn by the one-object stages."""
+        for i in range(count, MAX_OBJECTS):
+            self._cache.forget(f"voxels[{i}]")
+            self._cache.forget(f"paint[{i}]")
 
     def _shading(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""

@@ -130,7 +130,7 @@ class StagedShader:
         the joins and lighting after them (renderer/shading/compose.py)."""
         elevation, floor, light = scene.camera.elevation_deg, tuple(floor_color), scene.light.position
         several = len(objects) > 1
-        self._forget_objects_beyond(len(objects) if several else 0)
+        self.forget_objects_beyond(len(objects) if several else 0)
         drawn = [self._object_stages(f"[{i}]" if several else "", o, elevation, size, keep)
                  for i, o in enumerate(objects)]
         painted_key = tuple(d.painted_key for d in drawn) if several else drawn[0].painted_key
@@ -187,7 +187,7 @@ class StagedShader:
                            keep) if self._reflection else None
         return _DrawnObject(suffix, where, seen, surface, reflection, placed_key, painted_key)
 
-    def _forget_objects_beyond(self, count: int) -> None:
+    def forget_objects_beyond(self, count: int) -> None:
         """Drop the per-object stages of objects past the first `count` (a scene that held more: their memory)."""
         for i in range(count, self._objects_kept):
             for name in OBJECT_STAGES:
