@@ -87,11 +87,10 @@ class SplatRenderer:
         self.last_report: RenderReport | None = None
 
     def render(self, scene: Scene, preview: bool = False) -> np.ndarray:
-        from renderer.scene import replaced
         from renderer.splat import splat_objects
 
         start = time.perf_counter()
-        painted = [self._voxels.painted(replaced(scene, objects=(o,)))[0] for o in scene.objects]
+        painted = [self._voxels.painted(scene.alone(i))[0] for i in range(len(scene.objects))]
         image = splat_objects(scene, painted, scene.floor.color)
         _timed(self, {"splat": (time.perf_counter() - start) * 1000.0}, start, preview)
         return image
@@ -120,14 +119,12 @@ class ShaderRenderer:
 
     def render(self, scene: Scene, preview: bool = False, size: int | None = None) -> np.ndarray:
         """The scene at its image size, or at `size` without keeping the stages that depend on the size."""
-        from renderer.scene import replaced
         from renderer.shading.staged import ObjectVoxels
         from renderer.voxel_cache import source_key
 
         start = time.perf_counter()
         objects = []
-        for o in scene.objects:
-            one = replaced(scene, objects=(o,))
+        for o, one in zip(scene.objects, map(scene.alone, range(len(scene.objects)))):
             rgba, _ = self._voxels.painted(one)
             shape = source_key(one)  # paint keeps the occupancy: the shader keeps what the camera sees
             objects.append(ObjectVoxels(o, (shape, o.paint), rgba, shape))
@@ -181,10 +178,9 @@ class PathTraceRenderer:
         """The scene and one mesh per object with the paint and captured colors on the meshes, made once per set of
         objects and their paint."""
         from renderer.reference_object import reference_objects
-        from renderer.scene import replaced
         from renderer.voxel_cache import source_key
 
-        key = tuple((source_key(replaced(scene, objects=(o,))), o.paint) for o in scene.objects)
+        key = tuple((source_key(scene.alone(i)), o.paint) for i, o in enumerate(scene.objects))
         if self._reference is None or self._reference[0] != key:
             self._reference = (key, *reference_objects(scene))
         return self._reference[1], self._reference[2]

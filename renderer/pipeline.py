@@ -15,7 +15,7 @@ from renderer.errors import InputError
 from renderer.grid import ground_mask, scene_grid
 from renderer.mesh import load_mesh, normalise_mesh
 from renderer.paint import Color, apply_paint, fill_object
-from renderer.scene import Scene, replaced
+from renderer.scene import Scene
 from renderer.voxels import ProgressCallback, load_voxels, voxelize
 
 
@@ -47,11 +47,7 @@ def painted_voxels(scene: Scene, rgba: np.ndarray) -> tuple[np.ndarray, Color]:
 
 def painted_objects(scene: Scene) -> list[np.ndarray]:
     """Every object's painted voxels, in the scene's order."""
-    out = []
-    for o in scene.objects:
-        one = replaced(scene, objects=(o,))
-        out.append(painted_voxels(one, object_voxels(one))[0])
-    return out
+    return [painted_voxels(one, object_voxels(one))[0] for one in map(scene.alone, range(len(scene.objects)))]
 
 
 def scene_grid_for(scene: Scene, painted: Sequence[np.ndarray], floor_color: Color) -> np.ndarray:

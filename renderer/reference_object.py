@@ -48,8 +48,8 @@ def reference_objects(scene: Scene) -> tuple[Scene, list[trimesh.Trimesh]]:
     """reference_scene of each of the scene's objects: the scene with the objects' colors as their meshes hold them,
     and one mesh per object, in order."""
     objects, meshes = [], []
-    for o in scene.objects:
-        one, mesh = reference_scene(replaced(scene, objects=(o,)))
+    for index in range(len(scene.objects)):
+        one, mesh = reference_scene(scene.alone(index))
         objects.append(one.object)
         meshes.append(mesh)
     return replaced(scene, objects=tuple(objects)), meshes

@@ -197,6 +197,10 @@ class Scene:
         """The only object's paint strokes (see `object`)."""
         return self.object.paint
 
+    def alone(self, index: int) -> Scene:
+        """The scene holding object `index` alone: what the one-object tools and each object's own stages read."""
+        return replace(self, objects=(self.objects[index],))
+
     def file(self, relative: str | None) -> Path | None:
         """A path from the scene file (relative to its folder) as a path to open, or None."""
         return None if relative is None else self.base_dir / relative

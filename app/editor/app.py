@@ -156,7 +156,7 @@ class EditorApp:
     def object_view(self, scene: Scene | None = None) -> Scene:
         """`scene` (default: the shown one) holding the selected object alone: what the object tools read."""
         scene = self.scene if scene is None else scene
-        return replaced(scene, objects=(scene.objects[min(self.doc.selected, len(scene.objects) - 1)],))
+        return scene.alone(min(self.doc.selected, len(scene.objects) - 1))
 
     def edit_object(self, make_scene: Callable[[Scene], Scene], preview: bool = False) -> bool:
         """`edit` the selected object: `make_scene` gets object_view(scene) and its result's object takes the selected
@@ -216,7 +216,7 @@ class EditorApp:
                 self.say(f"added {path.name}")
                 self.warn_missing_materials(path, self.selected_object)
 
-        one = replaced(candidate, objects=(candidate.objects[-1],))
+        one = candidate.alone(-1)
         self.jobs.start(f"Voxelising {path.name}", lambda progress: self.voxels.object_rgba(one, progress), done)
 
     def edit(self, make_scene: Callable[[Scene], Scene], preview: bool = False, select: int | None = None) -> bool:
@@ -380,11 +380,12 @@ class EditorApp:
     @property
     def loaded_nothing(self) -> bool:
         """Whether no object of the scene could be loaded (and none is loading): there is nothing to show."""
-        return self.jobs.current is None and all(source_key(one) in self.unloadable for one in self._object_views())
+        return (bool(self.unloadable) and self.jobs.current is None  # (checked every frame: no file calls before a failure)
+                and all(source_key(one) in self.unloadable for one in self._object_views()))
 
     def _object_views(self, scene: Scene | None = None) -> list[Scene]:
         scene = self.doc.scene if scene is None else scene
-        return [replaced(scene, objects=(o,)) for o in scene.objects]
+        return [scene.alone(i) for i in range(len(scene.objects))]
 
     def _sync(self) -> None:
         """Show the document's scene: upload each object's voxels (voxelising in the background first if needed),

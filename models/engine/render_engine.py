@@ -525,7 +525,7 @@ class RenderEngine:
         own, so an edit of one object reruns its stages alone), at `size` (default the network's)."""
         objects = []
         for i, o in enumerate(scene.objects):
-            one = replaced(scene, objects=(replace(o, color=None),))  # the base color is painted below
+            one = replaced(scene.alone(i), object=replace(o, color=None))  # the base color is painted below
             source = _voxel_source(one)
             replay = self._stage(f"voxels[{i}]", source, lambda one=one: PaintReplay(self._object_source(one)))
             key = (source, o.color, o.paint)

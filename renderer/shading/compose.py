@@ -95,17 +95,11 @@ def join_occluders(geometries: Sequence[ObjectGeometry]) -> ObjectGeometry:
     occluder block (the shadows' biases) are those of the object with the widest block."""
     if len(geometries) == 1:
         return geometries[0]
-    widest = max(geometries, key=occluder_width)
+    widest = max(geometries, key=lambda g: g.occluder_width)
     occluders = np.concatenate([g.occluders for g in geometries])
     boxes = [g.occluder_box for g in geometries if not g.empty]
     box = (np.stack([np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)])
            if boxes else widest.occluder_box)
     ends = np.cumsum([len(g.occluders) for g in geometries])
-    parts = tuple((int(end), occluder_width(g)) for end, g in zip(ends, geometries))
+    parts = tuple((int(end), g.occluder_width) for end, g in zip(ends, geometries))
     return replace(widest, occluders=occluders, occluder_box=box, occluder_parts=parts)
-
-
-def occluder_width(geometry: ObjectGeometry) -> float:
-    """The side of the block of voxels one of the geometry's occluders stands for, in world units."""
-    voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
-    return geometry.occluder_block * voxel

@@ -328,8 +328,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     empty_floor = environment_floor_terms(camera, light_position, floor_color, floor_sky, lights.directions,
                                           lights.irradiance, lights.small, lights.spread, floor_texture is not None)
     floor_terms, per_light = empty_floor.terms, empty_floor.per_light
-    voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
-    block = geometry.occluder_block * voxel
+    block = geometry.occluder_width
     area = _ShadowMaps.area(geometry, light_position, quality, block) if light_position is not None else None
     suns = [_ShadowMaps.directional(geometry, d, s, block) for d, s in zip(lights.directions, lights.spread)]
 

@@ -77,6 +77,13 @@ class ObjectGeometry:
     def empty(self) -> bool:
         return self.occluders.shape[0] == 0
 
+    @property
+    def occluder_width(self) -> float:
+        """The side of the block of voxels one occluder stands for, in world units (the voxels' mean side times
+        occluder_block): the shadows' occluder radius and biases scale with it."""
+        voxel = float(abs(np.linalg.det(self.voxel_to_world[:3, :3])) ** (1.0 / 3.0))
+        return self.occluder_block * voxel
+
 
 def object_geometry(merged: np.ndarray, resolution: int, factors: tuple[int, int, int],
                     ambient_occlusion: bool = True) -> ObjectGeometry:

@@ -113,8 +113,7 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                                       light_position, floor_color)
     floor = floor_terms.floor
     lights = light_points(light_position, quality.light_points)
-    voxel = float(abs(np.linalg.det(geometry.voxel_to_world[:3, :3])) ** (1.0 / 3.0))  # a voxel's mean side in the world
-    block = geometry.occluder_block * voxel  # the side of an occluder's block in the world
+    block = geometry.occluder_width  # the side of an occluder's block in the world
     shadows = ShadowMaps(geometry, lights, block)
 
     size = surface.size
