@@ -19,7 +19,7 @@ import numpy as np
 from models.renderers import RENDERERS, RendererOptions, fixed_size, make_renderer
 from renderer.errors import InputError
 from renderer.limits import MAX_IMAGE_SIZE, MIN_IMAGE_SIZE
-from renderer.transform import rotation_y
+from renderer.transform import turned_on_platter
 
 if TYPE_CHECKING:  # the command line reads TurntableConfig at start-up: the image and scene modules load when used
     import numpy as np
@@ -67,14 +67,7 @@ def frame_scenes(scene: Scene, frames: int, sweep: str) -> Iterator[Scene]:
     for f in range(frames):
         turn = 2.0 * math.pi * f / frames
         if sweep == "rotation":
-            turned = rotation_y(math.degrees(turn))
-            objects = []
-            for o in scene.objects:
-                x, _, z = turned @ np.array([o.translation[0], 0.0, o.translation[1]])
-                place = o.translation if len(scene.objects) == 1 else (float(x), float(z))
-                rotation = (o.rotation_deg + math.degrees(turn) + 180.0) % 360.0 - 180.0
-                objects.append(replace(o, rotation_deg=rotation, translation=place))
-            yield replace(scene, objects=tuple(objects))
+            yield replace(scene, objects=turned_on_platter(scene.objects, math.degrees(turn)))
         elif not scene.light.enabled and scene.environment is not None:  # the environment alone lights it: turn that
             env = scene.environment
             yield replace(scene, environment=replace(env, rotation_deg=env.rotation_deg + math.degrees(turn)))

@@ -17,7 +17,7 @@ import torch
 
 from models.evaluation.metrics import dssim, mse_255
 from models.training.data import VoxelRenderSet
-from renderer.shading import FULL_QUALITY, geometry, lighting, quality, shade_scene, surface
+from renderer.shading import FULL_QUALITY, geometry, lighting, quality, shade_objects, surface
 
 STAGES = (geometry, surface, lighting)  # the modules whose values and kernels an ablation replaces
 
@@ -73,8 +73,8 @@ def main() -> None:
     for name, (values, *chosen) in ABLATIONS.items():
         scores = defaultdict(list)
         with patched(**values):
-            for target, scene, rgba, setting in samples:
-                image = shade_scene(scene, rgba, scene.floor.color, target.shape[-1], args.shading_grid,
+            for target, scene, painted, setting in samples:
+                image = shade_objects(scene, painted, scene.floor.color, target.shape[-1], args.shading_grid,
                                     quality=chosen[0] if chosen else FULL_QUALITY).image
                 prediction = torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))[None]
                 target = target[None]

@@ -26,7 +26,7 @@ import dataclasses
 import json
 import os
 import shutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -144,6 +144,116 @@ def sample_source_view(rng: np.random.Generator) -> View:
     )
 
 
+# Scenes of several objects: each object of a size between these (its box's side, per axis within 10 % of it),
+# beside one placed before with a gap between the circles that hold their footprints (never touching, close
+# enough to shadow and reflect each other), every centre in the part of the floor every camera elevation shows.
+GROUP_SCALE_RANGE = (0.45, 0.85)
+GROUP_GAP_RANGE = (0.02, 0.3)
+SHADOWED_SHARE = 0.5  # of objects past the first, the share placed on the far side of a neighbour from the light
+SHADOWED_GAP_RANGE = (0.01, 0.1)  # and their gap: inside its shadow
+SHADOWED_SPREAD = 0.5  # radians either side of the line away from the light
+GROUP_VIEW_X = 0.9  # |x| of an object's centre at most
+GROUP_VIEW_Z = (-0.9, 0.5)  # its z between these (+z faces the camera)
+LAYOUT_TRIES = 400  # draws per object before the layout starts again at smaller sizes
+
+
+def footprint_points(rgba: np.ndarray) -> np.ndarray:
+    """(M, 2) object-unit (x, z) corners of the floor cells under an object's voxels: what its footprint holds."""
+    from renderer.transform import OBJECT_BOX_MAX, OBJECT_BOX_MIN
+
+    n = rgba.shape[0]
+    i, k = np.nonzero((rgba[..., 3] > 0.5).any(axis=1))
+    corners = [(i + a, k + b) for a in (0, 1) for b in (0, 1)]
+    cells = np.concatenate([np.column_stack(c) for c in corners]).astype(np.float64)
+    cells = np.unique(cells, axis=0) if len(cells) else np.zeros((1, 2))
+    return OBJECT_BOX_MIN[[0, 2]] + cells * ((OBJECT_BOX_MAX[0] - OBJECT_BOX_MIN[0]) / n)
+
+
+def _reach(points: np.ndarray | None, scale: tuple[float, float, float]) -> float:
+    """Radius of the circle about the object's axis that holds its footprint `points` at `scale`, whatever its turn
+    (None: the whole unit box's)."""
+    from renderer.transform import footprint_radius
+
+    if points is None:
+        return footprint_radius(ObjectSpec(scale=scale))
+    return float(np.hypot(points[:, 0] * scale[0], points[:, 1] * scale[2]).max())
+
+
+def sample_layout(rng: np.random.Generator, objects: Sequence[ObjectSpec],
+                  light: tuple[float, float, float] | None = None,
+                  footprints: Sequence[np.ndarray | None] | None = None) -> tuple[ObjectSpec, ...]:
+    """`objects` placed, turned and sized on the floor as GROUP_* says (their other fields kept), the gaps between
+    the circles that hold their `footprints` (footprint_points; default their whole boxes'). With the `light`, some
+    stand in a neighbour's shadow (SHADOWED_*): a scene's objects shadow each other where its light allows."""
+    footprints = footprints or [None] * len(objects)
+    shrink = 1.0
+    while True:
+        placed: list[ObjectSpec] = []
+        reach: list[float] = []
+        for o, points in zip(objects, footprints):
+            base = float(rng.uniform(*GROUP_SCALE_RANGE)) * shrink
+            scale = tuple(float(v) for v in base * rng.uniform(0.9, 1.1, size=3))
+            one = replace(o, scale=scale, rotation_deg=float(rng.uniform(-180.0, 180.0)))
+            radius = _reach(points, scale)
+            for _ in range(LAYOUT_TRIES):
+                if placed:
+                    n = int(rng.integers(len(placed)))
+                    neighbour = placed[n]
+                    angle, gap = float(rng.uniform(0.0, 2.0 * np.pi)), float(rng.uniform(*GROUP_GAP_RANGE))
+                    if light is not None and rng.random() < SHADOWED_SHARE:
+                        away = np.arctan2(neighbour.translation[1] - light[2], neighbour.translation[0] - light[0])
+                        angle = float(away + rng.uniform(-SHADOWED_SPREAD, SHADOWED_SPREAD))
+                        gap = float(rng.uniform(*SHADOWED_GAP_RANGE))
+                    distance = radius + reach[n] + gap
+                    place = (neighbour.translation[0] + distance * np.cos(angle),
+                             neighbour.translation[1] + distance * np.sin(angle))
+                else:
+                    place = (rng.uniform(-0.4, 0.4), rng.uniform(-0.5, 0.2))
+                one = replace(one, translation=(float(place[0]), float(place[1])))
+                inside = abs(one.translation[0]) <= GROUP_VIEW_X and GROUP_VIEW_Z[0] <= one.translation[1] <= GROUP_VIEW_Z[1]
+                apart = all(np.hypot(one.translation[0] - p.translation[0], one.translation[1] - p.translation[1])
+                            > radius + r for p, r in zip(placed, reach))
+                if inside and apart:
+                    placed.append(one)
+                    reach.append(radius)
+                    break
+            else:
+                break
+        if len(placed) == len(objects):
+            return tuple(placed)
+        shrink *= 0.9
+
+
+SceneView = tuple[float, tuple[float, float, float], tuple[ObjectSpec, ...]]  # elevation, light, placed objects
+
+
+def sample_train_layouts(rng: np.random.Generator, count: int, objects: Sequence[ObjectSpec],
+                         footprints: Sequence[np.ndarray] | None = None) -> list[SceneView]:
+    """Training views of a scene of several objects: a layout, elevation and light drawn anew per view."""
+    views = []
+    for _ in range(count):
+        elevation, light = float(rng.uniform(*ELEVATION_RANGE)), sample_light(rng)
+        views.append((elevation, light, sample_layout(rng, objects, light, footprints)))
+    return views
+
+
+def sample_test_layouts(rng: np.random.Generator, count: int, objects: Sequence[ObjectSpec],
+                        footprints: Sequence[np.ndarray] | None = None) -> list[SceneView]:
+    """A test sequence of a scene of several objects: one layout and elevation, each object turning about its own
+    axis in 10-degree steps (either way), the light moving between two positions (the layout made for their mean)."""
+    elevation = float(rng.uniform(*TEST_ELEVATION_RANGE))
+    l0, l1 = np.array(sample_light(rng)), np.array(sample_light(rng))
+    layout = sample_layout(rng, objects, tuple((l0 + l1) / 2.0), footprints)
+    directions = np.where(rng.uniform(size=len(layout)) < 0.5, -1.0, 1.0)
+    views = []
+    for k in range(count):
+        f = k / (count - 1) if count > 1 else 0.0
+        turned = tuple(replace(o, rotation_deg=float((o.rotation_deg + d * TEST_ROTATION_STEP_DEG * k + 180.0) % 360.0
+                                                     - 180.0)) for o, d in zip(layout, directions))
+        views.append((elevation, tuple(float(v) for v in (1 - f) * l0 + f * l1), turned))
+    return views
+
+
 def view_scene(view: View, voxels: str, floor_color: tuple, size: int, color: tuple | None = None,
                lighting: Lighting | None = None, material: MaterialSpec | None = None) -> Scene:
     """The scene of one sample, its object given by a voxel file relative to the data folder."""
@@ -253,9 +363,11 @@ def write_environment_map(out: Path, kind: str, seed: int) -> None:
         mi.Bitmap(make_map(kind, seed)).write(str(tmp))
 
 
-def object_rng(config: DataConfig, index: int, purpose: int) -> np.random.Generator:
-    """Independent, reproducible random stream per (data seed, split, setting, object, purpose)."""
+def object_rng(config: DataConfig, index: int, purpose: int, part: int = 0) -> np.random.Generator:
+    """Independent, reproducible random stream per (data seed, split, setting, scene, purpose, and object of the
+    scene past its first)."""
     key = [config.seed, SPLITS.index(config.split), SETTINGS.index(config.setting), index, purpose]
+    key += [part] if part else []
     return np.random.default_rng(np.random.SeedSequence(key))
 
 
@@ -303,22 +415,41 @@ def _config_or_none(stored: dict[str, Any]) -> DataConfig | None:
         return None
 
 
-def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[str, Any]:
-    """Make every file of one object and return its record (written by the caller, last)."""
+@dataclass
+class _MadeObject:
+    """One object of a scene as generation made it: its painted voxels, mesh, colors and record entry."""
+
+    rgba: np.ndarray
+    mesh: Any
+    floor_color: tuple[float, float, float]
+    single_color: tuple[float, float, float] | None
+    voxels: str
+    record: dict[str, Any]
+
+
+def _make_object(out: Path, config: DataConfig, index: int, part: int) -> _MadeObject:
+    """Make one object's files: voxels colored from a source photo of another view and light (or its one color).
+    Part 0 is the scene's own object (the only one of a one-object set); parts 1.. are the others in its scene,
+    of random categories from the set's and seeds of the split drawn at random."""
     from renderer.camera import Camera
     from renderer.capture.pose import PhotoPose
-    from renderer.objects import apply_appearance, generate_object, split_seeds
+    from renderer.objects import apply_appearance, generate_object, split_seed, split_seeds
+    from renderer.objects.generate import SEEDS_PER_SPLIT
     from renderer.pathtrace.path_tracer import render_pathtraced
     from renderer.photo import color_voxels_from_photo, is_mirror_symmetric
-    from renderer.splat import splat_scene
     from renderer.transform import object_to_world
     from renderer.voxels import save_voxels, voxelize
 
-    name = _object_name(index)
-    category = config.categories[index % len(config.categories)]
-    object_seed = int(split_seeds(config.split, config.objects)[index])
+    name = _object_name(index) + (f"_{part}" if part else "")
+    if part == 0:
+        category = config.categories[index % len(config.categories)]
+        object_seed = int(split_seeds(config.split, config.objects)[index])
+    else:
+        pick = object_rng(config, index, 7, part)
+        category = config.categories[int(pick.integers(len(config.categories)))]
+        object_seed = split_seed(config.split, int(pick.integers(SEEDS_PER_SPLIT)))
     labeled = generate_object(category, object_seed)
-    appearance_seed = int(object_rng(config, index, 0).integers(2**31))
+    appearance_seed = int(object_rng(config, index, 0, part).integers(2**31))
     mesh, floor_color, appearance = apply_appearance(labeled, config.setting, appearance_seed, config.split)
     floor_color = tuple(float(c) for c in floor_color)
     single_color = appearance.get("color") if config.setting == "single" else None
@@ -327,10 +458,11 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     rgba = voxelize(mesh, resolution=config.resolution)
     voxel_file = f"objects/{name}.npz"
 
-    # Appearance source A: another view and light; the voxels take their colors from it.
-    source_view = sample_source_view(object_rng(config, index, 1))
+    # Appearance source A: another view and light, the object alone; the voxels take their colors from it.
+    source_view = sample_source_view(object_rng(config, index, 1, part))
     source_scene = view_scene(source_view, voxel_file, floor_color, config.source_size, single_color)
-    source = render_pathtraced(source_scene, mesh, spp=config.spp, seed=index, denoise=config.denoise)
+    photo_seed = index if part == 0 else index * 1000 + 900 + part
+    source = render_pathtraced(source_scene, mesh, spp=config.spp, seed=photo_seed, denoise=config.denoise)
     source_camera = Camera.from_scene(source_scene)
     mirror = False
     if config.setting == "single":
@@ -339,7 +471,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         mirror = bool(is_mirror_symmetric(rgba[..., 3] > 0.5))
         photo, trusted = source.image, None
         if config.delight:
-            photo, trusted = _divided_light(source.image, source_scene, rgba, mesh, config.delight_shader, index)
+            photo, trusted = _divided_light(source.image, source_scene, rgba, mesh, config.delight_shader, photo_seed)
         rgba = color_voxels_from_photo(
             rgba, object_to_world(source_scene.object), photo, source_camera, mirror=mirror, trusted=trusted,
             hidden_rule=config.hidden_rule).rgba
@@ -347,36 +479,70 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     save_png(out / f"objects/{name}_source.png", source.image)
     source_pose = PhotoPose(source_camera, source_view.rotation_deg, source_view.translation, source_view.scale)
     save_json(out / f"objects/{name}_source_camera.json", {**source_pose.to_dict(), "light": list(source_view.light)})
+    record = {"id": name, "index": index, "category": category, "seed": object_seed,
+              "setting": config.setting, "appearance": appearance, "floor_color": list(floor_color),
+              "voxels": voxel_file, "mirror_symmetry_used": mirror,
+              "source_image": f"objects/{name}_source.png", "source_camera": f"objects/{name}_source_camera.json",
+              "params": labeled.params}
+    if part:
+        record["part"] = part
+    return _MadeObject(rgba, mesh, floor_color, single_color, voxel_file, record)
 
-    sampler = sample_train_views if config.split == "train" else sample_test_sequence
-    material = sample_material(object_rng(config, index, 3)) if config.materials else MaterialSpec()
+
+def scene_object_count(config: DataConfig, index: int) -> int:
+    """How many objects scene `index` of the set holds: 1 to config.scene_objects, uniformly."""
+    if config.scene_objects == 1:
+        return 1
+    return 1 + int(object_rng(config, index, 6).integers(config.scene_objects))
+
+
+def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[str, Any]:
+    """Make every file of one scene's objects and views, and return its record (written by the caller, last)."""
+    from renderer.pathtrace.path_tracer import render_pathtraced
+    from renderer.splat import splat_objects
+
+    made = [_make_object(out, config, index, part) for part in range(scene_object_count(config, index))]
+    first = made[0]
+    floor_color = first.floor_color
+    name = _object_name(index)
+    materials = [sample_material(object_rng(config, index, 3, part)) if config.materials else MaterialSpec()
+                 for part in range(len(made))]
     light_rng = object_rng(config, index, 4)
     ground_rng = object_rng(config, index, 5)
+    if len(made) == 1:
+        sampler = sample_train_views if config.split == "train" else sample_test_sequence
+        views = [(view.elevation_deg, view.light, view_scene(view, first.voxels, floor_color, config.size,
+                                                             first.single_color, material=materials[0]).objects)
+                 for view in sampler(object_rng(config, index, 2), config.views)]
+    else:
+        layouts = sample_train_layouts if config.split == "train" else sample_test_layouts
+        views = layouts(object_rng(config, index, 2), config.views, [
+            ObjectSpec(voxels=m.voxels, color=m.single_color, material=material, name=m.record["id"])
+            for m, material in zip(made, materials)], [footprint_points(m.rgba) for m in made])
     samples = []
-    for v, view in enumerate(sampler(object_rng(config, index, 2), config.views)):
+    for v, (elevation, light, objects) in enumerate(views):
         sample_id = f"{name}_v{v:02d}"
         lighting, made_map = sample_lighting(light_rng, config.lighting, config.split)
         if made_map is not None:
             write_environment_map(out, *made_map)
-        scene = replace(view_scene(view, voxel_file, floor_color, config.size, single_color, lighting, material),
-                        base_dir=out)
+        scene = Scene(objects=objects, floor=FloorSpec(floor_color), light=LightSpec(light, enabled=lighting.area_light),
+                      camera=CameraSpec(elevation), image_size=config.size, environment=lighting.environment,
+                      base_dir=out)
         if config.grounds == "textured" or (config.grounds == "mixed" and ground_rng.random() < MIXED_TEXTURED_SHARE):
             tile, scale, shape, _ = sample_ground(ground_rng, config.split)
             save_png(out / f"grounds/{sample_id}.png", tile)
             scene = replace(scene, floor=FloorSpec(floor_color, f"grounds/{sample_id}.png", scale, shape))
-        target = render_pathtraced(scene, mesh, spp=config.spp, seed=index * 1000 + v, denoise=config.denoise)
+        meshes = [m.mesh for m in made]
+        target = render_pathtraced(scene, meshes if len(made) > 1 else first.mesh, spp=config.spp,
+                                   seed=index * 1000 + v, denoise=config.denoise)
         save_png(out / f"images/{sample_id}.png", target.image)
-        save_png(out / f"splats/{sample_id}.png", splat_scene(scene, rgba, floor_color))
+        save_png(out / f"splats/{sample_id}.png", splat_objects(scene, [m.rgba for m in made], floor_color))
         samples.append({"id": sample_id, "object": name, "scene": replace(scene, base_dir=Path(".")).to_dict(),
                         "target": f"images/{sample_id}.png", "splat": f"splats/{sample_id}.png"})
-    return {
-        "object": {"id": name, "index": index, "category": category, "seed": object_seed,
-                   "setting": config.setting, "appearance": appearance, "floor_color": list(floor_color),
-                   "voxels": voxel_file, "mirror_symmetry_used": mirror,
-                   "source_image": f"objects/{name}_source.png", "source_camera": f"objects/{name}_source_camera.json",
-                   "params": labeled.params},
-        "samples": samples,
-    }
+    record = {"object": first.record, "samples": samples}
+    if len(made) > 1:
+        record["companions"] = [m.record for m in made[1:]]
+    return record
 
 
 def _divided_light(photo: np.ndarray, scene: Scene, rgba: np.ndarray, mesh, delight_shader: str,
@@ -484,6 +650,8 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
     remake_mesh = (config.resolution != stored_resolution or new_photos
                    or (config.setting != "single" and delight_shader == "path traced"))
+    if config.scene_objects > 1:
+        raise InputError("its scenes hold several objects, which recoloring does not redo: generate it anew", source)
     for name in todo:  # every record readable before anything is written
         _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json", remake_mesh)
     prepare_folder(out, config)
@@ -633,7 +801,7 @@ def write_manifest(out: Path, config: DataConfig) -> Path:
         "config": config.to_dict(),
         "renderer": _renderer_info(config),
         "complete": len(records) == config.objects,
-        "objects": [r["object"] for r in records],
+        "objects": [o for r in records for o in (r["object"], *r.get("companions", []))],
         "samples": [s for r in records for s in r["samples"]],
     }
     path = out / "manifest.json"
@@ -657,9 +825,10 @@ def merge_datasets(out: str | Path, parts: list[str | Path]) -> Path:
     for part in map(Path, parts):
         for record_file in sorted((part / "records").glob("o*.json")):
             record = json.loads(record_file.read_text())
-            obj = record["object"]
-            files = [obj["voxels"], obj["source_image"], obj["source_camera"]]
+            files = [o[key] for o in (record["object"], *record.get("companions", []))
+                     for key in ("voxels", "source_image", "source_camera")]
             files += [f for s in record["samples"] for f in (s["target"], s["splat"])]
+            files += sorted(set(_scene_files(record["samples"])))
             for rel in files:
                 if not (out / rel).exists():
                     with atomic_path(out / rel) as tmp:

@@ -19,6 +19,7 @@ MAX_OBJECTS = 1_000_000
 MAX_VIEWS = 1000
 MAX_SPP = 65536
 MAX_WORKERS = 256
+MAX_SCENE_OBJECTS = 4  # objects a data set's scene holds at most: more leave no room apart in view at its scales
 SETTINGS = ("single", "default", "textured")
 # How the target views are lit: the paper's area light; an environment alone; or each view one of area light,
 # environment, or both (renderer/dataset.py, sample_lighting).
@@ -36,7 +37,7 @@ class DataConfig:
 
     setting: str = field(default="single", metadata={"help": "appearance: single color, default (colors from a photo), textured", "choices": SETTINGS})
     split: str = field(default="train", metadata={"help": "train or test (test: seeds never trained on, sequences of views)", "choices": SPLITS})
-    objects: int = field(default=10, metadata={"help": "number of objects", "required": True})
+    objects: int = field(default=10, metadata={"help": "number of objects (of scenes, with --scene-objects)", "required": True})
     views: int = field(default=20, metadata={"help": "views per object (test: frames per sequence)"})
     size: int = field(default=256, metadata={"help": "image side in pixels"})
     spp: int = field(default=16, metadata={"help": "path tracing samples per pixel"})
@@ -54,6 +55,7 @@ class DataConfig:
     lighting: str = field(default="area", metadata={"help": "how target views are lit: the area light, an environment (sky or a made map), or mixed (area, environment or both per view)", "choices": LIGHTINGS})
     materials: bool = field(default=False, metadata={"help": "give each object a random material (matte to mirror-like, plastic or metal)"})
     grounds: str = field(default="plain", metadata={"help": "the ground of each view: plain (a color), textured (an image of the split's texture families, on a square or a disk), or mixed (either, half and half)", "choices": GROUNDS})
+    scene_objects: int = field(default=1, metadata={"help": f"objects per scene: each scene holds 1 to this many (at most {MAX_SCENE_OBJECTS}), placed apart on the floor, so that they shadow and reflect each other"})
 
     def __post_init__(self) -> None:
         if self.photo_size == self.size:  # one config per set: a photo of the images' size is written 0
@@ -80,6 +82,9 @@ class DataConfig:
         if isinstance(size, bool) or not isinstance(size, int) or not (size == 0 or MIN_IMAGE_SIZE <= size <= MAX_IMAGE_SIZE):
             raise InputError(f"--photo-size must be 0 (the images' size) or a whole number from {MIN_IMAGE_SIZE} to "
                              f"{MAX_IMAGE_SIZE}, got {self.photo_size!r}")
+        value = self.scene_objects
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_SCENE_OBJECTS:
+            raise InputError(f"--scene-objects must be a whole number from 1 to {MAX_SCENE_OBJECTS}, got {value!r}")
         if self.lighting not in LIGHTINGS:
             raise InputError(f"unknown lighting {self.lighting!r} (choose from {', '.join(LIGHTINGS)})")
         if self.grounds not in GROUNDS:
@@ -111,6 +116,7 @@ class DataConfig:
         data.setdefault("photo_size", 0)  # and before the source photo had a size of its own
         data.setdefault("lighting", "area")  # and before environments and materials
         data.setdefault("materials", False)
+        data.setdefault("scene_objects", 1)  # and before scenes of several objects
         return cls(**data)
 
 

@@ -15,7 +15,7 @@ from renderer.errors import InputError
 from renderer.grid import ground_mask, scene_grid
 from renderer.mesh import load_mesh, normalise_mesh
 from renderer.paint import Color, apply_paint, fill_object
-from renderer.scene import Scene
+from renderer.scene import GRID_SIZE, Scene
 from renderer.voxels import ProgressCallback, load_voxels, voxelize
 
 
@@ -50,13 +50,14 @@ def painted_objects(scene: Scene) -> list[np.ndarray]:
     return [painted_voxels(one, object_voxels(one))[0] for one in map(scene.alone, range(len(scene.objects)))]
 
 
-def scene_grid_for(scene: Scene, painted: Sequence[np.ndarray], floor_color: Color) -> np.ndarray:
-    """The network's camera-aligned input grid (128^3 x 4) for the scene's objects (their painted voxels, one array
-    per object in order) and camera. Where objects meet, the later object's voxels win."""
+def scene_grid_for(scene: Scene, painted: Sequence[np.ndarray], floor_color: Color,
+                   grid_size: int = GRID_SIZE) -> np.ndarray:
+    """The network's camera-aligned input grid (grid_size^3 x 4) for the scene's objects (their painted voxels, one
+    array per object in order) and camera. Where objects meet, the later object's voxels win."""
     elevation = scene.camera.elevation_deg
-    grid = scene_grid(painted[0], scene.objects[0], floor_color, elevation)
+    grid = scene_grid(painted[0], scene.objects[0], floor_color, elevation, grid_size=grid_size)
     for rgba, o in zip(painted[1:], scene.objects[1:]):
-        one = scene_grid(rgba, o, floor_color, elevation)
+        one = scene_grid(rgba, o, floor_color, elevation, grid_size=grid_size)
         taken = (one[..., 3] > 0.5) & ~ground_mask(elevation, grid.shape[0])
         grid[taken] = one[taken]
     return grid

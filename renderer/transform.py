@@ -16,6 +16,8 @@ turns the object counter-clockwise seen from above.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -38,6 +40,24 @@ def object_to_world(spec: ObjectSpec) -> np.ndarray:
     m[:3, :3] = rotation_y(spec.rotation_deg) @ np.diag(spec.scale)
     m[0, 3], m[2, 3] = spec.translation
     return m
+
+
+def footprint_radius(obj: ObjectSpec) -> float:
+    """Radius of a circle on the floor that holds the object's footprint, whatever its turn (its box is at most one
+    unit a side, scaled)."""
+    return 0.5 * OBJECT_SIZE * math.hypot(obj.scale[0], obj.scale[2])
+
+
+def turned_on_platter(objects: Sequence[ObjectSpec], degrees: float) -> tuple[ObjectSpec, ...]:
+    """`objects` turned `degrees` about the vertical axis through the world's origin, as on a turntable's platter:
+    each about its own axis, and their places about the origin (one object alone turns in place)."""
+    turn = rotation_y(degrees)
+    turned = []
+    for o in objects:
+        x, _, z = turn @ np.array([o.translation[0], 0.0, o.translation[1]])
+        place = o.translation if len(objects) == 1 else (float(x), float(z))
+        turned.append(replace(o, rotation_deg=(o.rotation_deg + degrees + 180.0) % 360.0 - 180.0, translation=place))
+    return tuple(turned)
 
 
 def world_to_object(spec: ObjectSpec) -> np.ndarray:

@@ -16,6 +16,7 @@ from app.editor import edits
 from app.editor.orbit_view import HOME, viewport_camera
 from renderer.errors import InputError
 from renderer.scene import LightSpec, ObjectSpec, Scene, load_scene, save_scene
+from renderer.transform import footprint_radius
 from renderer.voxels import save_voxels
 from tests.test_editor import PANELS, RED, box_voxels, pixels, run_editor, share_of
 
@@ -79,7 +80,7 @@ def test_object_list_edits_are_undo_steps_and_a_click_selects(display, tmp_path,
     pillar = added.objects[2]
     for other in added.objects[:2]:  # placed where the floor has room
         gap = np.linalg.norm(np.subtract(pillar.translation, other.translation))
-        assert gap >= edits.footprint_radius(pillar) + edits.footprint_radius(other)
+        assert gap >= footprint_radius(pillar) + footprint_radius(other)
     # The deleted box is gone from the viewport: red shows where the right box and its copy stand, not the left.
     shot = pixels(out / "deleted.png", PANELS.viewport)
     left_at = np.subtract(_viewport_pixel((LEFT.translation[0], 0.2, LEFT.translation[1])),

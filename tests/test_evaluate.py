@@ -120,7 +120,7 @@ def test_the_shader_is_evaluated_on_the_grid_asked_for(setup, tmp_path, grid):
     errors = []
     for index in range(len(dataset)):  # the shader of the whole scene grid, against the stored target
         scene = dataset.scene(index)
-        image = shade_scene(scene, dataset.object_voxels(index), scene.floor.color, 32, grid).image
+        image = shade_scene(scene, dataset.object_voxels(index)[0], scene.floor.color, 32, grid).image
         errors.append(np.mean((np.clip(image, 0, 1) - dataset[index]["target"].numpy().transpose(1, 2, 0)) ** 2))
     assert float(table_rows(tmp_path / "g.md")[0][2]) == pytest.approx(255**2 * np.mean(errors), abs=0.01)
     assert f"shading the {grid}^3 grid" in (tmp_path / "g.md").read_text()

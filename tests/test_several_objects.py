@@ -145,6 +145,26 @@ def test_the_wall_shadows_the_far_cube_as_geometry_says_in_the_shader_and_the_pa
     assert shader["alone"] == pytest.approx(path["alone"], rel=0.15)
 
 
+def test_the_mask_of_the_others_shadows_holds_the_far_cubes_top_as_geometry_says(cube_folder):
+    """What `nvr eval` scores apart: the far cube's top lies in the wall's shadow, nothing of the wall lies in the
+    cube's (the light is beyond the wall), and with the wall moved away or alone nothing does."""
+    from renderer.pipeline import painted_objects
+    from renderer.shading import shadows_of_others
+
+    scene = _scene(cube_folder, FAR, WALL)
+    mask = shadows_of_others(scene, painted_objects(scene), SIZE)
+    row, col = _top_centre_pixel(scene)
+    assert mask[row, col]
+    wall_alone = _scene(cube_folder, WALL)
+    wall_pixels = StagedShader().run_objects(wall_alone, [ObjectVoxels(WALL, "w", painted_objects(wall_alone)[0], "w")],
+                                              wall_alone.floor.color, SIZE).coverage > 0.5
+    assert not (mask & wall_pixels).any()
+    moved = _scene(cube_folder, FAR, replace(WALL, translation=(0.35, -1.5)))
+    assert not shadows_of_others(moved, painted_objects(moved), SIZE).any()
+    alone = _scene(cube_folder, FAR)
+    assert not shadows_of_others(alone, painted_objects(alone), SIZE).any()
+
+
 def test_an_object_hides_what_stands_behind_it(cube_folder):
     """From the camera (+z), a wall in front of the far cube hides its top: the pixel shows the wall's face."""
     front = replace(WALL, translation=(-0.3, 0.6), scale=(0.6, 0.9, 0.2))

@@ -530,13 +530,13 @@ def test_the_voxel_cache_is_bounded_in_bytes_and_keeps_the_latest_object(tmp_pat
     stored = (files[0].reshape(-1, 4).any(axis=1)).sum() * (4 * 4 + 8)  # rows and their flat indices
     dataset = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=stored)
     for index in (0, 2, 1):
-        np.testing.assert_array_equal(dataset.object_voxels(index), files[index // 2 * 2])
+        np.testing.assert_array_equal(dataset.object_voxels(index)[0], files[index // 2 * 2])
         assert list(dataset._voxels) == [str(dataset.scene(index).voxels_path())]
     roomy = VoxelRenderSet([first, second], grid_size=16, voxel_cache_bytes=2 * 16**3 * 4 * 4)
     reads = []
     read = roomy._load_voxels
     roomy._load_voxels = lambda path: reads.append(path) or read(path)
     for index in (0, 2, 1, 0):  # the first object again, rebuilt from the cache, not read
-        np.testing.assert_array_equal(roomy.object_voxels(index), files[index // 2 * 2])
+        np.testing.assert_array_equal(roomy.object_voxels(index)[0], files[index // 2 * 2])
     assert len(reads) == 2
     assert len(roomy._voxels) == 2 and roomy.object_voxels(1) is roomy.object_voxels(0)  # the latest kept dense

@@ -21,7 +21,6 @@ from renderer.scene import (
     FLOOR_HALF_SIZE,
     FLOOR_SHAPES,
     MAX_TEXTURE_SCALE,
-    OBJECT_SIZE,
     CameraSpec,
     EnvironmentSpec,
     MaterialSpec,
@@ -30,6 +29,7 @@ from renderer.scene import (
     Scene,
     SkySpec,
 )
+from renderer.transform import footprint_radius
 
 MIN_LIGHT_HEIGHT = 0.05
 MAX_LIGHT_HEIGHT = 10.0
@@ -256,12 +256,6 @@ def _unique_name(scene: Scene, base: str) -> str:
     taken = _names(scene)
     return base if base not in taken else next(f"{base}.{k:03d}" for k in range(1, MAX_OBJECTS + 2)
                                                  if f"{base}.{k:03d}" not in taken)
-
-
-def footprint_radius(obj: ObjectSpec) -> float:
-    """Radius of a circle on the floor that holds the object's footprint, whatever its turn (its box is at most one
-    unit a side, scaled)."""
-    return 0.5 * OBJECT_SIZE * math.hypot(obj.scale[0], obj.scale[2])
 
 
 def _free_place(scene: Scene, obj: ObjectSpec, near: tuple[float, float]) -> tuple[float, float]:

@@ -25,7 +25,7 @@ from models.training.data import VoxelRenderSet, read_manifest
 from renderer.errors import InputError
 from renderer.io import atomic_path, save_png
 from renderer.scene import GRID_SIZE, SHADER_GRID_SIZE
-from renderer.shading import quality_named
+from renderer.shading import quality_named, shadows_of_others
 
 METRICS = ("mse", "dssim", "perceptual")
 
@@ -150,6 +150,13 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
             scene = dataset.scene(index)
             values["lighting"], values["material"] = lighting_label(scene), material_label(scene)
             values["ground"] = ground_label(scene)
+            values["objects"] = len(scene.objects)
+            if len(scene.objects) > 1:  # the error inside each object's shadow on the others, kept apart
+                shadow = torch.from_numpy(shadows_of_others(scene, dataset.object_voxels(index), sample["target"].shape[-1],
+                                                            dataset.shading_grid_size, quality_named(shader_quality)))
+                squared = ((prediction[0] - sample["target"]) * 255.0) ** 2
+                values["shadow_pixels"] = int(shadow.sum())
+                values["shadow_squared"] = float(squared[:, shadow].mean(0).sum()) if shadow.any() else 0.0
             scores[dataset.settings[index]].append(values)
         # The figure: each setting's typical view (median MSE) and its worst, drawn again (a few samples, not all kept).
         rows, captions = [], []
@@ -175,8 +182,11 @@ def lighting_label(scene) -> str:
 
 
 def material_label(scene) -> str:
-    material = scene.object.material
-    return "matte" if material.diffuse_only else ("metal" if material.metallic >= 0.5 else "glossy")
+    """The test scene's objects: all matte, or glossy, or metal (when any object is)."""
+    materials = [o.material for o in scene.objects]
+    if all(m.diffuse_only for m in materials):
+        return "matte"
+    return "metal" if any(m.metallic >= 0.5 for m in materials) else "glossy"
 
 
 def ground_label(scene) -> str:
@@ -240,11 +250,30 @@ def _write_report(report: Path, figure: Path, columns: str, captions: list[str],
         if renderer_entry(renderer).architecture and not extra.get("environment_input"):
             lines += ["", "This network does not read environments or materials: for those samples it shows the "
                           "voxel shader's image, as the editor does."]
+    lines += _object_count_table(every)
     lines += ["", f"![{columns}]({figure.name})", "", f"Figure rows ({columns}), top to bottom:", ""]
     lines += [f"{number}. {caption}" for number, caption in enumerate(captions, 1)]
     lines += [""] + _object_table(scores)
     with atomic_path(report) as tmp:
         tmp.write_text("\n".join(lines))
+
+
+def _object_count_table(every: list[dict]) -> list[str]:
+    """Lines of a table of the metrics by the number of objects in the scene, and the MSE inside each object's
+    shadow on the others (renderer.shading.shadows_of_others), when some scene holds several objects."""
+    if all(v["objects"] == 1 for v in every):
+        return []
+    lines = ["", "| objects in the scene | samples | MSE (0-255) | DSSIM | perceptual | MSE in the others' shadows "
+                 "(pixels) |", "|---:|---:|---:|---:|---:|---:|"]
+    for count in sorted({v["objects"] for v in every}):
+        values = [v for v in every if v["objects"] == count]
+        mean = {k: float(np.mean([v[k] for v in values])) for k in METRICS}
+        pixels = sum(v.get("shadow_pixels", 0) for v in values)
+        shadow = (f"{sum(v['shadow_squared'] * v['shadow_pixels'] for v in values) / pixels:.1f} ({pixels})"
+                  if pixels else "-")
+        lines.append(f"| {count} | {len(values)} | {mean['mse']:.2f} | {mean['dssim']:.4f} | {mean['perceptual']:.3f} "
+                     f"| {shadow} |")
+    return lines
 
 
 def _object_table(scores: dict) -> list[str]:

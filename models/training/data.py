@@ -4,12 +4,14 @@ Each sample gives the network's three inputs and its target, in the convention o
 voxels (4, D, H, W) in [0, 1], light (3,) in camera coordinates (scaled; with the environment, its switch and the
 material after it for a network that reads them: models.networks.nvr.lighting_input), splat (3, S, S) and
 target (3, S, S) in sRGB [0, 1]. Object voxels are read once per object and kept (their non-empty voxels); the
-scene grid and the shader's buffers are made anew per sample.
+scene grid and the shader's buffers are made anew per sample. A scene may hold several objects (sets made with
+--scene-objects): their voxels are read alike and meet in one grid (renderer.pipeline.scene_grid_for).
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -40,14 +42,15 @@ def image_tensor(path: Path) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(image.transpose(2, 0, 1)))
 
 
-def network_inputs(scene: Scene, object_rgba: np.ndarray, floor_color, grid_size: int,
+def network_inputs(scene: Scene, painted: Sequence[np.ndarray], floor_color, grid_size: int,
                    environment: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
-    """The voxel grid (4, D, H, W) (a view of channels-last memory) and the light input (lighting_input: with
-    `environment`, for a network that reads the environment and the material) the network reads for a scene."""
+    """The voxel grid (4, D, H, W) (a view of channels-last memory) of a scene whose objects' painted voxels are
+    `painted` (one array per object, in order), and the light input (lighting_input: with `environment`, for a
+    network that reads the environment and the material) the network reads."""
     from models.networks.nvr import lighting_input
-    from renderer.grid import scene_grid
+    from renderer.pipeline import scene_grid_for
 
-    grid = scene_grid(object_rgba, scene.object, floor_color, scene.camera.elevation_deg, grid_size=grid_size)
+    grid = scene_grid_for(scene, painted, floor_color, grid_size)
     # A channels-first view of the channels-last grid, not a copy: stacking a batch copies it anyway, several
     # times quicker than numpy's transposing copy per sample.
     voxels = torch.from_numpy(np.asarray(grid, dtype=np.float32)).permute(3, 0, 1, 2)
@@ -109,7 +112,8 @@ class VoxelRenderSet(Dataset):
         self.environment = environment  # the light input holds the environment and material (config.environment_input)
         self._voxel_cache_bytes = voxel_cache_bytes
         self._voxels: OrderedDict[str, _StoredVoxels] = OrderedDict()  # the objects read last, by voxel file
-        self._dense: tuple[str, np.ndarray] | None = None  # the latest object's voxels, dense (views come in runs)
+        self._dense: tuple[tuple[str, ...], list[np.ndarray]] | None = None  # the latest scene's voxels, dense
+        # (views come in runs)
 
     def __getstate__(self) -> dict:
         """For a loader worker process: everything but the voxel cache (each process keeps its own)."""
@@ -129,7 +133,10 @@ class VoxelRenderSet(Dataset):
                 raise InputError(f"sample {sample.get('id', index)} is lit by an environment or has a glossy "
                                  "material, which this network does not read (train --config environment_refiner)",
                                  folder / "manifest.json")
-            voxel_files.add(scene.voxels_path())
+            if self.environment and len(scene.objects) > 1:
+                raise InputError(f"sample {sample.get('id', index)} holds several objects; a network that reads "
+                                 "the environment reads one object's material", folder / "manifest.json")
+            voxel_files.update(scene.file(o.voxels) for o in scene.objects)
             for key in ("target", "splat"):
                 path = folder / str(sample.get(key))
                 try:
@@ -152,21 +159,26 @@ class VoxelRenderSet(Dataset):
             rgba = downsample_voxels(rgba, self.object_resolution)
         return rgba
 
-    def object_voxels(self, index: int) -> np.ndarray:
-        """The object voxels (N, N, N, 4) of a sample (read once per object while the cache holds it)."""
-        path = str(self.scene(index).voxels_path())
-        if self._dense is not None and self._dense[0] == path:
+    def object_voxels(self, index: int) -> list[np.ndarray]:
+        """The object voxels (N, N, N, 4) of a sample's objects, in order (each read once while the cache holds it)."""
+        scene = self.scene(index)
+        paths = tuple(str(scene.file(o.voxels)) for o in scene.objects)
+        if self._dense is not None and self._dense[0] == paths:
             return self._dense[1]
-        if path in self._voxels:
-            self._voxels.move_to_end(path)
-            rgba = self._voxels[path].dense()
-        else:
-            rgba = self._load_voxels(path)
-            self._voxels[path] = _StoredVoxels(rgba)
-            while len(self._voxels) > 1 and sum(v.nbytes for v in self._voxels.values()) > self._voxel_cache_bytes:
-                self._voxels.popitem(last=False)
-        self._dense = (path, rgba)
-        return rgba
+        painted = []
+        for path in paths:
+            if path in self._voxels:
+                self._voxels.move_to_end(path)
+                rgba = self._voxels[path].dense()
+            else:
+                rgba = self._load_voxels(path)
+                self._voxels[path] = _StoredVoxels(rgba)
+                while (len(self._voxels) > len(paths)
+                       and sum(v.nbytes for v in self._voxels.values()) > self._voxel_cache_bytes):
+                    self._voxels.popitem(last=False)
+            painted.append(rgba)
+        self._dense = (paths, painted)
+        return painted
 
     def __len__(self) -> int:
         return len(self.items)
@@ -178,14 +190,15 @@ class VoxelRenderSet(Dataset):
     def __getitem__(self, index: int) -> dict[str, torch.Tensor]:
         folder, sample = self.items[index]
         scene = self.scene(index)
-        rgba = self.object_voxels(index)
-        voxels, light = network_inputs(scene, rgba, scene.floor.color, self.grid_size, self.environment)
+        painted = self.object_voxels(index)
+        voxels, light = network_inputs(scene, painted, scene.floor.color, self.grid_size, self.environment)
         if self.object_resolution is None:
             splat = image_tensor(folder / sample["splat"])
         else:  # the stored splat shows the full-resolution voxels: splat the coarse ones instead
-            from renderer.splat import splat_scene
+            from renderer.splat import splat_objects
 
-            splat = torch.from_numpy(np.ascontiguousarray(splat_scene(scene, rgba, scene.floor.color).transpose(2, 0, 1)))
+            splat = torch.from_numpy(np.ascontiguousarray(
+                splat_objects(scene, painted, scene.floor.color).transpose(2, 0, 1)))
         item = {
             "voxels": voxels,
             "light": light,
@@ -196,17 +209,18 @@ class VoxelRenderSet(Dataset):
         if self.floor_light:
             item["floor_light"] = floor_light_tensor(scene, scene.floor.color, splat.shape[-1])
         if self.shading:
-            item["shading"] = shading_tensor(self.shaded(scene, rgba, splat.shape[-1]))
+            item["shading"] = shading_tensor(self.shaded(scene, painted, splat.shape[-1]))
         return item
 
-    def shaded(self, scene: Scene, object_rgba: np.ndarray, size: int, reflection: bool = False):
-        """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene at `size`^2: its object voxels merged
-        as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors). `reflection`:
-        with the floor's reflection of the object, as the shader draws its own image (a network's input has none)."""
-        from renderer.shading import quality_named, shade_scene
+    def shaded(self, scene: Scene, painted: Sequence[np.ndarray], size: int, reflection: bool = False):
+        """The voxel shader's ShadedImage (renderer/shading/) of a sample's scene at `size`^2, its objects' voxels
+        `painted` merged as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors).
+        `reflection`: with the floor's reflection of the objects, as the shader draws its own image (a network's input
+        has none)."""
+        from renderer.shading import quality_named, shade_objects
 
-        return shade_scene(scene, object_rgba, scene.floor.color, size, self.shading_grid_size, reflection=reflection,
-                           quality=quality_named(self.shader_quality))
+        return shade_objects(scene, painted, scene.floor.color, size, self.shading_grid_size, reflection=reflection,
+                             quality=quality_named(self.shader_quality))
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:

@@ -65,7 +65,7 @@ def training_latents(teacher, config: DistillConfig, progress: bool = True) -> t
         grids = []
         for view in sample_train_views(rng, config.views):
             scene = view_scene(view, "object.npz", floor_color, teacher.config.output_size)
-            grids.append(network_inputs(scene, rgba, floor_color, teacher.config.grid_size)[0])
+            grids.append(network_inputs(scene, [rgba], floor_color, teacher.config.grid_size)[0])
             elevations.append(view.elevation_deg)
         with torch.no_grad():
             latents.append(teacher.encode_voxels(torch.stack(grids)))

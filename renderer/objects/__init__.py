@@ -7,6 +7,6 @@ a floor color; split_seeds(split, count) gives the disjoint train and test objec
 
 from renderer.objects.appearance import SETTINGS, apply_appearance
 from renderer.objects.assembly import LabeledMesh
-from renderer.objects.generate import CATEGORIES, SPLITS, generate_object, split_seeds
+from renderer.objects.generate import CATEGORIES, SPLITS, generate_object, split_seed, split_seeds
 
-__all__ = ["CATEGORIES", "SETTINGS", "SPLITS", "LabeledMesh", "apply_appearance", "generate_object", "split_seeds"]
+__all__ = ["CATEGORIES", "SETTINGS", "SPLITS", "LabeledMesh", "apply_appearance", "generate_object", "split_seed", "split_seeds"]

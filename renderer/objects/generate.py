@@ -51,6 +51,14 @@ def split_seeds(split: str, count: int) -> np.ndarray:
     return _SPLIT_START[split] + np.arange(count, dtype=np.int64)
 
 
+def split_seed(split: str, k: int) -> int:
+    """The split's seed number `k` (0 <= k < SEEDS_PER_SPLIT): split_seeds(split, k + 1)[k]."""
+    check_split(split)
+    if not 0 <= k < SEEDS_PER_SPLIT:
+        raise InputError(f"seed number must be between 0 and {SEEDS_PER_SPLIT - 1}, got {k}")
+    return _SPLIT_START[split] + int(k)
+
+
 def category_of(name: str) -> Category:
     """Look a category up by name."""
     if name not in CATEGORIES:

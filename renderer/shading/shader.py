@@ -38,6 +38,8 @@ when it is known, with this shader's own light, so its errors stay in the colors
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from renderer.floor_texture import floor_texture
@@ -48,6 +50,46 @@ from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
 from renderer.shading.surface import floor_reflection, floor_sky_cones, visible_surface
+
+
+def shade_objects(scene: Scene, painted: Sequence[np.ndarray], floor_color, size: int | None = None,
+                  grid_size: int = SHADER_GRID_SIZE, reflection: bool = True,
+                  quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
+    """shade_scene for a scene of one or several objects, their painted voxels `painted` in the scene's order (several:
+    each object's stages and their joins, as the staged shader draws them: renderer/shading/staged.py)."""
+    if len(painted) == 1:
+        return shade_scene(scene, painted[0], floor_color, size, grid_size, reflection=reflection, quality=quality)
+    from renderer.shading.staged import ObjectVoxels, StagedShader
+
+    objects = [ObjectVoxels(o, ("voxels", k), rgba, ("shape", k)) for k, (o, rgba) in enumerate(zip(scene.objects, painted))]
+    size = scene.image_size if size is None else size
+    return StagedShader(grid_size, quality, reflection=reflection).run_objects(scene, objects, floor_color, size)
+
+
+OTHERS_SHADOW_SHARE = 0.85  # a point seeing at most this share of the light it sees alone is in the others' shadow
+EDGE_COVERAGE = 0.05  # another object covering this much of a pixel makes it an edge, not the object's own
+
+
+def shadows_of_others(scene: Scene, painted: Sequence[np.ndarray], size: int | None = None,
+                      grid_size: int = SHADER_GRID_SIZE, quality: ShaderQuality = FULL_QUALITY) -> np.ndarray:
+    """(size, size) bool: the pixels where one object of the scene lies in another's shadow: the object's own
+    (covered by no other), seeing at most OTHERS_SHADOW_SHARE of the area light it sees when it stands alone (the
+    shader's light visibility, so geometry decides). None in a scene of one object."""
+    size = scene.image_size if size is None else size
+    if len(painted) == 1:
+        return np.zeros((size, size), dtype=bool)
+    together = shade_objects(scene, painted, scene.floor.color, size, grid_size, reflection=False, quality=quality)
+    alone = [shade_scene(scene.alone(k), rgba, scene.floor.color, size, grid_size, reflection=False, quality=quality)
+             for k, rgba in enumerate(painted)]
+    mask = np.zeros((size, size), dtype=bool)
+    for k, own in enumerate(alone):
+        others = np.zeros_like(mask)
+        for j, other in enumerate(alone):
+            if j != k:
+                others |= other.coverage > EDGE_COVERAGE
+        seen = (own.coverage > 0.5) & ~others
+        mask |= seen & (together.visibility < OTHERS_SHADOW_SHARE * own.visibility)
+    return mask
 
 
 def shade_scene(scene: Scene, object_rgba: np.ndarray, floor_color, size: int | None = None,
