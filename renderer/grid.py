@@ -47,6 +47,39 @@ def scene_grid(object_rgba: np.ndarray, object_spec: ObjectSpec, floor_color: tu
     return gather(pooled, floor_color, indices)
 
 
+def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int = GRID_SIZE,
+                columns: int | None = None) -> np.ndarray:
+    """The scene grid (D, H, W, 4) of the ground alone, as gather samples it (no object); its first `columns`
+    columns."""
+    ground = ground_mask(elevation_deg, grid_size, columns)
+    grid = np.zeros((*ground.shape, 4), dtype=np.float32)
+    grid[ground] = (*floor_color, 1.0)  # the floor row of gather
+    return grid
+
+
+def object_cells(object_rgba: np.ndarray, object_spec: ObjectSpec, floor_color: tuple[float, float, float],
+                 elevation_deg: float, grid_size: int = GRID_SIZE,
+                 pooled: tuple[np.ndarray, tuple | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Where an object fills the scene grid: the flat indices of the cells holding an occupied merged voxel and their
+    rows; the ground grid with them written over it is scene_grid's grid. Only the object's window is sampled.
+    `pooled`: pool_object's result for the object's merge factors, if the caller keeps it."""
+    resolution = object_rgba.shape[0]
+    factors = pool_factors(resolution, object_spec.scale, grid_size)
+    merged, within = pool_object(object_rgba, factors) if pooled is None else pooled
+    nothing = np.zeros(0, dtype=np.int64), np.zeros((0, 4), dtype=np.float32)
+    if within is None:
+        return nothing
+    placement = GridPlacement(resolution, factors, object_spec, elevation_deg, grid_size, within)
+    window = placement.window
+    if any(lo >= hi for lo, hi in window):
+        return nothing
+    block = gather(merged, floor_color, sample_indices(placement, window))
+    ground = ground_mask(elevation_deg, grid_size)[tuple(slice(lo, hi) for lo, hi in window)]
+    local = np.nonzero((block[..., 3] > 0.5) & ~ground)
+    cells = np.ravel_multi_index(tuple(i + lo for i, (lo, _) in zip(local, window)), (grid_size,) * 3)
+    return cells.astype(np.int64), block[local]
+
+
 # --- appearance: merged object voxels, and the grid gathered from them ------------------------------
 
 

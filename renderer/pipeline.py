@@ -12,7 +12,7 @@ import numpy as np
 import trimesh
 
 from renderer.errors import InputError
-from renderer.grid import ground_mask, scene_grid
+from renderer.grid import ground_grid, object_cells
 from renderer.mesh import load_mesh, normalise_mesh
 from renderer.paint import Color, apply_paint, fill_object
 from renderer.scene import GRID_SIZE, Scene
@@ -53,11 +53,11 @@ def painted_objects(scene: Scene) -> list[np.ndarray]:
 def scene_grid_for(scene: Scene, painted: Sequence[np.ndarray], floor_color: Color,
                    grid_size: int = GRID_SIZE) -> np.ndarray:
     """The network's camera-aligned input grid (grid_size^3 x 4) for the scene's objects (their painted voxels, one
-    array per object in order) and camera. Where objects meet, the later object's voxels win."""
+    array per object in order) and camera: the ground, and each object's cells over it (renderer.grid.object_cells).
+    Where objects meet, the later object's voxels win."""
     elevation = scene.camera.elevation_deg
-    grid = scene_grid(painted[0], scene.objects[0], floor_color, elevation, grid_size=grid_size)
-    for rgba, o in zip(painted[1:], scene.objects[1:]):
-        one = scene_grid(rgba, o, floor_color, elevation, grid_size=grid_size)
-        taken = (one[..., 3] > 0.5) & ~ground_mask(elevation, grid.shape[0])
-        grid[taken] = one[taken]
+    grid = ground_grid(floor_color, elevation, grid_size)
+    for rgba, o in zip(painted, scene.objects):
+        cells, rows = object_cells(rgba, o, floor_color, elevation, grid_size)
+        grid.reshape(-1, 4)[cells] = rows
     return grid

@@ -63,13 +63,20 @@ def splat_objects(scene: Scene, painted: Sequence[np.ndarray], floor_color, size
     """The splatted image of every object of the scene (their painted voxels in order), each pixel showing the
     nearest object's voxel; for one object, splat_scene's image."""
     camera = Camera.from_scene(scene, size)
-    image = ground_and_background(cached_floor_mask(camera), floor_color)
-    nearest = np.full((camera.height, camera.width), np.inf, dtype=np.float32)
-    for spec, object_rgba in zip(scene.objects, painted):
-        rgba = check_object_voxels(object_rgba)
-        layout = splat_layout(Shell(occupancy(rgba)), object_to_world(spec), camera)
+    painted = [check_object_voxels(rgba) for rgba in painted]
+    layouts = [splat_layout(Shell(occupancy(rgba)), object_to_world(spec), camera)
+               for spec, rgba in zip(scene.objects, painted)]
+    return compose_splats(layouts, painted, floor_color)
+
+
+def compose_splats(layouts: Sequence[SplatLayout], painted: Sequence[np.ndarray], floor_color) -> np.ndarray:
+    """The splatted image of several objects' layouts (the same camera) with their voxels' colors: each pixel shows
+    the nearest object's voxel."""
+    image = ground_and_background(layouts[0].floor, floor_color)
+    nearest = np.full(layouts[0].voxel.shape, np.inf, dtype=np.float32)
+    for layout, rgba in zip(layouts, painted):
         nearer = (layout.voxel >= 0) & (layout.depth < nearest)
-        image[nearer] = np.clip(rgba.reshape(-1, 4)[layout.voxel[nearer], :3], 0.0, 1.0)
+        image[nearer] = np.clip(np.asarray(rgba).reshape(-1, 4)[layout.voxel[nearer], :3], 0.0, 1.0)
         nearest[nearer] = layout.depth[nearer]
     return image
 

@@ -18,7 +18,6 @@ from models.engine.render_engine import (
     BF16_BOUND,
     RenderEngine,
     changed_spans,
-    ground_grid,
     resolve_precision,
 )
 from models.networks.checkpoint import save_model
@@ -28,7 +27,7 @@ from models.networks.nvr import build_model
 from renderer.camera import Camera
 from renderer.errors import InputError
 from renderer.floor_light import lit_floor_image
-from renderer.grid import occupied_spans, scene_grid
+from renderer.grid import ground_grid, occupied_spans, scene_grid
 from renderer.objects.demo import DEMO_DIR
 from renderer.scene import (
     CameraSpec,
@@ -43,7 +42,7 @@ from renderer.scene import (
     load_scene,
     replaced,
 )
-from renderer.shading import FAST_QUALITY, FULL_QUALITY, ShaderQuality, shade_scene
+from renderer.shading import FAST_QUALITY, FULL_QUALITY, ShaderQuality, shade_objects, shade_scene
 from renderer.splat import floor_mask, ground_and_background, splat_scene
 from renderer.voxels import load_voxels, save_voxels
 
@@ -721,3 +720,17 @@ def test_the_light_input_of_a_network_that_reads_the_environment_is_kept_through
                            (lit.with_changes(light=LightSpec((-0.8, 2.6, 1.2))), True)):
         live.render(edited)
         assert ("lighting" in live.last_report.stages_run) == reread
+
+
+def test_a_network_that_reads_the_environment_shows_the_shaders_image_of_several_objects(scene):
+    """Its light input holds one object's material: of two objects it shows the shader's image (the floor's
+    reflection too) and says so; a refiner that reads the area light alone renders them itself."""
+    two = replace(scene, objects=(scene.object, replace(scene.object, translation=(0.6, -0.4), name="copy")))
+    live = engine(environment_refiner())
+    image = live.render(two)
+    assert "one object's material" in live.last_report.note
+    shaded = shade_objects(two, [load_voxels(two.file(o.voxels)) for o in two.objects], two.floor.color, 64, 128)
+    np.testing.assert_allclose(image, np.clip(shaded.image, 0.0, 1.0), rtol=0, atol=1e-5)
+    plain = engine(refiner())
+    plain.render(two)
+    assert plain.last_report.note == "" and "voxel_branch" in plain.last_report.stages_run

@@ -13,7 +13,9 @@ from renderer.grid import (
     colors_and_changes,
     gather,
     grid_index_to_world,
+    ground_grid,
     ground_mask,
+    object_cells,
     occupied_spans,
     pool_factors,
     pool_voxels,
@@ -249,6 +251,24 @@ def test_every_object_voxel_of_the_grid_lies_in_the_object_window(elevation, rot
     outside[box] = empty_row
     assert np.all(outside >= empty_row)
     assert (full[box] < empty_row).any() == (translation[0] < 2.0)  # the object is in the grid unless moved out
+
+
+@pytest.mark.parametrize("elevation, rotation, translation, scale", [
+    (30.0, 25.0, (0.2, -0.3), (1.0, 1.0, 1.0)),
+    (0.0, -140.0, (-0.9, 0.6), (0.5, 1.7, 1.2)),
+    (89.0, 60.0, (1.3, -1.2), (2.0, 2.0, 2.0)),  # partly outside the grid
+    (10.0, 0.0, (3.0, 0.0), (1.0, 1.0, 1.0)),  # outside the grid: no cell
+])
+def test_the_ground_with_the_objects_cells_over_it_is_the_scene_grid(elevation, rotation, translation, scale):
+    """What scenes of several objects join (renderer.pipeline.scene_grid_for) is, for one object, scene_grid's grid."""
+    rgba = sphere_voxels()
+    rgba[..., :3] = np.where(rgba[..., 3:] > 0.5, np.random.default_rng(0).random(rgba.shape[:3] + (3,)), 0.0)
+    spec = ObjectSpec(translation=translation, rotation_deg=rotation, scale=scale)
+    grid = ground_grid(FLOOR, elevation, 64)
+    cells, rows = object_cells(rgba, spec, FLOOR, elevation, 64)
+    grid.reshape(-1, 4)[cells] = rows
+    np.testing.assert_array_equal(grid, scene_grid(rgba, spec, FLOOR, elevation, grid_size=64))
+    assert (len(cells) > 0) == (translation[0] < 2.0)
 
 
 @pytest.mark.parametrize("box, kinds", [

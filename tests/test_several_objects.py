@@ -216,20 +216,50 @@ def test_a_one_object_scene_renders_the_same_through_both_paths(cube_folder, tmp
 # --- renderers and commands -------------------------------------------------------------------------------------
 
 
-def test_the_network_renderer_shows_the_shaders_image_of_several_objects_and_says_so(cube_folder):
+def _network_image(model, scene: Scene) -> np.ndarray:
+    """NVR+'s image of a scene from its inputs as training makes them (models/training/data.py), the plain model."""
+    import torch
+
+    from models.training.data import network_inputs, shading_tensor
+    from renderer.pipeline import painted_objects
+    from renderer.shading import quality_named, shade_objects
+    from renderer.splat import splat_objects
+
+    painted = painted_objects(scene)
+    size = model.config.output_size
+    voxels, light = network_inputs(scene, painted, scene.floor.color, model.config.grid_size)
+    splat = torch.from_numpy(np.ascontiguousarray(splat_objects(scene, painted, scene.floor.color, size).transpose(2, 0, 1)))
+    shaded = shade_objects(scene, painted, scene.floor.color, size, model.config.shading_grid_size, reflection=False,
+                           quality=quality_named("full"))
+    with torch.no_grad():
+        image = model(voxels[None], light[None], splat=splat[None], shading=shading_tensor(shaded)[None])
+    return image.clamp(0.0, 1.0)[0].permute(1, 2, 0).numpy()
+
+
+def test_nvr_plus_renders_several_objects_as_from_its_training_inputs_and_follows_each_edit(cube_folder):
+    """The engine's image of two objects is the network's on the inputs training makes (grid, splat, shader buffers of
+    both); moving one object reruns its own stages alone and equals a fresh engine's image; back to one object the
+    others' stages are let go."""
+    from models.networks.checkpoint import load_model
+    from models.networks.shipped import shipped_weights
     from models.renderers import make_renderer
 
     engine = make_renderer("nvr+")
+    model = load_model(shipped_weights("nvr_plus"))[0].eval()
     scene = _scene(cube_folder, FAR, WALL)
     image = engine.render(scene)
-    assert image.shape == (256, 256, 3) and np.isfinite(image).all()
-    assert "several objects" in engine.last_report.note
+    assert engine.last_report.note == ""
+    assert np.abs(image - _network_image(model, scene)).max() < 1.0 / 255.0
     moved = _scene(cube_folder, FAR, replace(WALL, translation=(0.5, 0.2)))
-    engine.render(moved)
-    assert not any(name.endswith("[0]") for name in engine.last_report.stages_run)
-    engine.render(_scene(cube_folder, FAR))  # down to one object: the network's image, the others' voxels let go
+    image = engine.render(moved)
+    ran = engine.last_report.stages_run
+    assert "object_grid[1]" in ran and "splat_layout[1]" in ran
+    assert not any(name.endswith("[0]") for name in ran)  # the first object's own stages are kept
+    assert np.abs(image - make_renderer("nvr+").render(moved)).max() < 1e-5
+    assert np.abs(image - _network_image(model, moved)).max() < 1.0 / 255.0
+    engine.render(_scene(cube_folder, FAR))  # down to one object: the others' voxels let go
     assert engine.last_report.note == "" and engine._cache.last("paint[1]") is None
-    assert engine._cache.last("scene_surface[1]") is None
+    assert engine._cache.last("object_grid[1]") is None and engine._cache.last("shade_surface[1]") is None
 
 
 def test_the_cli_renders_several_objects(cube_folder):

@@ -45,9 +45,11 @@ environment or material edit, for one that reads the environment):
                                   splat, splat_branch, light
     nothing                       none (the last image again)
 
-A scene of several objects, which no network is trained on yet, renders as the voxel shader's own image: each object's
-voxels, paint and shader stages are kept under its index ("voxels[1]"), so an edit of one object reruns its own stages
-and the joins after them (renderer/shading/staged.py).
+A scene of several objects keeps each object's stages under its index: voxels[i], paint[i], object_grid[i] (where
+the object fills the grid: renderer.pipeline.object_cells), shell[i] and splat_layout[i], and the shader's own
+(renderer/shading/staged.py). Their joins, scene_grid and splat, feed the voxel branch on the whole grid, the splat
+branch and the light stage. An edit of one object reruns its own stages and the joins and network stages after them.
+A network that reads the environment reads one object's material: of several objects it shows the shader's image.
 
 The voxel branch runs only around the object (models/engine/cropped_encoder.py): the ground's features come from the
 background stage (a ground grid a few columns wide, since the ground is the same in every column), the object's from
@@ -91,10 +93,13 @@ from renderer.grid import (
     colors_and_changes,
     gather,
     grid_index_to_world,
+    ground_grid,
     ground_mask,
     non_empty_voxels,
+    object_cells,
     occupied_spans,
     pool_factors,
+    pool_object,
     pool_voxels,
     repool_voxels,
     sample_indices,
@@ -109,15 +114,16 @@ from renderer.shading import (
 )
 from renderer.shading.environment_shading import lighting_key
 from renderer.shading.staged import ObjectVoxels, StagedShader
-from renderer.splat import SplatLayout, color_splat, splat_layout
+from renderer.splat import SplatLayout, color_splat, compose_splats, splat_layout
 from renderer.stage_cache import RenderReport, StageCache
 from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
+OBJECT_STAGES = ("voxels", "paint", "object_pool", "object_grid", "shell", "splat_layout")  # per object of several, by index
 # What a render of a scene the network does not read (an environment, the area light off, a glossy object) shows.
 UNCORRECTED_NOTE = "this network is not trained for environment light or glossy materials: the voxel shader's image"
-SEVERAL_OBJECTS_NOTE = "this network is not trained on scenes of several objects: the voxel shader's image"
+SEVERAL_OBJECTS_NOTE = "this network reads one object's material: the voxel shader's image of several objects"
 # bfloat16 against float32 on the same scene, 0-255 scale: largest pixel difference and MSE (measured by
 # benchmarks/bench_precision.py).
 BF16_BOUND = {"max_abs": 4.0, "mse": 0.5}
@@ -179,8 +185,8 @@ class _NetworkInputs(NamedTuple):
     features: torch.Tensor | None  # the splat branch's (None for NVR)
     buffers: Callable[[], np.ndarray | None]  # the shader's buffers, made on the first call (None: the network reads none)
     buffers_tensor: Callable[[], torch.Tensor | None]  # the same as the network's input tensor
-    keys: _Keys
-    painted: _PaintedObject
+    key: tuple  # what the light stage reads, besides the light
+    shaded: Callable[[int | None], ShadedImage]  # the shader's image without the floor's reflection, at a size
 
 
 class RenderEngine:
@@ -271,7 +277,7 @@ class RenderEngine:
         """The image (S, S, 3) float32 sRGB of `scene` at the model's output size S (scene.image_size is not used)."""
         start = self._begin(scene)
         with torch.inference_mode():
-            image = self._shaded_objects(scene) if len(scene.objects) > 1 else self._render(scene)
+            image = self._render(scene)
         self._finish(start, preview=False)
         return image.copy()
 
@@ -280,7 +286,7 @@ class RenderEngine:
         network that reads the shader the shaded image (its geometry kept through every placement and camera edit),
         else the splatted object over the lit empty floor; from stages the full render then reuses."""
         if len(scene.objects) > 1:
-            return self.render(scene)  # the shader's image: as quick as a preview
+            return self._preview_objects(scene)
         start = self._begin(scene)
         with torch.inference_mode():
             painted = self._painted(scene)
@@ -293,7 +299,7 @@ class RenderEngine:
             else:
                 splat = self._splat(scene, painted, keys)
                 on_object = self._splat_layout(scene, painted, keys).voxel >= 0
-                image = np.where(on_object[..., None], splat, self._floor_light(scene, painted.floor, keys))
+                image = np.where(on_object[..., None], splat, self._floor_light(scene))
         self._finish(start, preview=True)
         return image.copy()
 
@@ -311,7 +317,7 @@ class RenderEngine:
         stages. A network that draws the image itself renders its own size only (InputError)."""
         if size == self.output_size:
             return self.render(scene)
-        if len(scene.objects) > 1:
+        if len(scene.objects) > 1 and not self.reads_scene(scene):
             start = self._begin(scene)
             image = self._shaded_objects(scene, size)
             self._finish(start, preview=False)
@@ -323,26 +329,45 @@ class RenderEngine:
         with torch.inference_mode():
             inputs = self._network_inputs(scene)
             _, correction = self._light(scene, inputs)  # kept by the light stage: a redraw after a render reuses it
-            shaded = self._shaded(scene, inputs.painted, inputs.keys, size)
+            shaded = inputs.shaded(size)
             image = (np.clip(shaded.image, 0.0, 1.0) if correction is None
                      else apply_correction(_to_array(correction.cpu()), shaded.image))
         self._finish(start, preview=False)
         return image
 
     def _render(self, scene: Scene) -> np.ndarray:
+        if len(scene.objects) > 1:
+            if not self.reads_scene(scene):
+                return self._shaded_objects(scene)
+            return self._light(scene, self._objects_network_inputs(scene))[0]
         self._forget_objects_beyond(0)  # a scene that held several objects: their own stages' memory
         self._scene_shader.forget_objects_beyond(0)
         return self._light(scene, self._network_inputs(scene))[0]
 
+    def _preview_objects(self, scene: Scene) -> np.ndarray:
+        """preview for several objects: the full render when only the light changed or the network does not read the
+        scene (the shader's image), else for a network that reads the shader its image, else the splat."""
+        if not self.reads_scene(scene) or self._cached("scene_grid", self._objects_grid_key(scene)):
+            return self.render(scene)
+        start = self._begin(scene)
+        with torch.inference_mode():
+            objects = self._objects(scene)
+            if self._reads_shading:
+                image = np.clip(self._objects_shaded(scene, objects).image, 0.0, 1.0)
+            else:
+                image = self._objects_splat(scene, objects)
+        self._finish(start, preview=True)
+        return image.copy()
+
     def _light(self, scene: Scene, inputs: _NetworkInputs) -> tuple[np.ndarray, torch.Tensor | None]:
         """The light stage: the image, and for a network that corrects the shader's image the correction it applied
         (correction_from_latent's output), which render_sized applies at other sizes."""
-        latent, light, features, keys = inputs.latent, inputs.light, inputs.features, inputs.keys
-        key = (keys.grid, keys.splat, keys.shade if self._reads_shading else None, lighting_key(scene))
+        latent, light, features = inputs.latent, inputs.light, inputs.features
+        key = (*inputs.key, lighting_key(scene))
 
         def render() -> tuple[np.ndarray, torch.Tensor | None]:
             if not self.reads_scene(scene):  # this network is not trained for it: the shader's image as it is
-                return np.clip(self._shaded(scene, inputs.painted, keys).image, 0.0, 1.0), None
+                return np.clip(inputs.shaded(None).image, 0.0, 1.0), None
             if not self._reads_shading:
                 return _to_image(self.model.render_from_latent(latent, light, features)), None
             correction = self.model.correction_from_latent(latent, light, features)
@@ -365,7 +390,7 @@ class RenderEngine:
         features = None
         if self._reads_splat:
             splat = self._splat(scene, painted, keys)
-            floor_light = self._floor_light(scene, painted.floor, keys) if self._reads_floor_light else None
+            floor_light = self._floor_light(scene) if self._reads_floor_light else None
             features = self._stage("splat_branch", keys.splat_branch,
                                    lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
         def light_input() -> torch.Tensor:
@@ -374,7 +399,72 @@ class RenderEngine:
         # The environment's probe is worth keeping; the light's position alone is three numbers.
         key = (scene.light, scene.environment, scene.object.material, scene.camera.elevation_deg)  # what it reads
         light = self._stage("lighting", key, light_input) if self.config.environment_input else light_input()
-        return _NetworkInputs(latent, light, features, buffers, buffers_tensor, keys, painted)
+        return _NetworkInputs(latent, light, features, buffers, buffers_tensor,
+                              (keys.grid, keys.splat, keys.shade if self._reads_shading else None),
+                              lambda size: self._shaded(scene, painted, keys, size))
+
+    def _objects_network_inputs(self, scene: Scene) -> _NetworkInputs:
+        """What the light stage reads for a scene of several objects: their joined grid's latent (the voxel branch on
+        the whole grid), the splat of them all, and the shader's image and buffers of them all."""
+        objects = self._objects(scene)
+        grid_key = self._objects_grid_key(scene)
+        grid = self._stage("scene_grid", grid_key, lambda: self._objects_grid(scene, objects))
+        self._grid_fraction = 1.0
+        latent = self._stage("voxel_branch", grid_key, lambda: self.model.encode_voxels(self._grid_tensor(grid)))
+        shade_key = (tuple((o.voxels_key, _pose(o.spec)) for o in objects), scene.camera.elevation_deg,
+                     tuple(scene.floor.color), lighting_key(scene))
+        buffers = functools.cache(lambda: network_buffers(self._objects_shaded(scene, objects))
+                                  if self._reads_shading else None)
+        buffers_tensor = functools.cache(lambda: None if buffers() is None else self._image_tensor(buffers()))
+        features, splat_key = None, None
+        if self._reads_splat:
+            splat_key = (tuple((o.voxels_key, _pose(o.spec)) for o in objects), scene.camera.elevation_deg,
+                         tuple(scene.floor.color))
+            splat = self._stage("splat", splat_key, lambda: self._objects_splat(scene, objects))
+            floor_light = self._floor_light(scene) if self._reads_floor_light else None
+            branch_key = (splat_key, scene.light.position if self._reads_floor_light else None,
+                          shade_key if self._reads_shading else None)
+            features = self._stage("splat_branch", branch_key,
+                                   lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
+        light = torch.from_numpy(lighting_input(scene, False))[None].to(self.device, self.dtype)
+        return _NetworkInputs(latent, light, features, buffers, buffers_tensor,
+                              (grid_key, splat_key, shade_key if self._reads_shading else None),
+                              lambda size: self._objects_shaded(scene, objects, size))
+
+    def _objects_grid_key(self, scene: Scene) -> tuple:
+        """What the joined grid of several objects reads: each object's painted voxels and placement, the floor color
+        and the camera elevation."""
+        keys = tuple((self._paint_key(scene, i), _pose(o)) for i, o in enumerate(scene.objects))
+        return keys, tuple(scene.floor.color), scene.camera.elevation_deg
+
+    def _objects_grid(self, scene: Scene, objects: list[ObjectVoxels]) -> np.ndarray:
+        """The network's grid of several objects (renderer.pipeline.scene_grid_for): the ground, then where each object
+        fills it, from stages of each object's own (its merged voxels, its cells), so a move samples one object."""
+        floor, elevation, g = tuple(scene.floor.color), scene.camera.elevation_deg, self.config.grid_size
+        grid = self._stage("ground_grid", (floor, elevation), lambda: ground_grid(floor, elevation, g)).copy()
+        for i, o in enumerate(objects):
+            factors = pool_factors(o.rgba.shape[0], o.spec.scale, g)
+            pooled = self._stage(f"object_pool[{i}]", (o.voxels_key, factors),
+                                 lambda o=o, factors=factors: pool_object(o.rgba, factors))
+            cells, rows = self._stage(f"object_grid[{i}]", (o.voxels_key, _pose(o.spec), floor, elevation),
+                                      lambda o=o, pooled=pooled: object_cells(o.rgba, o.spec, floor, elevation, g, pooled))
+            grid.reshape(-1, 4)[cells] = rows
+        return grid
+
+    def _objects_splat(self, scene: Scene, objects: list[ObjectVoxels]) -> np.ndarray:
+        """The splat of several objects (renderer.splat.splat_objects) from each object's shell and layout stages."""
+        camera = Camera.from_scene(scene, self.output_size)
+        layouts = []
+        for i, o in enumerate(objects):
+            shell = self._stage(f"shell[{i}]", o.shape_key, lambda o=o: Shell(occupancy(o.rgba)))
+            layouts.append(self._stage(f"splat_layout[{i}]", (o.shape_key, _pose(o.spec), scene.camera.elevation_deg),
+                                       lambda o=o, shell=shell: splat_layout(shell, object_to_world(o.spec), camera)))
+        return compose_splats(layouts, [o.rgba for o in objects], scene.floor.color)
+
+    def _objects_shaded(self, scene: Scene, objects: list[ObjectVoxels], size: int | None = None) -> ShadedImage:
+        """The shader's image of several objects without the floor's reflection, as the network reads it."""
+        size = size or self.output_size
+        return self._shader.run_objects(scene, objects, scene.floor.color, size, keep=size == self.output_size)
 
     def _encode_splat(self, splat: np.ndarray, floor_light: np.ndarray | None,
                       buffers: Callable[[], np.ndarray | None], buffers_tensor: Callable[[], torch.Tensor | None]
@@ -520,9 +610,8 @@ class RenderEngine:
         return self._shader.run(scene, keys.paint, painted.voxels, painted.floor, size, shape_key=keys.source,
                                 keep=size == self.output_size, pool=pool)
 
-    def _shaded_objects(self, scene: Scene, size: int | None = None) -> np.ndarray:
-        """The voxel shader's image of a scene of several objects (each object's voxels and paint in stages of its
-        own, so an edit of one object reruns its stages alone), at `size` (default the network's)."""
+    def _objects(self, scene: Scene) -> list[ObjectVoxels]:
+        """Each object's painted voxels, from stages of its own (voxels[i], paint[i]), named by what they read."""
         objects = []
         for i, o in enumerate(scene.objects):
             one = replaced(scene.alone(i), object=replace(o, color=None))  # the base color is painted below
@@ -532,23 +621,37 @@ class RenderEngine:
             painted = self._stage(f"paint[{i}]", key, lambda o=o, replay=replay: replay.painted(o.color, o.paint))
             objects.append(ObjectVoxels(o, key, painted, source))
         self._forget_objects_beyond(len(objects))
+        return objects
+
+    def _paint_key(self, scene: Scene, index: int) -> tuple:
+        """What object `index`'s painted voxels read (the key of its paint[i] stage)."""
+        o = scene.objects[index]
+        return _voxel_source(replaced(scene.alone(index), object=replace(o, color=None))), o.color, o.paint
+
+    def _shaded_objects(self, scene: Scene, size: int | None = None) -> np.ndarray:
+        """The voxel shader's own image of a scene of several objects, the floor's reflection too (for a network that
+        does not read the scene), at `size` (default the network's)."""
+        objects = self._objects(scene)
         size = size or self.output_size
         shaded = self._scene_shader.run_objects(scene, objects, scene.floor.color, size, keep=size == self.output_size)
         return np.clip(shaded.image, 0.0, 1.0)
 
     def _forget_objects_beyond(self, count: int) -> None:
-        """Drop the voxels and paint kept for objects past the first `count` of a scene that held more (a 200^3
-        object's painted voxels take 128 MB); 0 when the scene is down to one object, drawn by the one-object stages."""
+        """Drop the stages kept for objects past the first `count` of a scene that held more (a 200^3 object's
+        painted voxels take 128 MB); 0 when the scene is down to one object, drawn by the one-object stages."""
         for i in range(count, MAX_OBJECTS):
-            self._cache.forget(f"voxels[{i}]")
-            self._cache.forget(f"paint[{i}]")
+            for name in OBJECT_STAGES:
+                self._cache.forget(f"{name}[{i}]")
 
     def _shading(self, scene: Scene, painted: _PaintedObject, keys: _Keys) -> np.ndarray:
         """The shader's image and buffers as the network reads them, (S, S, SHADING_CHANNELS)."""
         return network_buffers(self._shaded(scene, painted, keys))
 
-    def _floor_light(self, scene: Scene, floor: tuple, keys: _Keys) -> np.ndarray:
-        return self._stage("floor_light", keys.floor_light, lambda: lit_floor_image(
+    def _floor_light(self, scene: Scene) -> np.ndarray:
+        """The lit empty floor (the floor_light stage: keys.floor_light)."""
+        floor = tuple(scene.floor.color)
+        key = (scene.camera.elevation_deg, floor, scene.light.position)
+        return self._stage("floor_light", key, lambda: lit_floor_image(
             Camera.from_scene(scene, self.output_size), scene.light.position, floor))
 
     def _grid_tensor(self, grid: np.ndarray) -> torch.Tensor:
@@ -570,8 +673,8 @@ class RenderEngine:
     def _begin(self, scene: Scene) -> float:
         self._cache.begin()
         self._grid_fraction = None
-        self._note = ("" if self.reads_scene(scene) else
-                      SEVERAL_OBJECTS_NOTE if len(scene.objects) > 1 else UNCORRECTED_NOTE)
+        several = len(scene.objects) > 1 and self.config.environment_input
+        self._note = "" if self.reads_scene(scene) else SEVERAL_OBJECTS_NOTE if several else UNCORRECTED_NOTE
         return time.perf_counter()
 
     def _finish(self, start: float, preview: bool) -> None:
@@ -609,15 +712,6 @@ def resolve_precision(precision: str, device: torch.device | None = None) -> str
 def default_threads() -> int:
     """Torch threads for rendering: every core this process may run on."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-
-
-def ground_grid(floor_color: tuple[float, float, float], elevation_deg: float, grid_size: int,
-                columns: int | None = None) -> np.ndarray:
-    """The scene grid (D, H, W, 4) of the ground alone, as renderer.grid samples it (no object); its first `columns` columns."""
-    ground = ground_mask(elevation_deg, grid_size, columns)
-    grid = np.zeros((*ground.shape, 4), dtype=np.float32)
-    grid[ground] = (*floor_color, 1.0)  # the floor row of renderer.grid.gather
-    return grid
 
 
 def ground_is_column_invariant(elevation_deg: float, grid_size: int) -> bool:
@@ -670,3 +764,8 @@ def _to_array(batch: torch.Tensor) -> np.ndarray:
 def _to_image(batch: torch.Tensor) -> np.ndarray:
     """(S, S, 3) float32 sRGB in [0, 1] (a network that corrects the shaded image can overshoot it)."""
     return batch[0].permute(1, 2, 0).float().clamp(0.0, 1.0).cpu().contiguous().numpy()
+
+
+def _pose(o) -> tuple:
+    """An object's place, turn and size: what its placed stages read besides its voxels and the camera."""
+    return o.translation, o.rotation_deg, o.scale

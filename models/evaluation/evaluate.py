@@ -156,7 +156,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
                                                             dataset.shading_grid_size, quality_named(shader_quality)))
                 squared = ((prediction[0] - sample["target"]) * 255.0) ** 2
                 values["shadow_pixels"] = int(shadow.sum())
-                values["shadow_squared"] = float(squared[:, shadow].mean(0).sum()) if shadow.any() else 0.0
+                values["shadow_squared"] = float(squared[:, shadow].mean()) if shadow.any() else 0.0
             scores[dataset.settings[index]].append(values)
         # The figure: each setting's typical view (median MSE) and its worst, drawn again (a few samples, not all kept).
         rows, captions = [], []

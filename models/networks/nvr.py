@@ -367,10 +367,12 @@ def reads_shading(architecture: str, config: NVRConfig | None) -> bool:
 
 
 def reads_scene(config: NVRConfig, scene: Scene) -> bool:
-    """Whether a network of this config renders the scene: one object alone (no network is trained on several yet);
-    one lit by an environment, with the area light off, a glossy object or a textured or round floor only if it reads
-    the environment (config.environment_input). For the rest it shows the voxel shader's image."""
-    return len(scene.objects) == 1 and (config.environment_input or not needs_environment_shading(scene))
+    """Whether a network of this config renders the scene: one lit by an environment, with the area light off, a
+    glossy object or a textured or round floor only if it reads the environment (config.environment_input), and then
+    of one object (its light input holds one material). For the rest it shows the voxel shader's image."""
+    if config.environment_input:
+        return len(scene.objects) == 1
+    return not needs_environment_shading(scene)
 
 
 def build_model(architecture: str, config: NVRConfig) -> NVR | NVRPlus:
