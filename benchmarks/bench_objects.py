@@ -1,6 +1,6 @@
 """Edit latency against the number of objects, alone (`nvr bench` runs the same): a light move, moving one object,
 painting one object, in scenes of 1, 2, 4 and 8 procedural objects of 200^3 voxels, through the voxel shader and
-NVR+ (which shows the shader's image for several objects). Run it with nothing else on the cores.
+NVR+. Run it with nothing else on the cores.
 
     python -m benchmarks.bench_objects [--counts 1 2 4 8] [--repeats 5] [--renderers shaded nvr+]
 """

@@ -46,6 +46,7 @@ class SplatLayout:
     voxel: np.ndarray  # (H, W) int64: flat index of the object voxel seen at the pixel, -1 where none is
     floor: np.ndarray  # (H, W) bool: the pixel's ray meets the floor square (floor_mask)
     depth: np.ndarray  # (H, W) float32: that voxel's distance along the view axis (inf where none): objects compose
+    box: tuple[slice, slice]  # the rows and columns that hold every pixel showing a voxel: where objects compose
 
 
 def splat(object_rgba: np.ndarray, object_to_world_matrix: np.ndarray, floor_color, camera: Camera) -> np.ndarray:
@@ -75,9 +76,11 @@ def compose_splats(layouts: Sequence[SplatLayout], painted: Sequence[np.ndarray]
     image = ground_and_background(layouts[0].floor, floor_color)
     nearest = np.full(layouts[0].voxel.shape, np.inf, dtype=np.float32)
     for layout, rgba in zip(layouts, painted):
-        nearer = (layout.voxel >= 0) & (layout.depth < nearest)
-        image[nearer] = np.clip(np.asarray(rgba).reshape(-1, 4)[layout.voxel[nearer], :3], 0.0, 1.0)
-        nearest[nearer] = layout.depth[nearer]
+        box = layout.box
+        voxel, depth, shown, drawn = layout.voxel[box], layout.depth[box], image[box], nearest[box]  # views
+        nearer = (voxel >= 0) & (depth < drawn)
+        shown[nearer] = np.clip(np.asarray(rgba).reshape(-1, 4)[voxel[nearer], :3], 0.0, 1.0)
+        drawn[nearer] = depth[nearer]
     return image
 
 
@@ -102,7 +105,9 @@ def splat_layout(shell: Shell, object_to_world_matrix: np.ndarray, camera: Camer
     voxel = np.full((camera.height, camera.width), -1, dtype=np.int64)
     nearest_depth = np.full((camera.height, camera.width), np.inf, dtype=np.float32)
     _merge_runs(depth, nearest, shell.voxels, voxel, nearest_depth)
-    return SplatLayout(voxel, cached_floor_mask(camera), nearest_depth)
+    rows, cols = np.flatnonzero((voxel >= 0).any(axis=1)), np.flatnonzero((voxel >= 0).any(axis=0))
+    box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)) if len(rows) else (slice(0, 0), slice(0, 0))
+    return SplatLayout(voxel, cached_floor_mask(camera), nearest_depth, box)
 
 
 def color_splat(layout: SplatLayout, object_rgba: np.ndarray, floor_color) -> np.ndarray:

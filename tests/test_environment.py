@@ -581,7 +581,7 @@ def test_the_floors_shadow_of_a_wide_low_light_equals_the_shadow_maps_read_every
     direction = np.array([-math.cos(e), math.sin(e), 0.0])  # the shadow falls along +x, across the image
     block = 1.0 / 16
     maps = _ShadowMaps.directional(geometry, direction, spread, block)
-    boxed = maps.floor_visibility(surface, geometry, block)
+    boxed = maps.floor_visibility(surface, block)
     everywhere = np.ones(len(surface.floor_points))
     maps.shadows.visibility(surface.floor_points, FLOOR_SHADOW_BIAS * block, maps.spacing, everywhere)
     assert everywhere.min() < 0.5  # the cube shadows the floor

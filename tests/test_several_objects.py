@@ -257,6 +257,9 @@ def test_nvr_plus_renders_several_objects_as_from_its_training_inputs_and_follow
     assert not any(name.endswith("[0]") for name in ran)  # the first object's own stages are kept
     assert np.abs(image - make_renderer("nvr+").render(moved)).max() < 1e-5
     assert np.abs(image - _network_image(model, moved)).max() < 1.0 / 255.0
+    larger = engine.render_sized(moved, 384)  # the editor's panel: the correction applied to the shader's image
+    assert larger.shape == (384, 384, 3) and np.isfinite(larger).all() and "light" not in engine.last_report.stages_run
+    assert np.abs(larger[::3, ::3].mean((0, 1)) - image[::2, ::2].mean((0, 1))).max() < 0.02
     engine.render(_scene(cube_folder, FAR))  # down to one object: the others' voxels let go
     assert engine.last_report.note == "" and engine._cache.last("paint[1]") is None
     assert engine._cache.last("object_grid[1]") is None and engine._cache.last("shade_surface[1]") is None

@@ -109,19 +109,25 @@ class CroppedVoxelEncoder:
 
     def encode(self, background: Background, plan: CropPlan, grid_crop: torch.Tensor) -> torch.Tensor:
         """The latent of the whole scene from the background and the grid inside `plan.grid` (1, 4, d, h, w)."""
+        return self.encode_features(background, plan, grid_crop).latent
+
+    def encode_features(self, background: Background, plan: CropPlan, grid_crop: torch.Tensor) -> Background:
+        """Every feature of the whole grid (`background` is any grid's features, the ground's or a scene's last;
+        `grid_crop` the new grid inside `plan.grid`, which holds every voxel that differs from it): the next edit's
+        background."""
         crop_volume = self.encoder.residual(self.encoder.stages(grid_crop))
         offsets = [s.start // t for s, t in zip(plan.grid, self.volume_chain.total_stride)]
         # The projection is per latent pixel: only the changed rows and columns (every depth of them) are redone.
         (d0, d1), (r0, r1), (c0, c1) = plan.volume
-        columns = background.volume[..., r0:r1, c0:c1].clone()
-        columns[..., d0:d1, :, :] = crop_volume[(..., *_slices(plan.volume, offsets))]
+        volume = background.volume.clone()
+        volume[..., d0:d1, r0:r1, c0:c1] = crop_volume[(..., *_slices(plan.volume, offsets))]
         projected = background.projected.clone()
-        projected[..., r0:r1, c0:c1] = self._project(columns)
+        projected[..., r0:r1, c0:c1] = self._project(volume[..., r0:r1, c0:c1])
         (r0, r1), (c0, c1) = plan.plane_read
         features = self.encoder.blocks(projected[..., r0:r1, c0:c1])
         latent = background.latent.clone()
         latent[(..., *_slices(plan.plane))] = features[(..., *_slices(plan.plane, (r0, c0)))]
-        return latent
+        return Background(volume, projected, latent)
 
     def _project(self, volume: torch.Tensor) -> torch.Tensor:
         """The projection unit: depth folded into channels, then the 1x1 convolution (as VoxelEncoder does)."""

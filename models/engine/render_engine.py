@@ -99,7 +99,6 @@ from renderer.grid import (
     object_cells,
     occupied_spans,
     pool_factors,
-    pool_object,
     pool_voxels,
     repool_voxels,
     sample_indices,
@@ -120,7 +119,7 @@ from renderer.surface import Shell, occupancy
 from renderer.transform import object_to_world
 
 PRECISIONS = {"fp32": torch.float32, "bf16": torch.bfloat16}
-OBJECT_STAGES = ("voxels", "paint", "object_pool", "object_grid", "shell", "splat_layout")  # per object of several, by index
+OBJECT_STAGES = ("voxels", "paint", "object_pool", "shade_pool", "object_grid", "shell", "splat_layout")  # per object of several, by index
 # What a render of a scene the network does not read (an environment, the area light off, a glossy object) shows.
 UNCORRECTED_NOTE = "this network is not trained for environment light or glossy materials: the voxel shader's image"
 SEVERAL_OBJECTS_NOTE = "this network reads one object's material: the voxel shader's image of several objects"
@@ -187,6 +186,22 @@ class _NetworkInputs(NamedTuple):
     buffers_tensor: Callable[[], torch.Tensor | None]  # the same as the network's input tensor
     key: tuple  # what the light stage reads, besides the light
     shaded: Callable[[int | None], ShadedImage]  # the shader's image without the floor's reflection, at a size
+
+
+class _JoinedGrid(NamedTuple):
+    """The network's grid of several objects, and per object what its cells were made from and the cells."""
+
+    grid: np.ndarray
+    parts: tuple[tuple[tuple, np.ndarray], ...]
+    ground: tuple  # floor color and camera elevation
+
+
+class _SceneFeatures(NamedTuple):
+    """The voxel branch's features of the last grid of several objects, and what that grid was made from."""
+
+    parts: tuple[tuple[tuple, np.ndarray], ...]
+    ground: tuple  # floor color and camera elevation
+    features: Background
 
 
 class RenderEngine:
@@ -327,7 +342,8 @@ class RenderEngine:
                              f"the image itself), not {size}x{size}")
         start = self._begin(scene)
         with torch.inference_mode():
-            inputs = self._network_inputs(scene)
+            several = len(scene.objects) > 1
+            inputs = self._objects_network_inputs(scene) if several else self._network_inputs(scene)
             _, correction = self._light(scene, inputs)  # kept by the light stage: a redraw after a render reuses it
             shaded = inputs.shaded(size)
             image = (np.clip(shaded.image, 0.0, 1.0) if correction is None
@@ -342,6 +358,8 @@ class RenderEngine:
             return self._light(scene, self._objects_network_inputs(scene))[0]
         self._forget_objects_beyond(0)  # a scene that held several objects: their own stages' memory
         self._scene_shader.forget_objects_beyond(0)
+        for name in ("ground_grid", "scene_grid", "scene_features"):
+            self._cache.forget(name)
         return self._light(scene, self._network_inputs(scene))[0]
 
     def _preview_objects(self, scene: Scene) -> np.ndarray:
@@ -406,11 +424,11 @@ class RenderEngine:
     def _objects_network_inputs(self, scene: Scene) -> _NetworkInputs:
         """What the light stage reads for a scene of several objects: their joined grid's latent (the voxel branch on
         the whole grid), the splat of them all, and the shader's image and buffers of them all."""
-        objects = self._objects(scene)
+        painted = self._painted_objects(scene)
+        objects = self._objects(scene, painted)
         grid_key = self._objects_grid_key(scene)
-        grid = self._stage("scene_grid", grid_key, lambda: self._objects_grid(scene, objects))
-        self._grid_fraction = 1.0
-        latent = self._stage("voxel_branch", grid_key, lambda: self.model.encode_voxels(self._grid_tensor(grid)))
+        joined = self._stage("scene_grid", grid_key, lambda: self._objects_grid(scene, painted))
+        latent = self._stage("voxel_branch", (grid_key, self.crop), lambda: self._objects_latent(scene, joined))
         shade_key = (tuple((o.voxels_key, _pose(o.spec)) for o in objects), scene.camera.elevation_deg,
                      tuple(scene.floor.color), lighting_key(scene))
         buffers = functools.cache(lambda: network_buffers(self._objects_shaded(scene, objects))
@@ -437,19 +455,59 @@ class RenderEngine:
         keys = tuple((self._paint_key(scene, i), _pose(o)) for i, o in enumerate(scene.objects))
         return keys, tuple(scene.floor.color), scene.camera.elevation_deg
 
-    def _objects_grid(self, scene: Scene, objects: list[ObjectVoxels]) -> np.ndarray:
+    def _objects_latent(self, scene: Scene, joined: _JoinedGrid) -> torch.Tensor:
+        """The voxel branch on the grid of several objects. From the last such grid's features (same ground, same
+        objects), only around the cells the edited objects left and entered (models/engine/cropped_encoder.py);
+        otherwise, or with crop=False, on the whole grid."""
+        ground = (tuple(scene.floor.color), scene.camera.elevation_deg)
+        last = self._cache.last("scene_features")
+        features, fraction = None, 1.0
+        if self.crop and last is not None and last.ground == ground and len(last.parts) == len(joined.parts):
+            changed = [cells for (was, before), (now, after) in zip(last.parts, joined.parts) if was != now
+                       for cells in (before, after)]
+            changed = np.concatenate(changed) if changed else np.zeros(0, dtype=np.int64)
+            features, fraction = last.features, 0.0
+            if len(changed):
+                g = self.config.grid_size
+                at = np.unravel_index(changed, (g, g, g))
+                plan = self.encoder.plan(tuple((int(a.min()), int(a.max()) + 1) for a in at))
+                if plan is not None:
+                    crop = self._grid_tensor(np.ascontiguousarray(joined.grid[plan.grid]))
+                    features, fraction = self.encoder.encode_features(last.features, plan, crop), plan.grid_fraction(g)
+        if features is None:
+            features = self.encoder.background(self._grid_tensor(joined.grid))
+        self._cache.forget("scene_features")
+        self._stage("scene_features", None, lambda: _SceneFeatures(joined.parts, ground, features))
+        self._grid_fraction = fraction
+        return features.latent
+
+    def _objects_grid(self, scene: Scene, painted: list[_PaintedObject]) -> _JoinedGrid:
         """The network's grid of several objects (renderer.pipeline.scene_grid_for): the ground, then where each object
         fills it, from stages of each object's own (its merged voxels, its cells), so a move samples one object."""
         floor, elevation, g = tuple(scene.floor.color), scene.camera.elevation_deg, self.config.grid_size
-        grid = self._stage("ground_grid", (floor, elevation), lambda: ground_grid(floor, elevation, g)).copy()
-        for i, o in enumerate(objects):
-            factors = pool_factors(o.rgba.shape[0], o.spec.scale, g)
-            pooled = self._stage(f"object_pool[{i}]", (o.voxels_key, factors),
-                                 lambda o=o, factors=factors: pool_object(o.rgba, factors))
-            cells, rows = self._stage(f"object_grid[{i}]", (o.voxels_key, _pose(o.spec), floor, elevation),
-                                      lambda o=o, pooled=pooled: object_cells(o.rgba, o.spec, floor, elevation, g, pooled))
+        ground = self._stage("ground_grid", (floor, elevation), lambda: ground_grid(floor, elevation, g))
+        last = self._cache.last("scene_grid")
+        if last is not None and last.ground == (floor, elevation) and len(last.parts) == len(painted):
+            # The last grid, taken over (the stage forgets it): the cells its objects' edits left go back to the
+            # ground, and every object's cells are written again in order below (a copy of the grid costs more).
+            self._cache.forget("scene_grid")
+            grid = last.grid
+            for (was, cells), o, one in zip(last.parts, scene.objects, painted):
+                if was != (one.key, _pose(o), floor, elevation):
+                    grid.reshape(-1, 4)[cells] = ground.reshape(-1, 4)[cells]
+        else:
+            grid = ground.copy()
+        parts = []
+        for i, (o, one) in enumerate(zip(scene.objects, painted)):
+            factors = pool_factors(one.voxels.shape[0], o.scale, g)
+            pooled = self._stage(f"object_pool[{i}]", (one.key, factors),
+                                 lambda i=i, one=one, factors=factors: self._pool(f"object_pool[{i}]", one, factors))
+            key = (one.key, _pose(o), floor, elevation)
+            cells, rows = self._stage(f"object_grid[{i}]", key, lambda o=o, one=one, pooled=pooled: object_cells(
+                one.voxels, o, floor, elevation, g, (pooled.voxels, pooled.within)))
             grid.reshape(-1, 4)[cells] = rows
-        return grid
+            parts.append((key, cells))
+        return _JoinedGrid(grid, tuple(parts), (floor, elevation))
 
     def _objects_splat(self, scene: Scene, objects: list[ObjectVoxels]) -> np.ndarray:
         """The splat of several objects (renderer.splat.splat_objects) from each object's shell and layout stages."""
@@ -610,17 +668,29 @@ class RenderEngine:
         return self._shader.run(scene, keys.paint, painted.voxels, painted.floor, size, shape_key=keys.source,
                                 keep=size == self.output_size, pool=pool)
 
-    def _objects(self, scene: Scene) -> list[ObjectVoxels]:
+    def _painted_objects(self, scene: Scene) -> list[_PaintedObject]:
         """Each object's painted voxels, from stages of its own (voxels[i], paint[i]), named by what they read."""
-        objects = []
+        painted = []
         for i, o in enumerate(scene.objects):
             one = replaced(scene.alone(i), object=replace(o, color=None))  # the base color is painted below
             source = _voxel_source(one)
             replay = self._stage(f"voxels[{i}]", source, lambda one=one: PaintReplay(self._object_source(one)))
             key = (source, o.color, o.paint)
-            painted = self._stage(f"paint[{i}]", key, lambda o=o, replay=replay: replay.painted(o.color, o.paint))
-            objects.append(ObjectVoxels(o, key, painted, source))
-        self._forget_objects_beyond(len(objects))
+            voxels = self._stage(f"paint[{i}]", key, lambda o=o, replay=replay: replay.painted(o.color, o.paint))
+            painted.append(_PaintedObject(voxels, tuple(scene.floor.color), key, replay))
+        self._forget_objects_beyond(len(painted))
+        return painted
+
+    def _objects(self, scene: Scene, painted: list[_PaintedObject] | None = None) -> list[ObjectVoxels]:
+        """Each object's painted voxels as the shader's stages read them, merged in stages of the engine's own (after
+        a paint edit only the blocks it touched are merged again)."""
+        objects = []
+        for i, (o, one) in enumerate(zip(scene.objects, painted or self._painted_objects(scene))):
+            def pool(factors: tuple[int, int, int], i: int = i, one: _PaintedObject = one) -> np.ndarray:
+                name = f"shade_pool[{i}]" if self.config.shading_grid_factor > 1 else f"object_pool[{i}]"
+                return self._stage(name, (one.key, factors), lambda: self._pool(name, one, factors)).voxels
+
+            objects.append(ObjectVoxels(o, one.key, one.voxels, one.source, pool))
         return objects
 
     def _paint_key(self, scene: Scene, index: int) -> tuple:

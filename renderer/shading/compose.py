@@ -101,5 +101,5 @@ def join_occluders(geometries: Sequence[ObjectGeometry]) -> ObjectGeometry:
     box = (np.stack([np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)])
            if boxes else widest.occluder_box)
     ends = np.cumsum([len(g.occluders) for g in geometries])
-    parts = tuple((int(end), g.occluder_width) for end, g in zip(ends, geometries))
+    parts = tuple((int(end), g.occluder_width, g.occluder_box) for end, g in zip(ends, geometries))
     return replace(widest, occluders=occluders, occluder_box=box, occluder_parts=parts)

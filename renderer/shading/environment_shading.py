@@ -336,7 +336,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     floor, held = _shown_floor(geometry.elevation_deg, size, floor_shape)
     visibility = np.ones((size, size), dtype=np.float32)
     if area is not None and not geometry.empty:
-        visibility[square] = area.floor_visibility(surface, geometry, block)
+        visibility[square] = area.floor_visibility(surface, block)
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
@@ -363,7 +363,7 @@ def shade_environment(geometry: ObjectGeometry, surface: VisibleSurface, light_p
     shadowed = np.ones((len(per_light), len(floor_rows)), dtype=np.float32)
     if not geometry.empty:
         for k, maps in enumerate(suns):
-            shadowed[k] = maps.floor_visibility(surface, geometry, block)
+            shadowed[k] = maps.floor_visibility(surface, block)
     if held is not None:
         floor_rows, floor_cols, shadowed = floor_rows[held], floor_cols[held], np.ascontiguousarray(shadowed[:, held])
     if len(per_light):
@@ -511,9 +511,8 @@ class _ShadowMaps:
         self.shadows.visibility(receivers, bias, self.spacing, out)
         return out
 
-    def floor_visibility(self, surface: VisibleSurface, geometry: ObjectGeometry, block: float) -> np.ndarray:
-        return _floor_visibility(surface, geometry, self.shadows,
-                                 FLOOR_SHADOW_BIAS * block, self.spacing)
+    def floor_visibility(self, surface: VisibleSurface, block: float) -> np.ndarray:
+        return _floor_visibility(surface, self.shadows, FLOOR_SHADOW_BIAS * block, self.spacing)
 
     def object_visibility(self, points: np.ndarray, normals: np.ndarray, toward: np.ndarray, block: float,
                           facing: np.ndarray) -> np.ndarray:

@@ -70,8 +70,9 @@ class ObjectGeometry:
     coarse_surface_cells: np.ndarray  # the same cells as one box per COARSE_CELLS^3 block of them: fewer boxes for an
     # image whose pixels span several voxels (the floor's reflection)
     # Several objects' occluders joined (renderer/shading/compose.py): per object, the end of its occluders in
-    # `occluders` and its occluder block's width in the world, so each casts from shadow maps of its own. () for one.
-    occluder_parts: tuple[tuple[int, float], ...] = ()
+    # `occluders`, its occluder block's width in the world and its occluders' box, so each casts from shadow maps of
+    # its own. () for one.
+    occluder_parts: tuple[tuple[int, float, np.ndarray], ...] = ()
 
     @property
     def empty(self) -> bool:

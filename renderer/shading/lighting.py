@@ -10,6 +10,7 @@ background, in sRGB. Its compiled loops (numba) follow the Python that calls the
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,37 +61,100 @@ class ShadedImage:
     occlusion: np.ndarray  # share of the sky seen: object points, and floor points
 
 
+class ObjectShadowMaps:
+    """One object's shadow maps of the light points (build_shadow_maps), its occluders' box, and the visibility past
+    it on the floor, sampled once per floor view and kept (a move of another object does not read them again)."""
+
+    def __init__(self, occluders: np.ndarray, width: float, box: np.ndarray, points: np.ndarray):
+        self.maps = np.empty((len(points), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
+        self.bounds = np.zeros((len(points), 3))
+        build_shadow_maps(occluders, OCCLUDER_RADIUS * width, width / math.sqrt(2.0), points, SHADOW_MAP_SIZE,
+                          self.maps, self.bounds)
+        self.nearest = self.maps.reshape(len(points), -1).min(axis=1).astype(np.float64)
+        self.box = box
+        self._floor: dict[tuple, tuple | None] = {}  # floor_grid's results, by what they read
+
+    def visibility(self, points: np.ndarray, receivers: np.ndarray, bias: float, spread: float,
+                   out: np.ndarray) -> None:
+        """out[i]: the share of the light (its `points`) receiver i sees past this object (light_visibility)."""
+        light_visibility(receivers, bias, points, self.maps, self.bounds, self.nearest, spread, out)
+
+    def floor_grid(self, points: np.ndarray, bias: float, spacing: float, extent: tuple) -> tuple | str | None:
+        """The visibility past this object on a grid of floor points FLOOR_SHADOW_STEP apart over the box its shadow
+        can reach (its occluders' box cast from the light's corner points onto y = 0, within the floor `extent` the
+        camera sees): (grid, x0, z0, x1, z1); None where no shadow reaches the floor seen; "exact" where the object
+        reaches the light's height (every floor point is read off the maps instead)."""
+        key = (bias, spacing, tuple(np.asarray(extent, dtype=np.float64).ravel()))
+        if key not in self._floor:
+            self._floor[key] = self._floor_grid(points, bias, spacing, extent)
+        return self._floor[key]
+
+    def _floor_grid(self, lights: np.ndarray, bias: float, spacing: float, extent: tuple) -> tuple | str | None:
+        lo, hi = self.box
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+        if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
+            return "exact"
+        # Opposite corners of the light's square: of the grid of light points, widened by the square each stands for
+        # (a wide light's soft shadow reaches past what its points alone cast).
+        half = 0.5 * spacing * np.array([1.0, 0.0, 1.0])
+        ends = np.stack([lights.min(axis=0) - half, lights.max(axis=0) + half])[:, None, :]
+        cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
+        cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
+        (x0, z0) = cast[:, [0, 2]].min(axis=0) - FLOOR_SHADOW_STEP
+        (x1, z1) = cast[:, [0, 2]].max(axis=0) + FLOOR_SHADOW_STEP
+        (x_min, z_min), (x_max, z_max) = extent
+        # No wider than the floor the camera sees (on the same grid of samples): an object whose top comes near the
+        # light's height casts a box that grows without bound, and nothing clips a large object to a grid.
+        x0 += max(math.floor((float(x_min) - x0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
+        z0 += max(math.floor((float(z_min) - z0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
+        x1, z1 = min(x1, float(x_max) + FLOOR_SHADOW_STEP), min(z1, float(z_max) + FLOOR_SHADOW_STEP)
+        if x0 > x1 or z0 > z1:
+            return None
+        xs = np.arange(x0, x1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
+        zs = np.arange(z0, z1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
+        gx, gz = np.meshgrid(xs, zs, indexing="ij")
+        samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
+        on_grid = np.empty(len(samples))
+        self.visibility(lights, samples, bias, spacing, on_grid)
+        return on_grid.reshape(gx.shape), x0, z0, x1, z1
+
+
 class ShadowMaps:
-    """Shadow maps of one light, seen from its `points`: one set per object whose occluders the geometry holds (its
-    own bounds, so its texels stay as fine as the object alone makes them). A receiver sees the light past every
-    object: the product of its visibility past each set."""
+    """Shadow maps of one light, seen from its `points`: one ObjectShadowMaps per object whose occluders the
+    geometry holds (its own bounds, so its texels stay as fine as the object alone makes them). A receiver sees the
+    light past every object: the product of its visibility past each."""
 
     def __init__(self, geometry: ObjectGeometry, points: np.ndarray, block: float):
         self.points = points
-        self.sets = []  # (maps, bounds, nearest) per object
-        for occluders, width in occluder_groups(geometry, block):
-            maps = np.empty((len(points), SHADOW_MAP_SIZE, SHADOW_MAP_SIZE), dtype=np.float32)
-            bounds = np.zeros((len(points), 3))
-            build_shadow_maps(occluders, OCCLUDER_RADIUS * width, width / math.sqrt(2.0), points, SHADOW_MAP_SIZE,
-                              maps, bounds)
-            self.sets.append((maps, bounds, maps.reshape(len(points), -1).min(axis=1).astype(np.float64)))
+        self.sets = [ObjectShadowMaps(occluders, width, box, points)
+                     for occluders, width, box in occluder_groups(geometry, block)]
+
+    @classmethod
+    def joined(cls, parts: Sequence[ShadowMaps]) -> ShadowMaps:
+        """Several objects' shadow maps of the same light points as one (each object's kept by the caller, so an
+        edit of one object builds its maps alone)."""
+        joined = cls.__new__(cls)
+        joined.points = parts[0].points
+        joined.sets = [one for part in parts for one in part.sets]
+        return joined
 
     def visibility(self, receivers: np.ndarray, bias: float, spread: float, out: np.ndarray) -> None:
         """out[i]: the share of the light receiver i sees (light_visibility, multiplied over the sets)."""
         out[:] = 1.0
         part = np.empty(len(receivers))
-        for maps, bounds, nearest in self.sets:
-            light_visibility(receivers, bias, self.points, maps, bounds, nearest, spread, part)
+        for one in self.sets:
+            one.visibility(self.points, receivers, bias, spread, part)
             out *= part
 
 
-def occluder_groups(geometry: ObjectGeometry, block: float) -> list[tuple[np.ndarray, float]]:
+def occluder_groups(geometry: ObjectGeometry, block: float) -> list[tuple[np.ndarray, float, np.ndarray]]:
     """The geometry's shadow occluders per object, each with its block's width in the world (`block` for a
-    geometry of one object; renderer/shading/compose.py joins several)."""
+    geometry of one object; renderer/shading/compose.py joins several) and its occluders' box."""
     if not geometry.occluder_parts:
-        return [(geometry.occluders, block)]
-    starts = [0, *(end for end, _ in geometry.occluder_parts[:-1])]
-    return [(geometry.occluders[start:end], width) for start, (end, width) in zip(starts, geometry.occluder_parts)]
+        return [(geometry.occluders, block, geometry.occluder_box)]
+    starts = [0, *(end for end, _, _ in geometry.occluder_parts[:-1])]
+    return [(geometry.occluders[start:end], width, box)
+            for start, (end, width, box) in zip(starts, geometry.occluder_parts)]
 
 
 def light_points(light_position, per_side: int = LIGHT_POINTS) -> np.ndarray:
@@ -101,26 +165,31 @@ def light_points(light_position, per_side: int = LIGHT_POINTS) -> np.ndarray:
     return np.stack([light[0] + x.ravel(), np.full(x.size, light[1]), light[2] + z.ravel()], axis=1)
 
 
+def shadow_maps(geometry: ObjectGeometry, light_position, quality: ShaderQuality = FULL_QUALITY) -> ShadowMaps:
+    """The geometry's shadow maps of the area light at `light_position`, from quality.light_points per side."""
+    return ShadowMaps(geometry, light_points(light_position, quality.light_points), geometry.occluder_width)
+
+
 def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, floor_color,
           floor_terms: FloorTerms | None = None,
-          reflection: FloorReflection | None = None, quality: ShaderQuality = FULL_QUALITY) -> ShadedImage:
+          reflection: FloorReflection | None = None, quality: ShaderQuality = FULL_QUALITY,
+          shadows: ShadowMaps | None = None) -> ShadedImage:
     """The shaded image of the visible surface under the light at `light_position` (world). `floor_terms`: the
     empty floor's lighting, lit_floor_terms(camera, light_position, floor_color), if the caller keeps it (it does
     not change when the object does). `reflection`: the floor's mirror image of the object (floor_reflection) to draw,
-    if any (a network's input has none: it learned its own). `quality`: its light points per side."""
+    if any (a network's input has none: it learned its own). `quality`: its light points per side. `shadows`: the
+    geometry's shadow maps of the light (shadow_maps), if the caller keeps them."""
     if floor_terms is None:
         floor_terms = lit_floor_terms(Camera(geometry.elevation_deg, width=surface.size, height=surface.size),
                                       light_position, floor_color)
     floor = floor_terms.floor
-    lights = light_points(light_position, quality.light_points)
     block = geometry.occluder_width  # the side of an occluder's block in the world
-    shadows = ShadowMaps(geometry, lights, block)
+    shadows = shadows or shadow_maps(geometry, light_position, quality)
 
     size = surface.size
     visibility = np.ones((size, size), dtype=np.float32)
     visibility[floor] = (1.0 if geometry.empty else
-                         _floor_visibility(surface, geometry, shadows, FLOOR_SHADOW_BIAS * block,
-                                           LIGHT_SIZE / quality.light_points))
+                         _floor_visibility(surface, shadows, FLOOR_SHADOW_BIAS * block, LIGHT_SIZE / quality.light_points))
     image = np.empty((size, size, 3), dtype=np.float32)
     radiance, seen = np.zeros((0, 3), dtype=np.float32), np.zeros(0, dtype=np.float32)
     if len(surface.points):
@@ -139,43 +208,26 @@ def shade(geometry: ObjectGeometry, surface: VisibleSurface, light_position, flo
                        visibility=visibility, occlusion=images.occlusion)
 
 
-def _floor_visibility(surface: VisibleSurface, geometry: ObjectGeometry, shadows: ShadowMaps, bias: float,
-                      spacing: float) -> np.ndarray:
+def _floor_visibility(surface: VisibleSurface, shadows: ShadowMaps, bias: float, spacing: float) -> np.ndarray:
     """Share of the light each of the surface's floor points sees, each light point reading as its square of the
-    light (`spacing` on a side). The shadow maps are read on a grid of
-    FLOOR_SHADOW_STEP over the box the object's shadow can reach (its occupied voxels' box cast from the light's corner
-    points onto y = 0), and the floor points inside it interpolate that grid; the rest see all the light."""
+    light (`spacing` on a side): past each object, its floor grid (ObjectShadowMaps.floor_grid) interpolated at
+    the points inside it (the rest see all the light past it), the product over the objects."""
     floor_points, lights = surface.floor_points, shadows.points
     seen = np.ones(len(floor_points))
     if not len(floor_points):
         return seen
-    lo, hi = geometry.occluder_box
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    if corners[:, 1].max() >= lights[:, 1].min() - 1e-6:  # part of the object reaches the light's height
-        shadows.visibility(floor_points, bias, spacing, seen)
-        return seen
-    # Opposite corners of the light's square: of the grid of light points, widened by the square each stands for (a
-    # wide light's soft shadow reaches past what its points alone cast).
-    half = 0.5 * spacing * np.array([1.0, 0.0, 1.0])
-    ends = np.stack([lights.min(axis=0) - half, lights.max(axis=0) + half])[:, None, :]
-    cast = ends + (corners[None] - ends) * (ends[..., 1:2] / (ends[..., 1:2] - corners[None, :, 1:2]))
-    cast = np.concatenate([cast.reshape(-1, 3), corners * np.array([1.0, 0.0, 1.0])])
-    (x0, z0), (x1, z1) = cast[:, [0, 2]].min(axis=0) - FLOOR_SHADOW_STEP, cast[:, [0, 2]].max(axis=0) + FLOOR_SHADOW_STEP
-    (x_min, z_min), (x_max, z_max) = surface.floor_extent
-    # No wider than the floor the camera sees (on the same grid of samples): an object whose top comes near the
-    # light's height casts a box that grows without bound, and nothing clips a large object to a grid.
-    x0 += max(math.floor((float(x_min) - x0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
-    z0 += max(math.floor((float(z_min) - z0) / FLOOR_SHADOW_STEP), 0) * FLOOR_SHADOW_STEP
-    x1, z1 = min(x1, float(x_max) + FLOOR_SHADOW_STEP), min(z1, float(z_max) + FLOOR_SHADOW_STEP)
-    if x0 > x1 or z0 > z1:
-        return seen
-    xs = np.arange(x0, x1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
-    zs = np.arange(z0, z1 + FLOOR_SHADOW_STEP, FLOOR_SHADOW_STEP)
-    gx, gz = np.meshgrid(xs, zs, indexing="ij")
-    samples = np.stack([gx.ravel(), np.zeros(gx.size), gz.ravel()], axis=1)
-    on_grid = np.empty(len(samples))
-    shadows.visibility(samples, bias, spacing, on_grid)
-    interpolate_grid(on_grid.reshape(gx.shape), x0, z0, FLOOR_SHADOW_STEP, floor_points, x1, z1, seen)
+    part = np.empty(len(floor_points))
+    for one in shadows.sets:
+        grid = one.floor_grid(lights, bias, spacing, surface.floor_extent)
+        if grid is None:
+            continue
+        if isinstance(grid, str):  # "exact": the object reaches the light's height
+            one.visibility(lights, floor_points, bias, spacing, part)
+        else:
+            part[:] = 1.0
+            values, x0, z0, x1, z1 = grid
+            interpolate_grid(values, x0, z0, FLOOR_SHADOW_STEP, floor_points, x1, z1, part)
+        seen *= part
     return seen
 
 

@@ -46,7 +46,7 @@ from renderer.scene import SHADER_GRID_SIZE, ObjectSpec, Scene, needs_environmen
 from renderer.shading.compose import join_occluders, join_reflections, join_surfaces
 from renderer.shading.environment_shading import scene_environment, shade_environment
 from renderer.shading.geometry import ObjectGeometry, object_geometry, placed
-from renderer.shading.lighting import ShadedImage, shade
+from renderer.shading.lighting import ShadedImage, ShadowMaps, shade, shadow_maps
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
 from renderer.shading.surface import (
     FloorReflection,
@@ -59,7 +59,7 @@ from renderer.shading.surface import (
 from renderer.stage_cache import StageCache
 
 Pool = Callable[[tuple[int, int, int]], np.ndarray]  # merge factors -> the painted voxels merged by them
-OBJECT_STAGES = ("pool", "geometry", "placement", "surface", "colors", "reflection", "floor_sky")  # one set per object
+OBJECT_STAGES = ("pool", "geometry", "placement", "surface", "colors", "reflection", "floor_sky", "shadow_maps")  # one set per object
 
 
 @dataclass(frozen=True)
@@ -147,8 +147,12 @@ class StagedShader:
         if not needs_environment_shading(scene):
             floor_terms = self._stage("floor", (elevation, size, light, floor), lambda: lit_floor_terms(
                 Camera(elevation, width=size, height=size), light, floor), keep)
+            shadows = None
+            if several:  # each object's shadow maps kept apart: a move builds the moved object's alone
+                shadows = ShadowMaps.joined([self._stage(f"shadow_maps{d.suffix}", (d.placed_key, light), lambda d=d:
+                                                         shadow_maps(d.where, light, self.quality)) for d in drawn])
             return self._stage("lighting", (painted_key, light, floor), lambda: shade(
-                where, surface, light, floor, floor_terms, reflection, self.quality), keep)
+                where, surface, light, floor, floor_terms, reflection, self.quality, shadows), keep)
         environment = scene_environment(scene)
         light = light if scene.light.enabled else None
         cones = [self._stage(f"floor_sky{d.suffix}", (d.placed_key, size), lambda d=d: floor_sky_cones(d.where, d.seen),
