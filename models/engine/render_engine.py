@@ -422,8 +422,8 @@ class RenderEngine:
                               lambda size: self._shaded(scene, painted, keys, size))
 
     def _objects_network_inputs(self, scene: Scene) -> _NetworkInputs:
-        """What the light stage reads for a scene of several objects: their joined grid's latent (the voxel branch on
-        the whole grid), the splat of them all, and the shader's image and buffers of them all."""
+        """What the light stage reads for a scene of several objects: their joined grid's latent (_objects_latent), the
+        splat of them all, and the shader's image and buffers of them all."""
         painted = self._painted_objects(scene)
         objects = self._objects(scene, painted)
         grid_key = self._objects_grid_key(scene)
