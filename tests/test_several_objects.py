@@ -265,6 +265,20 @@ def test_nvr_plus_renders_several_objects_as_from_its_training_inputs_and_follow
     assert engine._cache.last("object_grid[1]") is None and engine._cache.last("shade_surface[1]") is None
 
 
+def test_nvr_plus_follows_an_object_out_of_the_grid_and_into_another(cube_folder):
+    """Hard cases of the joined grid: an object moved out of the grid (no cell), then onto the other (overlapping:
+    the later object's voxels win), then back; each image equals a fresh engine's and is finite."""
+    from models.renderers import make_renderer
+
+    engine = make_renderer("nvr+")
+    engine.render(_scene(cube_folder, FAR, WALL))
+    for place in ((9.0, 9.0), FAR.translation, (0.35, 0.0)):
+        scene = _scene(cube_folder, FAR, replace(WALL, translation=place))
+        image = engine.render(scene)
+        assert np.isfinite(image).all()
+        assert np.abs(image - make_renderer("nvr+").render(scene)).max() < 1e-5
+
+
 def test_the_cli_renders_several_objects(cube_folder):
     from tests.test_cli import nvr as run_cli
 
