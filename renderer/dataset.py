@@ -519,6 +519,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
         views = layouts(object_rng(config, index, 2), config.views, [
             ObjectSpec(voxels=m.voxels, color=m.single_color, material=material, name=m.record["id"])
             for m, material in zip(made, materials)], [footprint_points(m.rgba) for m in made])
+    meshes = [m.mesh for m in made] if len(made) > 1 else first.mesh
     samples = []
     for v, (elevation, light, objects) in enumerate(views):
         sample_id = f"{name}_v{v:02d}"
@@ -532,8 +533,7 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
             tile, scale, shape, _ = sample_ground(ground_rng, config.split)
             save_png(out / f"grounds/{sample_id}.png", tile)
             scene = replace(scene, floor=FloorSpec(floor_color, f"grounds/{sample_id}.png", scale, shape))
-        meshes = [m.mesh for m in made]
-        target = render_pathtraced(scene, meshes if len(made) > 1 else first.mesh, spp=config.spp,
+        target = render_pathtraced(scene, meshes, spp=config.spp,
                                    seed=index * 1000 + v, denoise=config.denoise)
         save_png(out / f"images/{sample_id}.png", target.image)
         save_png(out / f"splats/{sample_id}.png", splat_objects(scene, [m.rgba for m in made], floor_color))

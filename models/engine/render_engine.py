@@ -45,10 +45,11 @@ environment or material edit, for one that reads the environment):
                                   splat, splat_branch, light
     nothing                       none (the last image again)
 
-A scene of several objects keeps each object's stages under its index: voxels[i], paint[i], object_grid[i] (where
-the object fills the grid: renderer.pipeline.object_cells), shell[i] and splat_layout[i], and the shader's own
-(renderer/shading/staged.py). Their joins, scene_grid and splat, feed the voxel branch on the whole grid, the splat
-branch and the light stage. An edit of one object reruns its own stages and the joins and network stages after them.
+A scene of several objects keeps each object's stages under its index: voxels[i], paint[i], object_pool[i],
+object_grid[i] (where the object fills the grid: renderer.grid.object_cells), shell[i] and splat_layout[i], and the
+shader's own (renderer/shading/staged.py). Their joins, scene_grid and splat, feed the voxel branch (rerun around the
+cells an edit changed), the splat branch and the light stage. An edit of one object reruns its own stages and the
+joins and network stages after them.
 A network that reads the environment reads one object's material: of several objects it shows the shader's image.
 
 The voxel branch runs only around the object (models/engine/cropped_encoder.py): the ground's features come from the
@@ -365,15 +366,17 @@ class RenderEngine:
     def _preview_objects(self, scene: Scene) -> np.ndarray:
         """preview for several objects: the full render when only the light changed or the network does not read the
         scene (the shader's image), else for a network that reads the shader its image, else the splat."""
-        if not self.reads_scene(scene) or self._cached("scene_grid", self._objects_grid_key(scene)):
+        if not self.reads_scene(scene):
             return self.render(scene)
         start = self._begin(scene)
         with torch.inference_mode():
-            objects = self._objects(scene)
-            if self._reads_shading:
-                image = np.clip(self._objects_shaded(scene, objects).image, 0.0, 1.0)
+            painted = self._painted_objects(scene)
+            if self._cached("scene_grid", self._objects_grid_key(scene, painted)):
+                image = self._light(scene, self._objects_network_inputs(scene, painted))[0]
+            elif self._reads_shading:
+                image = np.clip(self._objects_shaded(scene, self._objects(scene, painted)).image, 0.0, 1.0)
             else:
-                image = self._objects_splat(scene, objects)
+                image = self._objects_splat(scene, self._objects(scene, painted))
         self._finish(start, preview=True)
         return image.copy()
 
@@ -421,38 +424,35 @@ class RenderEngine:
                               (keys.grid, keys.splat, keys.shade if self._reads_shading else None),
                               lambda size: self._shaded(scene, painted, keys, size))
 
-    def _objects_network_inputs(self, scene: Scene) -> _NetworkInputs:
+    def _objects_network_inputs(self, scene: Scene, painted: list[_PaintedObject] | None = None) -> _NetworkInputs:
         """What the light stage reads for a scene of several objects: their joined grid's latent (_objects_latent), the
         splat of them all, and the shader's image and buffers of them all."""
-        painted = self._painted_objects(scene)
+        painted = painted or self._painted_objects(scene)
         objects = self._objects(scene, painted)
-        grid_key = self._objects_grid_key(scene)
+        grid_key = self._objects_grid_key(scene, painted)  # also what the splat reads
         joined = self._stage("scene_grid", grid_key, lambda: self._objects_grid(scene, painted))
         latent = self._stage("voxel_branch", (grid_key, self.crop), lambda: self._objects_latent(scene, joined))
-        shade_key = (tuple((o.voxels_key, _pose(o.spec)) for o in objects), scene.camera.elevation_deg,
-                     tuple(scene.floor.color), lighting_key(scene))
+        shade_key = (grid_key, lighting_key(scene))
         buffers = functools.cache(lambda: network_buffers(self._objects_shaded(scene, objects))
                                   if self._reads_shading else None)
         buffers_tensor = functools.cache(lambda: None if buffers() is None else self._image_tensor(buffers()))
-        features, splat_key = None, None
+        features = None
         if self._reads_splat:
-            splat_key = (tuple((o.voxels_key, _pose(o.spec)) for o in objects), scene.camera.elevation_deg,
-                         tuple(scene.floor.color))
-            splat = self._stage("splat", splat_key, lambda: self._objects_splat(scene, objects))
+            splat = self._stage("splat", grid_key, lambda: self._objects_splat(scene, objects))
             floor_light = self._floor_light(scene) if self._reads_floor_light else None
-            branch_key = (splat_key, scene.light.position if self._reads_floor_light else None,
+            branch_key = (grid_key, scene.light.position if self._reads_floor_light else None,
                           shade_key if self._reads_shading else None)
             features = self._stage("splat_branch", branch_key,
                                    lambda: self._encode_splat(splat, floor_light, buffers, buffers_tensor))
         light = torch.from_numpy(lighting_input(scene, False))[None].to(self.device, self.dtype)
         return _NetworkInputs(latent, light, features, buffers, buffers_tensor,
-                              (grid_key, splat_key, shade_key if self._reads_shading else None),
+                              (grid_key, shade_key if self._reads_shading else None),
                               lambda size: self._objects_shaded(scene, objects, size))
 
-    def _objects_grid_key(self, scene: Scene) -> tuple:
-        """What the joined grid of several objects reads: each object's painted voxels and placement, the floor color
-        and the camera elevation."""
-        keys = tuple((self._paint_key(scene, i), _pose(o)) for i, o in enumerate(scene.objects))
+    def _objects_grid_key(self, scene: Scene, painted: list[_PaintedObject]) -> tuple:
+        """What the joined grid (and the splat) of several objects reads: each object's painted voxels and placement,
+        the floor color and the camera elevation."""
+        keys = tuple((one.key, _pose(o)) for o, one in zip(scene.objects, painted))
         return keys, tuple(scene.floor.color), scene.camera.elevation_deg
 
     def _objects_latent(self, scene: Scene, joined: _JoinedGrid) -> torch.Tensor:
@@ -692,11 +692,6 @@ class RenderEngine:
 
             objects.append(ObjectVoxels(o, one.key, one.voxels, one.source, pool))
         return objects
-
-    def _paint_key(self, scene: Scene, index: int) -> tuple:
-        """What object `index`'s painted voxels read (the key of its paint[i] stage)."""
-        o = scene.objects[index]
-        return _voxel_source(replaced(scene.alone(index), object=replace(o, color=None))), o.color, o.paint
 
     def _shaded_objects(self, scene: Scene, size: int | None = None) -> np.ndarray:
         """The voxel shader's own image of a scene of several objects, the floor's reflection too (for a network that

@@ -72,7 +72,7 @@ class ObjectShadowMaps:
                           self.maps, self.bounds)
         self.nearest = self.maps.reshape(len(points), -1).min(axis=1).astype(np.float64)
         self.box = box
-        self._floor: dict[tuple, tuple | None] = {}  # floor_grid's results, by what they read
+        self._floor: dict[tuple, tuple | str | None] = {}  # floor_grid's results, by what they read
 
     def visibility(self, points: np.ndarray, receivers: np.ndarray, bias: float, spread: float,
                    out: np.ndarray) -> None:

@@ -74,7 +74,7 @@ def shadows_of_others(scene: Scene, painted: Sequence[np.ndarray], size: int | N
                       grid_size: int = SHADER_GRID_SIZE, quality: ShaderQuality = FULL_QUALITY) -> np.ndarray:
     """(size, size) bool: the pixels where one object of the scene lies in another's shadow: the object's own
     (covered by no other), seeing at most OTHERS_SHADOW_SHARE of the area light it sees when it stands alone (the
-    shader's light visibility, so geometry decides). None in a scene of one object."""
+    shader's light visibility, so geometry decides). No pixel in a scene of one object."""
     size = scene.image_size if size is None else size
     if len(painted) == 1:
         return np.zeros((size, size), dtype=bool)
