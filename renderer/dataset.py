@@ -461,8 +461,8 @@ def _make_object(out: Path, config: DataConfig, index: int, part: int) -> _MadeO
     # Appearance source A: another view and light, the object alone; the voxels take their colors from it.
     source_view = sample_source_view(object_rng(config, index, 1, part))
     source_scene = view_scene(source_view, voxel_file, floor_color, config.source_size, single_color)
-    photo_seed = index if part == 0 else index * 1000 + 900 + part
-    source = render_pathtraced(source_scene, mesh, spp=config.spp, seed=photo_seed, denoise=config.denoise)
+    seed = photo_seed(index, part)
+    source = render_pathtraced(source_scene, mesh, spp=config.spp, seed=seed, denoise=config.denoise)
     source_camera = Camera.from_scene(source_scene)
     mirror = False
     if config.setting == "single":
@@ -471,7 +471,7 @@ def _make_object(out: Path, config: DataConfig, index: int, part: int) -> _MadeO
         mirror = bool(is_mirror_symmetric(rgba[..., 3] > 0.5))
         photo, trusted = source.image, None
         if config.delight:
-            photo, trusted = _divided_light(source.image, source_scene, rgba, mesh, config.delight_shader, photo_seed)
+            photo, trusted = _divided_light(source.image, source_scene, rgba, mesh, config.delight_shader, seed)
         rgba = color_voxels_from_photo(
             rgba, object_to_world(source_scene.object), photo, source_camera, mirror=mirror, trusted=trusted,
             hidden_rule=config.hidden_rule).rgba
@@ -543,6 +543,11 @@ def generate_object_samples(out: Path, config: DataConfig, index: int) -> dict[s
     if len(made) > 1:
         record["companions"] = [m.record for m in made[1:]]
     return record
+
+
+def photo_seed(index: int, part: int) -> int:
+    """The seed of the source photo (and of its light's unmixing) of object `part` of scene `index`."""
+    return index if part == 0 else index * 1000 + 900 + part
 
 
 def _divided_light(photo: np.ndarray, scene: Scene, rgba: np.ndarray, mesh, delight_shader: str,
@@ -650,8 +655,6 @@ def recolor_dataset(source: str | Path, out: str | Path, workers: int = 1, progr
     todo = [f.stem for f in sorted((source / "records").glob("o*.json")) if not (out / "records" / f.name).exists()]
     remake_mesh = (config.resolution != stored_resolution or new_photos
                    or (config.setting != "single" and delight_shader == "path traced"))
-    if config.scene_objects > 1:
-        raise InputError("its scenes hold several objects, which recoloring does not redo: generate it anew", source)
     for name in todo:  # every record readable before anything is written
         _check_record(load_json(source / "records" / f"{name}.json"), source / "records" / f"{name}.json", remake_mesh)
     prepare_folder(out, config)
@@ -692,12 +695,13 @@ RECORD_OBJECT_KEYS = ("index", "setting", "floor_color", "voxels", "source_image
 
 
 def _check_record(record: Any, path: Path, remake_mesh: bool = False) -> None:
-    """InputError naming `path` unless the record holds what recoloring an object reads (and, with `remake_mesh`,
-    what remaking its mesh reads)."""
-    obj = record.get("object") if isinstance(record, dict) else None
+    """InputError naming `path` unless the record holds what recoloring its objects reads (and, with `remake_mesh`,
+    what remaking their meshes reads)."""
+    objects = [record.get("object"), *record.get("companions", [])] if isinstance(record, dict) else [None]
     samples = record.get("samples") if isinstance(record, dict) else None
     keys = RECORD_OBJECT_KEYS + (("category", "seed", "appearance") if remake_mesh else ())
-    missing = [key for key in keys if not isinstance(obj, dict) or key not in obj]
+    missing = sorted({key for obj in objects for key in keys if not isinstance(obj, dict) or key not in obj},
+                     key=keys.index)
     if missing or not isinstance(samples, list) or not all(
             isinstance(s, dict) and all(k in s for k in ("scene", "target", "splat")) for s in samples):
         what = f"object keys {', '.join(missing)}" if missing else "samples with a scene, target and splat each"
@@ -716,16 +720,45 @@ def _recolor_one(args: tuple[str, str, str, str, int, str, tuple[int, int, bool]
 
 def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolution: int, delight_shader: str,
                     photos: tuple[int, int, bool] | None) -> int:
-    """`photos`: (side, spp, denoise) to path trace the source photo again with, or None to keep it."""
+    """Recolor every object of one scene (its record's object and companions) and redraw its splats.
+    `photos`: (side, spp, denoise) to path trace the source photos again with, or None to keep them."""
+    from renderer.splat import splat_objects
+    from renderer.voxels import save_voxels
+
+    record = load_json(source / "records" / f"{name}.json")
+    objects = [record["object"], *record.get("companions", [])]
+    voxels = [_recolored_voxels(source, out, obj, hidden_rule, resolution, delight_shader, photos) for obj in objects]
+    redrawn = any(changed for _, changed in voxels)
+    links = [s["target"] for s in record["samples"]]
+    links += sorted(set(_scene_files(record["samples"])))  # environment maps and ground images the scenes name
+    for obj, (rgba, _) in zip(objects, voxels):
+        links += [] if photos is not None else [obj["source_image"], obj["source_camera"]]
+        if redrawn:
+            save_voxels(out / obj["voxels"], rgba)
+        else:
+            links.append(obj["voxels"])
+    links += [] if redrawn else [s["splat"] for s in record["samples"]]
+    for rel in links:
+        _link_or_copy(source / rel, out / rel)
+    if redrawn:
+        floor_color = tuple(float(c) for c in objects[0]["floor_color"])
+        for sample in record["samples"]:
+            scene = scene_from_dict(sample["scene"])
+            save_png(out / sample["splat"], splat_objects(scene, [rgba for rgba, _ in voxels], floor_color))
+    save_json(out / "records" / f"{name}.json", record)
+    return int(objects[0]["index"])
+
+
+def _recolored_voxels(source: Path, out: Path, obj: dict[str, Any], hidden_rule: str, resolution: int,
+                      delight_shader: str, photos: tuple[int, int, bool] | None) -> tuple[np.ndarray, bool]:
+    """One object's voxels recolored (see _recolor_object; new source photos are written to `out`), and whether
+    they differ from the stored ones."""
     from renderer.capture.pose import lit_photo_scene, load_pose
     from renderer.pathtrace.path_tracer import render_pathtraced
     from renderer.photo import color_voxels_from_photo
-    from renderer.splat import splat_scene
-    from renderer.voxels import load_voxels, save_voxels
+    from renderer.voxels import load_voxels
 
-    record = load_json(source / "records" / f"{name}.json")
-    obj = record["object"]
-    floor_color = tuple(float(c) for c in obj["floor_color"])
+    floor_color = tuple(float(c) for c in obj["floor_color"])  # the floor of the object's own source photo
     rgba = load_voxels(source / obj["voxels"])
     recolor = obj["setting"] != "single"
     revoxelise = rgba.shape[0] != resolution
@@ -733,6 +766,7 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
             else None)
     if revoxelise:
         rgba = _voxelised_again(obj, resolution, mesh)
+    seed = photo_seed(int(obj["index"]), int(obj.get("part", 0)))
     if recolor or photos is not None:
         camera_file = source / obj["source_camera"]
         pose = load_pose(camera_file)
@@ -744,31 +778,16 @@ def _recolor_object(source: Path, out: Path, name: str, hidden_rule: str, resolu
             raise InputError(exc.problem, camera_file) from None
         if photos is None:
             photo = load_image(source / obj["source_image"])[0]
-        else:  # as generation renders it: the object's index is its seed
-            photo = render_pathtraced(source_scene, mesh, spp=photos[1], seed=int(obj["index"]),
-                                      denoise=photos[2]).image
+        else:  # with the seed generation rendered it with
+            photo = render_pathtraced(source_scene, mesh, spp=photos[1], seed=seed, denoise=photos[2]).image
             save_png(out / obj["source_image"], photo)
             save_json(out / obj["source_camera"], pose.to_dict())
     if recolor:
-        albedo, known = _divided_light(photo, source_scene, rgba, mesh, delight_shader, int(obj["index"]))
+        albedo, known = _divided_light(photo, source_scene, rgba, mesh, delight_shader, seed)
         rgba = color_voxels_from_photo(rgba, pose.object_to_world(), albedo, pose.camera,
                                        mirror=bool(obj["mirror_symmetry_used"]), trusted=known,
                                        hidden_rule=hidden_rule).rgba
-    redrawn = recolor or revoxelise
-    if redrawn:
-        save_voxels(out / obj["voxels"], rgba)
-    links = [s["target"] for s in record["samples"]]
-    links += sorted(set(_scene_files(record["samples"])))  # environment maps and ground images the scenes name
-    links += [] if photos is not None else [obj["source_image"], obj["source_camera"]]
-    links += [] if redrawn else [obj["voxels"]] + [s["splat"] for s in record["samples"]]
-    for rel in links:
-        _link_or_copy(source / rel, out / rel)
-    if redrawn:
-        for sample in record["samples"]:
-            scene = scene_from_dict(sample["scene"])
-            save_png(out / sample["splat"], splat_scene(scene, rgba, floor_color))
-    save_json(out / "records" / f"{name}.json", record)
-    return int(obj["index"])
+    return rgba, recolor or revoxelise
 
 
 def _scene_files(samples: list[dict]) -> list[str]:

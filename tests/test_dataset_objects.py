@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from models.training.data import VoxelRenderSet, network_inputs
 from renderer.dataset import (
@@ -22,7 +23,6 @@ from renderer.dataset import (
     recolor_dataset,
     sample_layout,
 )
-from renderer.errors import InputError
 from renderer.grid import ground_mask
 from renderer.scene import ObjectSpec, scene_from_dict
 
@@ -133,10 +133,26 @@ def test_shards_of_several_objects_merge_into_the_same_set(several, tmp_path):
         assert (merged / obj["voxels"]).read_bytes() == (several / obj["voxels"]).read_bytes()
 
 
-def test_recoloring_a_set_of_several_objects_is_refused(several, tmp_path):
-    with pytest.raises(InputError, match="several objects"):
-        recolor_dataset(several, tmp_path / "recolored", progress=False, hidden_rule="ray")
-    assert not (tmp_path / "recolored").exists()
+def test_recoloring_a_set_of_several_objects_recolors_every_object(several, tmp_path):
+    """`nvr data recolor` on scenes of several objects: every object's voxels are those generation makes by the new
+    rule (up to the 8-bit rounding of the stored source photos), and each splat shows all of them."""
+    made = tmp_path / "made"
+    generate_dataset(made, replace(SEVERAL, hidden_rule="ray"), progress=False)
+    recolored = recolor_dataset(several, tmp_path / "recolored", progress=False, hidden_rule="ray").parent
+    assert manifest_of(recolored)["config"] == manifest_of(made)["config"]
+    objects = manifest_of(made)["objects"]
+    assert any(obj.get("part") for obj in objects)  # companions among them
+    for obj in objects:
+        after, expected, before = (np.load(f / obj["voxels"])["rgba"].astype(int) for f in (recolored, made, several))
+        occupied = expected[..., 3] > 0
+        assert np.array_equal(after[..., 3], expected[..., 3])
+        assert np.quantile(np.abs(after - expected)[occupied], 0.99) <= 3
+        assert np.abs(after - before)[occupied].mean() > 1  # the rule changed the colors
+    for sample in manifest_of(made)["samples"]:
+        assert (recolored / sample["target"]).stat().st_ino == (several / sample["target"]).stat().st_ino
+        splat_after, splat_expected = (np.asarray(Image.open(f / sample["splat"]), dtype=int)
+                                       for f in (recolored, made))
+        assert np.abs(splat_after - splat_expected).mean() < 2
 
 
 def test_every_scene_reads_back(several):
