@@ -69,6 +69,17 @@ def test_resumed_run_equals_uninterrupted_run(data, tmp_path):
         assert torch.equal(a[key], b[key]), key
 
 
+def test_a_run_killed_after_its_checkpoint_logs_each_step_once_when_resumed(data, tmp_path):
+    train(tmp_path / "whole", config(data, steps=4), progress=False)
+    train(tmp_path / "parts", config(data, steps=2), progress=False)  # its checkpoint holds step 2
+    log = tmp_path / "parts" / "log.csv"
+    log.write_text(log.read_text() + "2,9.0,9.0,0.0,1.0,9.0\n")  # logged by a run killed before its next checkpoint
+    train(tmp_path / "parts", config(data, steps=4), resume=True, progress=False)
+    steps_losses = [line.split(",")[:2] for line in log.read_text().splitlines()[1:]]
+    whole = [line.split(",")[:2] for line in (tmp_path / "whole" / "log.csv").read_text().splitlines()[1:]]
+    assert steps_losses == whole
+
+
 def test_the_log_records_the_squared_error_and_a_resumed_old_log_keeps_its_columns(data, tmp_path):
     train(tmp_path / "run", config(data, steps=2, mse_weight=5.0), progress=False)
     header, *rows = (tmp_path / "run" / "log.csv").read_text().splitlines()

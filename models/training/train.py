@@ -225,6 +225,8 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     new_log = not log_path.exists() or start_step == 0
     # A resumed run keeps its log's columns (logs from before the squared-error term have no "mse").
     columns = LOG_COLUMNS if new_log else _log_columns(log_path)
+    if not new_log and dist_info.is_main:
+        _drop_rows_from(log_path, start_step)
     log_file = open(log_path, "w" if new_log else "a", newline="") if dist_info.is_main else None
     writer = csv.DictWriter(log_file, columns, extrasaction="ignore") if log_file else None
     if writer and new_log:
@@ -271,6 +273,25 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
                                                **started_from})
         log_file.close()
     return final
+
+
+def _drop_rows_from(log_path: Path, step: int) -> None:
+    """Remove the log's rows of `step` and later: a run killed after its last checkpoint logged steps that the
+    resumed run logs again."""
+    with open(log_path, newline="") as f:
+        lines = f.read().splitlines(keepends=True)
+    kept = lines[:1] + [line for line in lines[1:] if _row_step(line) < step]
+    if len(kept) < len(lines):
+        with atomic_path(log_path) as temporary:
+            temporary.write_text("".join(kept))
+
+
+def _row_step(line: str) -> float:
+    """The step of a log row (rows that do not start with one count as before every step)."""
+    try:
+        return float(line.split(",", 1)[0])
+    except ValueError:
+        return -1.0
 
 
 def _log_columns(log_path: Path) -> list[str]:
