@@ -146,7 +146,8 @@ def cmd_capture(args: argparse.Namespace) -> None:
     rgba = voxelize(mesh, resolution=args.res)
     box = _parse_box(args.box, photo.shape)
     captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
-                                  free_focal=args.free_focal, box=box, light=light)
+                                  free_focal=args.free_focal, box=box, light=light,
+                                  fit_photo_light=not args.keep_photo_light)
     save_voxels(voxels_out, captured.rgba)
     save_pose(camera_out, captured.pose)
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
@@ -178,6 +179,9 @@ def add_capture_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--light", default=None, metavar="X,Y,Z",
                    help="the light's centre when the photo was taken (world units; default: the camera file's "
                         "light, if any): its light is then divided out of the colors")
+    p.add_argument("--keep-photo-light", action="store_true",
+                   help="without a known light, colors keep the photo's shading (default: the light is fitted from "
+                        "the photo and divided out)")
     p.add_argument("--box", default=None, metavar="X0,Y0,X1,Y1",
                    help="the object's box in photo pixels: outside it is background (needed on cluttered photos)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the mesh's up axis")

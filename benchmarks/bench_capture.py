@@ -115,6 +115,7 @@ class Photo:
     rng: np.random.Generator  # for the perturbed start
     long_lens: bool = False
     box: tuple[int, int, int, int] | None = None  # the box a user would drag (real photos)
+    light: tuple[float, float, float] | None = None  # the square light's centre when the photo was taken
 
 
 def make_photo(style: str, number: int, size: int, spp: int) -> Photo:
@@ -145,7 +146,7 @@ def make_photo(style: str, number: int, size: int, spp: int) -> Photo:
         image = degraded(np.where(true_mask[..., None], image, real_background(number, size)), style_rng)
         box = user_box(true_mask, style_rng)
     name = category if shape is None else shape
-    return Photo(style, number, name, mesh, truth, image, alpha, true_mask, rng, long_lens, box)
+    return Photo(style, number, name, mesh, truth, image, alpha, true_mask, rng, long_lens, box, light)
 
 
 def user_box(mask: np.ndarray, rng: np.random.Generator) -> tuple[int, int, int, int] | None:

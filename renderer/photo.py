@@ -190,7 +190,7 @@ def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -
     shaded = shade_scene(scene, grey, scene.floor.color, cover_behind=False, reflection=False)
     shading = srgb_to_linear(shaded.image.astype(np.float64)) / SHADING_GREY
     known = (shaded.coverage >= 1.0) & (shading.min(axis=2) >= MIN_SHADING) & (shaded.image.max(axis=2) < 1.0)
-    return _albedo_image(srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING), known), known
+    return albedo_image(srgb_to_linear(photo) / np.maximum(shading, MIN_SHADING), known), known
 
 
 def unmixed_albedo(photo_rgb: np.ndarray, scene: Scene, mesh, spp: int = UNMIX_SPP, seed: int = 0,
@@ -221,10 +221,10 @@ def unmixed_albedo(photo_rgb: np.ndarray, scene: Scene, mesh, spp: int = UNMIX_S
     # A channel that clipped still bounds its albedo from below, far closer than a neighbour's color (a bright
     # orange's red clips under a strong light); a pixel that clipped in all three says nothing.
     known = (slope.min(axis=2) >= MIN_SLOPE) & (photo.min(axis=2) < 1.0)
-    return _albedo_image((srgb_to_linear(photo) - base) / np.maximum(slope, MIN_SLOPE), known), known
+    return albedo_image((srgb_to_linear(photo) - base) / np.maximum(slope, MIN_SLOPE), known), known
 
 
-def _albedo_image(albedo_linear: np.ndarray, known: np.ndarray) -> np.ndarray:
+def albedo_image(albedo_linear: np.ndarray, known: np.ndarray) -> np.ndarray:
     """sRGB float32 albedo in [0, 1] where `known`; elsewhere the nearest known pixel's (bilinear reads beside a
     known pixel then mix no unknown one), 0 if none is known."""
     albedo = albedo_linear

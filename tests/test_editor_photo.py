@@ -20,8 +20,9 @@ from renderer.capture.align import rotation_error_deg
 from renderer.capture.pose import PhotoPose, save_pose
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.objects import generate_object
+from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.pipeline import object_voxels
-from renderer.scene import CameraSpec, ObjectSpec, Scene, load_scene, replaced, save_scene
+from renderer.scene import CameraSpec, LightSpec, ObjectSpec, Scene, load_scene, replaced, save_scene
 from tests import test_editor
 from tests.test_editor import PANELS, _click, pixels, run_editor
 
@@ -186,7 +187,7 @@ def test_a_box_drawn_on_the_photo_keeps_a_distractor_out_of_the_alignment(displa
 
 
 def test_in_box_mode_a_drag_on_the_photo_draws_the_box(display, tmp_path, chair_scene, model_file):
-    box_mode = [922, 763]  # the "box" drag mode radio button under the photo
+    box_mode = [922, 688]  # the "box" drag mode radio button, under the "Photo over the viewport" row
     run_editor(display, tmp_path, chair_scene, [
         {"action": "load_photo", "photo": str(chair_scene.parent / "photo.png")},
         *_click(PHOTO_TAB),
@@ -243,7 +244,7 @@ def test_the_photo_over_the_viewport_zooms_about_the_mouse_pans_and_goes_back_in
         {"action": "mouse_move", "pos": [corner[0] + 60, corner[1] + 30]}, {"action": "wait", "frames": 2},
         {"action": "mouse_up", "button": 2}, {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": str(tmp_path / "panned.png")},
-        *_click([858, 639]),  # the "Photo over the viewport" box
+        *_click([858, 664]),  # the "Photo over the viewport" box
         {"action": "wait", "frames": 3},
         {"action": "screenshot", "path": str(tmp_path / "in_tab.png")},
         {"action": "save", "path": str(tmp_path / "after.json")},
@@ -274,3 +275,36 @@ def test_the_photo_over_the_viewport_zooms_about_the_mouse_pans_and_goes_back_in
     assert np.mean(moved[: 740 - 30, : 780] == outline(shots["zoomed"][30:770 - 30, :780])) > 0.99
     viewport, tools = (pixels(tmp_path / "in_tab.png", rect) for rect in (PANELS.viewport, PANELS.tools))
     assert outline(viewport).sum() < 50 and outline(tools).sum() > 30  # the photo back in the tab
+
+
+def test_coloring_divides_out_the_photos_fitted_light_and_the_scene_can_take_it(display, tmp_path, chair_scene,
+                                                                                 model_file):
+    """A path-traced photo of the grey chair under a known light: colored with the light divided out, the chair's
+    voxels are more even than with the shading kept; "use" moves the scene's light to the fitted one, which stands
+    where the photo's was (within 25 degrees seen from the chair), in one undo step."""
+    light, pose = (-1.2, 2.8, 1.0), PhotoPose(Camera(25.0, 96, 96), rotation_deg=-35.0)
+    chair = generate_object("chair", 8).mesh
+    scene = Scene.single(object=pose.placed(ObjectSpec()), light=LightSpec(light), camera=CameraSpec(25.0), image_size=96)
+    Image.fromarray((render_pathtraced(scene, chair, spp=16, seed=0, denoise=True).image * 255).round()
+                    .astype(np.uint8)).save(tmp_path / "shaded.png")
+    save_pose(tmp_path / "shaded.json", pose)
+    load = {"action": "load_photo", "photo": str(tmp_path / "shaded.png"), "camera": str(tmp_path / "shaded.json")}
+    run_editor(display, tmp_path, chair_scene, [
+        load, {"action": "photo_light", "divide": False}, {"action": "color_from_photo"},
+        {"action": "save", "path": str(tmp_path / "kept.json")}, {"action": "undo"},
+        {"action": "photo_light", "divide": True}, {"action": "color_from_photo"},
+        {"action": "save", "path": str(tmp_path / "divided.json")},
+        {"action": "use_photo_light"}, {"action": "save", "path": str(tmp_path / "lit.json")},
+        {"action": "undo"}, {"action": "save", "path": str(tmp_path / "unlit.json")},
+    ], "--model", str(model_file))
+    spread = []
+    for name in ("kept", "divided"):
+        rgba = object_voxels(load_scene(tmp_path / f"{name}.json"))
+        brightness = rgba[rgba[..., 3] > 0.5][:, :3].mean(axis=1)
+        spread.append(np.std(brightness) / np.mean(brightness))
+    assert spread[1] < 0.7 * spread[0]
+    lit = load_scene(tmp_path / "lit.json").light.position
+    middle = np.array([0.0, 0.5, 0.0])
+    a, b = np.subtract(lit, middle), np.subtract(light, middle)
+    assert np.degrees(np.arccos(a @ b / np.linalg.norm(a) / np.linalg.norm(b))) < 25.0
+    assert load_scene(tmp_path / "unlit.json").light == load_scene(chair_scene).light

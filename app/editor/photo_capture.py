@@ -18,7 +18,8 @@ import trimesh
 from PIL import Image
 
 from renderer.camera import Camera
-from renderer.capture.capture import ASPECT_TOLERANCE, capture_appearance, mask_at_size, trusted_pixels
+from renderer.capture.capture import ASPECT_TOLERANCE, Capture, capture_appearance, mask_at_size, trusted_pixels
+from renderer.capture.light_fit import FittedLight
 from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
@@ -63,6 +64,9 @@ class PhotoAlignment:
         self.strokes = np.zeros((h, w), np.int8)  # the user's strokes: 1 object, -1 background, 0 none
         self.mask: np.ndarray | None = None  # the object's mask as segmented from the photo with these hints, to show
         self.trusted: np.ndarray | None = None  # the mask's pixels that color the object (capture.trusted_pixels)
+        self.divide_light = True  # coloring fits the photo's light and divides it out (else colors keep the shading)
+        self.light_note = ""  # what the last coloring did with the photo's light
+        self.fitted_light: FittedLight | None = None  # the light the last coloring fitted, if it did
 
     def set_mesh(self, mesh: trimesh.Trimesh, key: object, silhouettes: SilhouetteRenderer | None = None) -> None:
         """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped.
@@ -179,11 +183,16 @@ class PhotoAlignment:
             self._shown_photos[size] = np.asarray(small, dtype=np.float32) / 255.0
         return self._shown_photos[size]
 
-    def colors(self, object_rgba: np.ndarray, pose: PhotoPose | None = None) -> np.ndarray:
-        """`object_rgba` recolored from the photo seen at `pose` (default: the current one); occupancy unchanged."""
+    def colors(self, object_rgba: np.ndarray, pose: PhotoPose | None = None) -> Capture:
+        """`object_rgba` recolored from the photo seen at `pose` (default: the current one), occupancy unchanged;
+        the photo's light fitted and divided out when `divide_light` is set."""
         pose = self.pose if pose is None else pose
         return capture_appearance(object_rgba, self.mesh, self.rgb, self.alpha, pose, search=False, path=self.path,
-                                  **self.hints()).rgba
+                                  fit_photo_light=self.divide_light, **self.hints())
+
+    def set_light(self, capture: Capture) -> None:
+        """Keep what a coloring did with the photo's light, to show it."""
+        self.light_note, self.fitted_light = capture.light_note, capture.fitted_light
 
 
 def scene_with_photo_view(scene: Scene, pose: PhotoPose) -> Scene:

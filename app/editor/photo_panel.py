@@ -145,10 +145,11 @@ class PhotoPanel:
             return
         self._commands()
         _, self.in_viewport = imgui.checkbox("Photo over the viewport", self.in_viewport)
-        if self.in_viewport:
+        if self.in_viewport:  # what a drag on the photo does comes before the numbers, which may scroll away
             imgui.same_line()
             if imgui.small_button("fit"):
                 self.set_view(1.0, (0.5, 0.5))
+            self._drag_mode(alignment)
             self._pose_fields(alignment.pose)
         else:
             self._overlay(alignment)
@@ -156,7 +157,7 @@ class PhotoPanel:
             imgui.begin_group()  # the numbers beside the photo
             self._pose_fields(alignment.pose)
             imgui.end_group()
-        self._drag_mode(alignment)
+            self._drag_mode(alignment)
         if alignment.mask is not None:
             imgui.text_colored(GRAY, "Darkened: background. Amber: the object's rim, whose colors are not taken.")
 
@@ -206,6 +207,26 @@ class PhotoPanel:
         imgui.same_line()
         if imgui.button("Match the scene to the photo's view"):
             photo.match_view()
+        alignment = photo.alignment
+        _, alignment.divide_light = imgui.checkbox("Divide out the photo's light", alignment.divide_light)
+        if imgui.is_item_hovered():
+            imgui.set_tooltip("Coloring fits the light that shaded the photo and divides it out of the colors; "
+                              "off, the colors keep the photo's shading")
+        fitted = alignment.fitted_light
+        if fitted is not None:  # on the same row, to leave the photo its room
+            x, y, z = fitted.position
+            imgui.same_line()
+            imgui.text_colored(GRAY, f"fitted at [{x:.1f}, {y:.1f}, {z:.1f}]")
+            if imgui.is_item_hovered():
+                imgui.set_tooltip(f"The light that shaded the photo: the square light at [{x:.2f}, {y:.2f}, {z:.2f}], "
+                                  f"the ambient light x{fitted.ambient:.2f}")
+            imgui.same_line()
+            if imgui.small_button("use"):
+                photo.use_fitted_light()
+            if imgui.is_item_hovered():
+                imgui.set_tooltip("Move the scene's light to where the photo's light was fitted")
+        elif alignment.light_note:
+            imgui.text_colored(GRAY, f"Light: {alignment.light_note}")
 
     def _overlay(self, alignment: PhotoAlignment) -> None:
         """The photo with the silhouette's outline, taking the mouse gestures that pose it."""

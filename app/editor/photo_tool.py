@@ -19,7 +19,7 @@ from app.editor.editor_parts import Editor
 from app.editor.jobs import Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from renderer.capture.align import Alignment
-from renderer.capture.capture import find_pose, fit_advice, segment_photo
+from renderer.capture.capture import Capture, find_pose, fit_advice, segment_photo
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.scene import Scene
 from renderer.voxel_cache import VoxelCache
@@ -95,15 +95,32 @@ class PhotoTool:
         scene, voxels = self.app.object_view(self.app.doc.history.current), self.app.voxels
         pose = alignment.pose  # as it is now: the user may go on dragging while the job runs
 
-        def work(_progress: Progress) -> Path:
+        def work(_progress: Progress) -> tuple[Capture, Path]:
             rgba, _ = voxels.painted(scene)
-            return state.save_capture(alignment.colors(rgba, pose))
+            capture = alignment.colors(rgba, pose)
+            return capture, state.save_capture(capture.rgba)
 
-        def done(capture: Path) -> None:
-            if self.app.edit_object(lambda s: recolored(s, capture)):
-                self.app.say(f"colored the object from {alignment.path.name}")
+        def done(result: tuple[Capture, Path]) -> None:
+            capture, path = result
+            alignment.set_light(capture)
+            if self.app.edit_object(lambda s: recolored(s, path)):
+                self.app.say(f"colored the object from {alignment.path.name}; {capture.light_note}")
 
         self.app.jobs.start(f"Coloring from {alignment.path.name}", work, done)
+
+    def set_divide_light(self, divide: bool) -> None:
+        """Whether coloring fits the photo's light and divides it out (the Photo tab's checkbox)."""
+        alignment = self._needed()
+        if alignment is not None:
+            alignment.divide_light = divide
+
+    def use_fitted_light(self) -> None:
+        """Move the scene's light to where the last coloring fitted the photo's: one undo step."""
+        alignment = self._needed()
+        if alignment is not None and alignment.fitted_light is not None:
+            position = alignment.fitted_light.position
+            if self.app.edit(lambda s: edits.move_light(s, position)):
+                self.app.say("the scene's light now stands where the photo's was fitted")
 
     def show_mask(self) -> None:
         """Segment the photo with the box and strokes in the background and show the mask over it."""

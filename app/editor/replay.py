@@ -34,6 +34,8 @@ High-level actions call the same commands as the interface:
     {"action": "set_photo_pose", "rotation_deg": 30, "elevation_deg": 20, "translation": [x, z], "scale": [x, y, z]}
                                                               the pose fields (any of them)
     {"action": "color_from_photo"} {"action": "match_photo_view"}   one undo step each
+    {"action": "photo_light", "divide": false}               coloring keeps the photo's shading (true: fits its light)
+    {"action": "use_photo_light"}                             the scene's light to the fitted one: one undo step
     {"action": "photo_box", "box": [x0, y0, x1, y1]}           the object's box in photo pixels (null clears it)
     {"action": "photo_stroke", "at": [x, y], "radius": 4, "kind": "background"}   a stroke ("object" or "background")
     {"action": "show_photo_mask"}                             segment with the hints and show the mask
@@ -336,6 +338,8 @@ ACTIONS = {
     "show_photo_mask": lambda app, a: app.photo.show_mask(),
     "color_from_photo": lambda app, a: app.photo.color_object(),
     "match_photo_view": lambda app, a: app.photo.match_view(),
+    "photo_light": lambda app, a: app.photo.set_divide_light(bool(a["divide"])),
+    "use_photo_light": lambda app, a: app.photo.use_fitted_light(),
     "screenshot": lambda app, a: app.screenshots.request(a["path"]),
     "answer": lambda app, a: app.answer(a["choice"]),
     "tool": _set_tool,

@@ -5,8 +5,9 @@ The pose comes from a camera file, from the automatic search (renderer/capture/a
 object's mask in the photo (renderer/capture/segment.py), or from both: the file's pose refined
 by the search. When the pose knows the photo's light and its camera is the scene camera (a square photo
 on the scene camera's orbit, as the data generator and the editor take them), the light is divided out of
-the colors (renderer.photo.unmixed_albedo with the object's mesh, photo_albedo without), as the training data's are;
-otherwise they keep the photo's shading.
+the colors (renderer.photo.unmixed_albedo with the object's mesh, photo_albedo without), as the training data's are.
+When the light is unknown (every real photo), it is fitted from the photo's shading of the mesh
+(renderer/capture/light_fit.py) and divided out, unless the caller turns that off; the colors then keep the shading.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from renderer.capture.align import (
     silhouette_iou,
 )
 from renderer.capture.grabcut import Hints, context_window
+from renderer.capture.light_fit import FittedLight, fit_light, light_divided
 from renderer.capture.pose import PhotoPose, lit_photo_scene
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
@@ -62,6 +64,7 @@ class Capture:
     mirror_used: bool  # hidden voxels copied their mirror voxel's color
     alignment: Alignment | None  # the search's result; None when the camera file alone gave the pose
     light_note: str  # whether the photo's light was divided out of the colors, and if not why
+    fitted_light: FittedLight | None = None  # the light fitted from the photo, when it was
 
 
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
@@ -174,7 +177,8 @@ def mask_at_size(mask: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, photo_rgb: np.ndarray,
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
                        path: str | Path | None = None, free_focal: bool = False, mask: np.ndarray | None = None,
-                       light: tuple[float, float, float] | None = None, **hints) -> Capture:
+                       light: tuple[float, float, float] | None = None, fit_photo_light: bool = True,
+                       **hints) -> Capture:
     """Color `object_rgba` (voxels of `mesh`) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
@@ -182,7 +186,8 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     of the same photo is scaled to it; another aspect ratio is an error. Colors come from pixels well
     inside the object's mask: `mask` when given, else the search's last segmentation, else the photo
     segmented with the user's `hints` (box, strokes: see find_pose) and the pose's silhouette (when `mesh`
-    is given). `light` (world), when given, is the photo's light; else the pose's, if it knows one.
+    is given). `light` (world), when given, is the photo's light; else the pose's, if it knows one; else, with
+    `fit_photo_light` and a mesh, the light is fitted from the photo and divided out.
     """
     if pose is None and not search:
         raise InputError("a photo needs a camera file or the automatic alignment", path)
@@ -207,11 +212,24 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
     trusted = trusted_pixels(mask)
+    fitted = None
     try:
         light_scene = lit_photo_scene(pose)
         light_note = f"the photo's light at {list(pose.light)} divided out"
     except InputError as exc:
         light_scene, light_note = None, f"{exc.problem}: colors keep its shading"
+    if pose.light is None and fit_photo_light and mesh is not None:
+        try:
+            fitted = fit_light(mesh, photo_rgb, pose, trusted)
+        except InputError as exc:
+            light_note = f"{exc.problem}: colors keep its shading"
+        if fitted is not None and not fitted.explains_photo:
+            fitted, light_note = None, "no light explains the photo's shading: colors keep it"
+        if fitted is not None:
+            photo_rgb, known = light_divided(photo_rgb, fitted)
+            trusted = known if trusted is None else trusted & known
+            light_note = (f"the photo's light fitted at [{', '.join(f'{v:.2f}' for v in fitted.position)}], ambient "
+                          f"x{fitted.ambient:.2f}, and divided out")
     try:
         if light_scene is not None:  # the mesh's path-traced light where there is a mesh (renderer/photo.py)
             photo_rgb, known = (photo_albedo(photo_rgb, light_scene, object_rgba) if mesh is None
@@ -221,7 +239,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
                                          trusted=trusted)
     except InputError as exc:
         raise InputError(exc.problem, path) from None
-    return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment, light_note)
+    return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment, light_note, fitted)
 
 
 def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:

@@ -30,20 +30,41 @@ class SilhouetteRenderer:
 
     def mask(self, pose: PhotoPose) -> np.ndarray:
         """(H, W) bool: pixels whose centre ray meets the object, for the pose's camera size."""
+        origin, directions = self._camera_rays(pose)
+        return self.occluded(np.broadcast_to(origin, directions.shape), directions).reshape(
+            pose.camera.height, pose.camera.width)
+
+    def surface(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What each pixel centre's ray meets first, in object coordinates: (H, W) bool hit, and for the hits
+        (N, 3) points and (N, 3) unit normals facing the camera."""
         import open3d as o3d
 
+        origin, directions = self._camera_rays(pose)
+        cast = self._scene.cast_rays(o3d.core.Tensor(_rays(np.broadcast_to(origin, directions.shape), directions)))
+        self.rays_cast += len(directions)
+        t = cast["t_hit"].numpy()
+        hit = np.isfinite(t)
+        points = origin + t[hit, None] * directions[hit]
+        normals = cast["primitive_normals"].numpy()[hit].astype(np.float64)
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        normals *= np.where(np.einsum("ij,ij->i", normals, directions[hit]) > 0.0, -1.0, 1.0)[:, None]
+        return hit.reshape(pose.camera.height, pose.camera.width), points, normals
+
+    def occluded(self, origins: np.ndarray, directions: np.ndarray, far: float = np.inf) -> np.ndarray:
+        """(N,) bool: whether each ray (object coordinates; directions need not be unit) meets the object at a
+        parameter below `far`."""
+        import open3d as o3d
+
+        self.rays_cast += len(directions)
+        return self._scene.test_occlusions(o3d.core.Tensor(_rays(origins, directions)), tfar=float(far)).numpy()
+
+    def _camera_rays(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray]:
+        """The camera's origin (3,) and (H*W, 3) pixel-centre ray directions, in object coordinates (not unit)."""
         camera = pose.camera
         u, v = self._pixel_centres(camera.width, camera.height)
         origin, directions = camera.pixel_rays(u, v)
         to_object = pose.world_to_object()
-        origin_obj = to_object[:3, :3] @ origin + to_object[:3, 3]
-        directions_obj = directions @ to_object[:3, :3].T  # unnormalised: a hit is a hit
-        rays = np.empty((directions_obj.shape[0], 6), dtype=np.float32)
-        rays[:, :3] = origin_obj
-        rays[:, 3:] = directions_obj
-        hits = self._scene.test_occlusions(o3d.core.Tensor(rays)).numpy()
-        self.rays_cast += len(rays)
-        return hits.reshape(camera.height, camera.width)
+        return to_object[:3, :3] @ origin + to_object[:3, 3], directions @ to_object[:3, :3].T
 
     def _pixel_centres(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
         key = (width, height)
@@ -51,3 +72,11 @@ class SilhouetteRenderer:
             v, u = np.mgrid[0:height, 0:width] + 0.5
             self._grids[key] = (u.ravel(), v.ravel())
         return self._grids[key]
+
+
+def _rays(origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """(N, 6) float32 rays as open3d takes them."""
+    rays = np.empty((directions.shape[0], 6), dtype=np.float32)
+    rays[:, :3] = origins
+    rays[:, 3:] = directions
+    return rays

@@ -1,0 +1,200 @@
+"""The light a photo was taken under, fitted from the photo itself, with the mesh and its pose known.
+
+The model is the scene's: the square light (its centre free, facing down) plus the uniform ambient light, whose
+strength relative to the square light is free too (a real photo's sky is not ours). Each object pixel's shading
+is the light's irradiance (cosines over squared distance, shadowed by the mesh, at a few points of the square)
+plus the ambient irradiance (sky and floor bounce, each visible where the mesh does not block the way). The light
+that explains the photo best leaves the most uniform albedo (photo over shading): the smallest mean absolute
+deviation of its log brightness. An object's colors do not follow the light, so shading left in them only adds
+spread. (The sum of log-brightness steps between neighbours, Retinex's measure, was tried: textures outweighed the
+shading.) Written here: no registry package fits a light to a photo of a known mesh; it is ray casting and sums.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+from renderer.capture.pose import PhotoPose
+from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.color import srgb_to_linear
+from renderer.errors import InputError
+from renderer.photo import albedo_image
+from renderer.resample import downscaled, downscaled_mask, resized
+from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE
+
+FIT_SIDE = 128  # long side at which the light is fitted
+AMBIENT_RAYS = 48  # cosine-weighted rays per pixel for the sky's and the floor's visibility
+FLOOR_BOUNCE = 0.45  # the floor's share of the ambient light sent back up (its albedo times its irradiance ratio)
+LIGHT_POINTS = 5  # the square light sampled at its centre and four points halfway to its corners (soft shadows)
+X_RANGE, Y_RANGE, Z_RANGE = (-3.0, 3.0), (2.0, 4.5), (-3.0, 3.0)  # where the light is looked for (world units)
+AMBIENT_RANGE = (0.125, 8.0)  # the ambient light's strength relative to the scene's
+MIN_PIXELS = 64  # fewer trusted object pixels than this at FIT_SIDE: no fit
+DARK = 0.004  # linear brightness below which a pixel says nothing about its shading
+MIN_SHADING_SHARE = 0.02  # the fitted shading is floored at this share of its mean before dividing
+MIN_GAIN = 0.02  # the fit explains the photo's shading when it makes the albedo's spread this share smaller
+# (a photo without shading, flat colors, has nothing to divide: any light would add spread)
+
+
+@dataclass(frozen=True)
+class FittedLight:
+    position: tuple[float, float, float]  # the square light's centre, world units
+    ambient: float  # the ambient light's strength relative to the scene's AMBIENT_RADIANCE
+    spread: float  # the albedo's mean absolute deviation of log brightness at the fit
+    spread_kept: float  # the same for the photo itself (its shading kept), for comparison
+    shading: np.ndarray = field(repr=False, compare=False)  # (h, w) irradiance at the fit size, 0 off the object,
+    # scaled to the scene's lights' mean there
+
+    @property
+    def explains_photo(self) -> bool:
+        """Whether dividing this light out leaves more uniform colors than the photo's own (by MIN_GAIN)."""
+        return self.spread <= (1.0 - MIN_GAIN) * self.spread_kept
+
+
+class _Surface:
+    """The object's visible pixels at the fit size: world points and normals, ambient visibility, and how to shade
+    them under a light."""
+
+    def __init__(self, silhouettes: SilhouetteRenderer, pose: PhotoPose):
+        self.silhouettes = silhouettes
+        self.hit, points_obj, normals_obj = silhouettes.surface(pose)
+        to_world, to_object = pose.object_to_world(), pose.world_to_object()
+        self.points = points_obj @ to_world[:3, :3].T + to_world[:3, 3]
+        normals = normals_obj @ to_object[:3, :3]  # the inverse transpose carries normals
+        self.normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        self.to_object = to_object
+        size = max(float(np.ptp(points_obj, axis=0).max()), 1e-6) if len(points_obj) else 1.0
+        self.offset = 1e-3 * size  # rays leave the surface this far along its normal (object units)
+        self.origins_obj = (self.points + self.offset * self.normals) @ to_object[:3, :3].T + to_object[:3, 3]
+        self.sky, self.floor = self._ambient_visibility()
+
+    def _ambient_visibility(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per pixel, the cosine-weighted share of directions that reach the sky and the floor unblocked. Every
+        pixel uses the same directions about its normal (a spiral over the disk, projected up), so a flat face gets
+        one value instead of noise."""
+        n = len(self.points)
+        sky, floor = np.zeros(n), np.zeros(n)
+        tangent = np.cross(self.normals, np.where(np.abs(self.normals[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]]))
+        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+        bitangent = np.cross(self.normals, tangent)
+        golden = math.pi * (3.0 - math.sqrt(5.0))
+        for k in range(AMBIENT_RAYS):
+            r, phi = math.sqrt((k + 0.5) / AMBIENT_RAYS), k * golden
+            x, y, z = r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - r * r))
+            d = x * tangent + y * bitangent + z * self.normals
+            free = ~self.silhouettes.occluded(self.origins_obj, d @ self.to_object[:3, :3].T)
+            sky += free & (d[:, 1] > 0.0)
+            floor += free & (d[:, 1] <= 0.0)
+        return sky / AMBIENT_RAYS, floor / AMBIENT_RAYS
+
+    def direct(self, light: np.ndarray) -> np.ndarray:
+        """Irradiance from the square light centred at `light` (world), facing down, per pixel, with shadows."""
+        total = np.zeros(len(self.points))
+        quarter = 0.25 * LIGHT_SIZE
+        for dx, dz in ((0.0, 0.0), (-quarter, -quarter), (quarter, -quarter), (-quarter, quarter), (quarter, quarter)):
+            to_light = light + np.array([dx, 0.0, dz]) - self.points
+            distance = np.linalg.norm(to_light, axis=1)
+            cos_surface = np.einsum("ij,ij->i", self.normals, to_light) / distance
+            cos_light = to_light[:, 1] / distance
+            lit = (cos_surface > 0.0) & (cos_light > 0.0)
+            if lit.any():
+                reach = to_light[lit] @ self.to_object[:3, :3].T  # to the light point, in object coordinates
+                shadowed = self.silhouettes.occluded(self.origins_obj[lit], reach, far=1.0)
+                lit[np.flatnonzero(lit)[shadowed]] = False
+            total += np.where(lit, cos_surface * cos_light / np.maximum(distance, 1e-3) ** 2, 0.0)
+        return total / LIGHT_POINTS * LIGHT_RADIANCE * LIGHT_SIZE**2
+
+    def ambient(self) -> np.ndarray:
+        """Irradiance from the uniform ambient light, directly and off the floor, per pixel, at the scene's strength."""
+        return math.pi * AMBIENT_RADIANCE * (self.sky + FLOOR_BOUNCE * self.floor)
+
+
+def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray | None = None) -> FittedLight:
+    """The square light (and the ambient light's strength) that best explains the shading of the object in
+    `photo_rgb` ((H, W, 3) sRGB in [0, 1]) seen at `pose`; `trusted` ((H, W) bool): the pixels surely on the object.
+    InputError when the photo shows too little of the object to tell."""
+    h, w = photo_rgb.shape[:2]
+    factor = min(1.0, FIT_SIDE / max(h, w))
+    size = (max(1, round(w * factor)), max(1, round(h * factor)))
+    small_pose = pose.at_size(*size)
+    surface = _Surface(SilhouetteRenderer(mesh), small_pose)
+    photo = srgb_to_linear(downscaled(np.asarray(photo_rgb, dtype=np.float64), max(size)))
+    use = surface.hit.copy()
+    if trusted is not None:
+        use &= downscaled_mask(np.asarray(trusted, dtype=bool), max(size), min_cover=0.75)
+    brightness = photo.mean(axis=2)
+    use &= brightness > DARK
+    if use.sum() < MIN_PIXELS:
+        raise InputError("the photo shows too little of the object to fit its light")
+    log_photo = np.log(brightness[use])
+    ambient = surface.ambient()
+    used = use[surface.hit]  # of the pixels the object covers
+
+    def shading(params: np.ndarray) -> np.ndarray:
+        return surface.direct(params[:3]) + math.exp(params[3]) * ambient
+
+    def spread(params: np.ndarray) -> float:
+        return _spread(log_photo - np.log(_floored(shading(params))[used]))
+
+    best = min(((spread(p), tuple(p)) for p in _start_grid()), key=lambda item: item[0])
+    params, value = np.array(best[1]), best[0]
+    step = np.array([0.5, 0.4, 0.5, 0.5])
+    while step[0] > 0.03:  # compass search: a step each way per number, halved when nothing improves
+        improved = False
+        for j in range(4):
+            for sign in (1.0, -1.0):
+                probe = _clipped(params + sign * step * (np.arange(4) == j))
+                score = spread(probe)
+                if score < value - 1e-9:
+                    params, value, improved = probe, score, True
+        if not improved:
+            step = step / 2.0
+    # The scene's ambient light is fixed: the shading is scaled so that the albedo, drawn under the fitted square
+    # light and the scene's ambient light, gives the photo's mean brightness on the object.
+    fitted = _floored(shading(params))
+    in_scene = surface.direct(params[:3]) + ambient
+    photo_used = np.exp(log_photo)
+    image = np.zeros(surface.hit.shape)
+    image[surface.hit] = fitted * float(np.sum(photo_used * in_scene[used] / fitted[used]) / np.sum(photo_used))
+    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, _spread(log_photo), image)
+
+
+def light_divided(photo_rgb: np.ndarray, fitted: FittedLight) -> tuple[np.ndarray, np.ndarray]:
+    """The photo with the fitted light divided out: the albedo (H, W, 3) sRGB in [0, 1] that the scene's lights,
+    the square one placed where it was fitted, would show as bright as the photo on average, and (H, W) bool where it
+    is known (on the object, with enough light to divide)."""
+    h, w = photo_rgb.shape[:2]
+    on_object = fitted.shading > 0.0
+    nearest = ndimage.distance_transform_edt(~on_object, return_distances=False, return_indices=True)
+    filled = fitted.shading[nearest[0], nearest[1]]  # so that bilinear reads beside the edge mix no zero in
+    shading = resized(filled, (w, h), Image.Resampling.BILINEAR).astype(np.float64)
+    known = resized(on_object.astype(np.float32), (w, h), Image.Resampling.NEAREST) > 0.5
+    known &= shading >= MIN_SHADING_SHARE * fitted.shading[on_object].mean()
+    albedo = math.pi * srgb_to_linear(np.asarray(photo_rgb, dtype=np.float64)) / np.maximum(shading, 1e-9)[..., None]
+    return albedo_image(albedo, known), known  # clipped to [0, 1] there
+
+
+def _floored(shading: np.ndarray) -> np.ndarray:
+    """Shading floored at MIN_SHADING_SHARE of its mean: a pixel in full shadow divides by a small, finite number."""
+    return np.maximum(shading, MIN_SHADING_SHARE * shading.mean() + 1e-9)
+
+
+def _spread(values: np.ndarray) -> float:
+    """Mean absolute deviation from the median."""
+    return float(np.mean(np.abs(values - np.median(values))))
+
+
+def _start_grid() -> list[np.ndarray]:
+    """Coarse starts: lights over a grid above the scene, and three ambient strengths."""
+    return [np.array([x, y, z, math.log(a)]) for x in np.linspace(*X_RANGE, 5) for z in np.linspace(*Z_RANGE, 5)
+            for y in (2.75,) for a in (0.5, 1.0, 2.0)]
+
+
+def _clipped(params: np.ndarray) -> np.ndarray:
+    low = np.array([X_RANGE[0], Y_RANGE[0], Z_RANGE[0], math.log(AMBIENT_RANGE[0])])
+    high = np.array([X_RANGE[1], Y_RANGE[1], Z_RANGE[1], math.log(AMBIENT_RANGE[1])])
+    return np.clip(params, low, high)

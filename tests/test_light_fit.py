@@ -1,0 +1,152 @@
+"""Fitting a photo's light from the photo (renderer/capture/light_fit.py): path-traced photos taken under a known
+light give it back, and dividing it out brings the captured colors nearer the mesh's own; photos without shading,
+dark, empty or odd ones leave the colors finite and say why nothing was divided."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from renderer.camera import Camera
+from renderer.capture.capture import capture_appearance, trusted_pixels
+from renderer.capture.light_fit import fit_light, light_divided
+from renderer.capture.pose import PhotoPose
+from renderer.capture.silhouette import SilhouetteRenderer
+from renderer.errors import InputError
+from renderer.objects import apply_appearance, generate_object, split_seeds
+from renderer.pathtrace.path_tracer import render_pathtraced
+from renderer.scene import CameraSpec, FloorSpec, LightSpec, ObjectSpec, Scene
+from renderer.voxels import voxelize
+
+SIZE = 96
+LIGHTS = [(1.2, 2.7, -0.8), (-1.0, 2.6, 0.9)]
+
+
+def sofa(setting: str) -> trimesh.Trimesh:
+    labeled = generate_object("sofa", int(split_seeds("test", 3)[2]))
+    return apply_appearance(labeled, setting, 5, "test")[0]
+
+
+def photo_of(mesh: trimesh.Trimesh, light, pose: PhotoPose) -> np.ndarray:
+    """A path-traced photo of `mesh` at `pose` under the scene's square light at `light`."""
+    scene = Scene.single(object=pose.placed(ObjectSpec()), floor=FloorSpec((0.5, 0.5, 0.5)), light=LightSpec(light),
+                         camera=CameraSpec(pose.camera.elevation_deg), image_size=pose.camera.width)
+    return render_pathtraced(scene, mesh, spp=32, seed=1, denoise=True).image
+
+
+def angle_deg(a, b, centre) -> float:
+    a, b = np.subtract(a, centre), np.subtract(b, centre)
+    return math.degrees(math.acos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0)))
+
+
+@pytest.mark.parametrize("rotation, light", [(40.0, LIGHTS[1]), (150.0, LIGHTS[0])])
+def test_the_light_of_a_path_traced_photo_is_found(rotation, light):
+    """The light fitted to a photo of a one-colored sofa stands where the photo's was, as seen from the sofa (its
+    direction within 15 degrees; measured 9 and 12), and dividing it out leaves the colors far more uniform."""
+    mesh = sofa("single")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=rotation)
+    trusted = trusted_pixels(SilhouetteRenderer(mesh).mask(pose))
+    fitted = fit_light(mesh, photo_of(mesh, light, pose), pose, trusted)
+    assert angle_deg(fitted.position, light, (0.0, 0.4, 0.0)) < 15.0
+    assert fitted.explains_photo and fitted.spread < 0.5 * fitted.spread_kept
+
+
+def test_dividing_the_fitted_light_brings_the_colors_nearer_the_meshs():
+    """A photo-colored sofa captured at its true pose: with the fitted light divided out, the voxels the photo shows
+    are nearer the mesh's colors than with the photo's shading kept (median error at most 0.7 times)."""
+    mesh = sofa("default")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=-60.0)
+    photo = photo_of(mesh, LIGHTS[0], pose)
+    truth = voxelize(mesh, resolution=40)
+    mask = SilhouetteRenderer(mesh).mask(pose)
+    errors = []
+    for fit in (True, False):
+        capture = capture_appearance(truth, mesh, photo, None, pose, search=False, mask=mask, fit_photo_light=fit)
+        assert ("fitted at" in capture.light_note) == fit and (capture.fitted_light is not None) == fit
+        seen = capture.visible
+        errors.append(np.median(np.abs(capture.rgba[seen, :3] - truth[seen, :3]).max(axis=1)))
+    assert errors[0] < 0.7 * errors[1]
+
+
+def test_a_photo_without_shading_keeps_its_colors():
+    """A flat silhouette (no light could have drawn it) has no shading to divide: the colors stay the photo's."""
+    mesh = sofa("single")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=40.0)
+    mask = SilhouetteRenderer(mesh).mask(pose)
+    blue = np.array([0.2, 0.4, 0.9])
+    photo = np.where(mask[..., None], blue, 0.75)
+    rgba = voxelize(mesh, resolution=32)
+    capture = capture_appearance(rgba, mesh, photo, None, pose, search=False, mask=mask)
+    assert "no light explains" in capture.light_note and capture.fitted_light is None
+    kept = capture_appearance(rgba, mesh, photo, None, pose, search=False, mask=mask, fit_photo_light=False)
+    np.testing.assert_array_equal(capture.rgba, kept.rgba)
+    assert np.median(np.abs(capture.rgba[capture.visible, :3] - blue).max(axis=1)) < 0.01
+
+
+@pytest.mark.parametrize("case", ["black photo", "white photo", "object out of frame", "grazing camera"])
+def test_hard_cases_give_finite_colors_or_say_why_not(case):
+    mesh = sofa("single")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=40.0)
+    photo = np.full((SIZE, SIZE, 3), 0.5)
+    if case == "black photo":
+        photo[:] = 0.0
+    elif case == "white photo":
+        photo[:] = 1.0
+    elif case == "object out of frame":
+        pose = PhotoPose(Camera(30.0, SIZE, SIZE), translation=(40.0, 0.0))
+    else:
+        pose = PhotoPose(Camera(89.0, SIZE, SIZE), rotation_deg=40.0)
+        photo = photo_of(mesh, LIGHTS[0], pose)
+    try:
+        fitted = fit_light(mesh, photo, pose)
+    except InputError as exc:
+        assert "too little of the object" in str(exc)
+    else:
+        assert all(math.isfinite(v) for v in (*fitted.position, fitted.ambient, fitted.spread))
+        albedo, known = light_divided(photo, fitted)
+        assert np.isfinite(albedo).all() and albedo.min() >= 0.0 and albedo.max() <= 1.0
+    rgba = voxelize(mesh, resolution=24)
+    capture = capture_appearance(rgba, mesh, photo, None, pose, search=False)
+    assert np.isfinite(capture.rgba).all()
+
+
+def test_surface_normals_face_the_camera_and_points_lie_on_the_mesh():
+    """SilhouetteRenderer.surface on a box: hits where mask() says, points on the box's faces, unit normals along
+    an axis and facing the camera."""
+    box = trimesh.creation.box([0.6, 0.4, 0.8])
+    renderer = SilhouetteRenderer(box)
+    pose = PhotoPose(Camera(35.0, 48, 40), rotation_deg=30.0)
+    hit, points, normals = renderer.surface(pose)
+    assert np.array_equal(hit, renderer.mask(pose)) and len(points) == hit.sum() > 100
+    on_face = np.isclose(np.abs(points) / [0.3, 0.2, 0.4], 1.0, atol=1e-4).any(axis=1)
+    assert on_face.all()
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-6)
+    assert np.isclose(np.abs(normals), 1.0, atol=1e-5).any(axis=1).all()
+    camera_obj = pose.world_to_object() @ np.append(pose.camera.position, 1.0)
+    assert (np.einsum("ij,ij->i", normals, camera_obj[:3] - points) > 0.0).all()
+
+
+def test_the_capture_command_fits_the_light_unless_told_to_keep_it(tmp_path, capsys):
+    """`nvr capture` with a camera file that names no light fits one and says where; --keep-photo-light keeps the
+    photo's shading and says so."""
+    from PIL import Image
+
+    from app.cli import run
+    from renderer.capture.pose import save_pose
+    from renderer.voxels import load_voxels
+
+    mesh = sofa("single")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=150.0)
+    mesh.export(tmp_path / "sofa.obj")
+    Image.fromarray((photo_of(mesh, LIGHTS[0], pose) * 255).round().astype(np.uint8)).save(tmp_path / "photo.png")
+    save_pose(tmp_path / "camera.json", pose)
+    said = {}
+    for name, extra in (("fitted", []), ("kept", ["--keep-photo-light"])):
+        assert run(["capture", str(tmp_path / "sofa.obj"), str(tmp_path / "photo.png"), "--camera",
+                    str(tmp_path / "camera.json"), "--res", "24", "-o", str(tmp_path / f"{name}.json"), *extra]) == 0
+        said[name] = capsys.readouterr().out
+    assert "the photo's light fitted at [" in said["fitted"] and "keep its shading" in said["kept"]
+    fitted, kept = (load_voxels(tmp_path / f"{name}_colors.npz") for name in ("fitted", "kept"))
+    occupied = kept[..., 3] > 0.5
+    assert np.std(fitted[occupied, :3].mean(axis=1)) < 0.7 * np.std(kept[occupied, :3].mean(axis=1))
