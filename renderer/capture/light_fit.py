@@ -6,8 +6,8 @@ is the light's irradiance (cosines over squared distance, shadowed by the mesh, 
 plus the ambient irradiance (sky and floor bounce, each visible where the mesh does not block the way). The light
 that explains the photo best leaves the most uniform albedo (photo over shading): the smallest mean absolute
 deviation of its log brightness. An object's colors do not follow the light, so shading left in them only adds
-spread. (The sum of log-brightness steps between neighbours, Retinex's measure, was tried: textures outweighed the
-shading.) Written here: no registry package fits a light to a photo of a known mesh; it is ray casting and sums.
+spread. (Retinex's sum of log-brightness steps between neighbours did worse: docs/results.md, "Tried and not
+adopted".) Written here: no registry package fits a light to a photo of a known mesh; it is ray casting and sums.
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE
 FIT_SIDE = 128  # long side at which the light is fitted
 AMBIENT_RAYS = 48  # cosine-weighted rays per pixel for the sky's and the floor's visibility
 FLOOR_BOUNCE = 0.45  # the floor's share of the ambient light sent back up (its albedo times its irradiance ratio)
-LIGHT_POINTS = 5  # the square light sampled at its centre and four points halfway to its corners (soft shadows)
+# The square light sampled at its centre and four points halfway to its corners (soft shadows), as offsets in x, z
+LIGHT_POINTS = ((0.0, 0.0), (-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25))
 X_RANGE, Y_RANGE, Z_RANGE = (-3.0, 3.0), (2.0, 4.5), (-3.0, 3.0)  # where the light is looked for (world units)
 AMBIENT_RANGE = (0.125, 8.0)  # the ambient light's strength relative to the scene's
 MIN_PIXELS = 64  # fewer trusted object pixels than this at FIT_SIDE: no fit
@@ -94,9 +95,8 @@ class _Surface:
     def direct(self, light: np.ndarray) -> np.ndarray:
         """Irradiance from the square light centred at `light` (world), facing down, per pixel, with shadows."""
         total = np.zeros(len(self.points))
-        quarter = 0.25 * LIGHT_SIZE
-        for dx, dz in ((0.0, 0.0), (-quarter, -quarter), (quarter, -quarter), (-quarter, quarter), (quarter, quarter)):
-            to_light = light + np.array([dx, 0.0, dz]) - self.points
+        for dx, dz in LIGHT_POINTS:
+            to_light = light + LIGHT_SIZE * np.array([dx, 0.0, dz]) - self.points
             distance = np.linalg.norm(to_light, axis=1)
             cos_surface = np.einsum("ij,ij->i", self.normals, to_light) / distance
             cos_light = to_light[:, 1] / distance
@@ -106,7 +106,7 @@ class _Surface:
                 shadowed = self.silhouettes.occluded(self.origins_obj[lit], reach, far=1.0)
                 lit[np.flatnonzero(lit)[shadowed]] = False
             total += np.where(lit, cos_surface * cos_light / np.maximum(distance, 1e-3) ** 2, 0.0)
-        return total / LIGHT_POINTS * LIGHT_RADIANCE * LIGHT_SIZE**2
+        return total / len(LIGHT_POINTS) * LIGHT_RADIANCE * LIGHT_SIZE**2
 
     def ambient(self) -> np.ndarray:
         """Irradiance from the uniform ambient light, directly and off the floor, per pixel, at the scene's strength."""
