@@ -129,7 +129,7 @@ def add_voxelize_parser(sub: argparse._SubParsersAction) -> None:
 def cmd_capture(args: argparse.Namespace) -> None:
     from renderer.capture.capture import capture_appearance, captured_scene, fit_advice
     from renderer.capture.pose import load_pose, save_pose
-    from renderer.io import load_image
+    from renderer.io import load_image, photo_focal_35mm
     from renderer.mesh import load_mesh, normalise_mesh
     from renderer.scene import save_scene
     from renderer.voxels import save_voxels, voxelize
@@ -142,12 +142,13 @@ def cmd_capture(args: argparse.Namespace) -> None:
     mesh = normalise_mesh(load_mesh(args.mesh, up=args.up))
     photo, alpha = load_image(args.photo)
     pose = None if args.camera is None else load_pose(args.camera)
+    focal_35mm = photo_focal_35mm(args.photo) if pose is None else None  # a camera file states its own lens
     search = args.auto or pose is None
     rgba = voxelize(mesh, resolution=args.res)
     box = _parse_box(args.box, photo.shape)
     captured = capture_appearance(rgba, mesh, photo, alpha, pose, search=search, path=args.photo,
                                   free_focal=args.free_focal, box=box, light=light,
-                                  fit_photo_light=not args.keep_photo_light)
+                                  fit_photo_light=not args.keep_photo_light, focal_35mm=focal_35mm)
     save_voxels(voxels_out, captured.rgba)
     save_pose(camera_out, captured.pose)
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
@@ -156,7 +157,8 @@ def cmd_capture(args: argparse.Namespace) -> None:
         f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s")
     print(f"pose ({how}): rotation {p.rotation_deg:.1f} deg, elevation {p.camera.elevation_deg:.1f} deg, "
           f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}, "
-          f"focal length {p.camera.focal_mm:.1f} mm")
+          f"focal length {p.camera.focal_mm:.1f} mm"
+          + ("" if focal_35mm is None else f" (the photo's EXIF: {focal_35mm:g} mm, 35 mm equivalent)"))
     advice = None if captured.alignment is None else fit_advice(captured.alignment, box is not None)
     if advice:
         print(f"warning: {advice}")
@@ -175,7 +177,8 @@ def add_capture_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--camera", default=None, help="the photo's camera file (JSON); without --auto it is used as is")
     p.add_argument("--auto", action="store_true",
                    help="find the pose from the object's silhouette (from --camera's pose if given, else from none)")
-    p.add_argument("--free-focal", action="store_true", help="the search also fits the focal length (default: 40 mm)")
+    p.add_argument("--free-focal", action="store_true",
+                   help="the search also fits the focal length (default: the photo's EXIF lens, else 40 mm)")
     p.add_argument("--light", default=None, metavar="X,Y,Z",
                    help="the light's centre when the photo was taken (world units; default: the camera file's "
                         "light, if any): its light is then divided out of the colors")

@@ -202,6 +202,24 @@ def save_png(path: str | Path, image: np.ndarray) -> None:
         raise InputError(f"cannot write: {exc.strerror or exc}", path) from None
 
 
+EXIF_IFD, FOCAL_35MM_TAG = 0x8769, 0xA405  # the Exif sub-directory, and FocalLengthIn35mmFilm in it
+
+
+def photo_focal_35mm(path: str | Path) -> float | None:
+    """The photo's focal length as its camera states it in EXIF, 35 mm equivalent (FocalLengthIn35mmFilm); None
+    when the file states none (or an impossible one, or cannot be read: the search then assumes the scene's lens)."""
+    try:
+        with Image.open(path) as im:
+            value = im.getexif().get_ifd(EXIF_IFD).get(FOCAL_35MM_TAG)
+    except (OSError, ValueError, SyntaxError):
+        return None
+    try:
+        focal = float(value)
+    except (TypeError, ValueError):
+        return None
+    return focal if 4.0 <= focal <= 2000.0 else None
+
+
 def load_image(path: str | Path, max_side: int = MAX_PHOTO_SIDE) -> tuple[np.ndarray, np.ndarray | None]:
     """Load any still image as float32 sRGB (H x W x 3) in [0, 1] and its alpha (H x W) or None.
 

@@ -12,11 +12,11 @@ from scipy.spatial import ConvexHull
 from renderer.camera import Camera
 from renderer.capture.align import align_pose, rotation_error_deg, silhouette_iou
 from renderer.capture.capture import capture_appearance, find_pose
-from renderer.capture.pose import PhotoPose, load_pose, pose_from_dict, save_pose
+from renderer.capture.pose import PhotoPose, load_pose, photo_camera, pose_from_dict, save_pose
 from renderer.capture.segment import object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
-from renderer.io import load_image
+from renderer.io import load_image, photo_focal_35mm
 from renderer.objects import generate_object
 from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.photo import is_mirror_symmetric
@@ -280,6 +280,33 @@ def test_free_focal_length_is_recovered_for_a_longer_lens(chair):
     assert fixed.pose.camera.focal_mm == 40.0
     assert free.pose.camera.focal_mm == pytest.approx(55.0, rel=0.15)
     assert free.iou >= fixed.iou
+
+
+def test_the_lens_a_photos_exif_states_is_the_searchs_lens(chair, tmp_path):
+    """A JPEG taken with a 24 mm lens (35 mm equivalent, in its EXIF) of the chair on a backdrop: the search reads the
+    lens and finds the pose through it (silhouette IoU over 0.95, the rotation within 3 degrees); assuming the
+    scene camera's 40 mm instead fits worse. A photo without EXIF, or with an impossible lens, states none."""
+    truth = PhotoPose(photo_camera(160, 120, 24.0, 30.0), rotation_deg=20.0)
+    true_mask = SilhouetteRenderer(chair).mask(truth)
+    rgb = np.where(true_mask[..., None], np.array([0.2, 0.4, 0.9]), 0.75)
+    exif = Image.Exif()
+    exif.get_ifd(0x8769)[0xA405] = 24
+    image = Image.fromarray((rgb * 255).round().astype(np.uint8))
+    image.save(tmp_path / "phone.jpg", quality=95, exif=exif)
+    focal = photo_focal_35mm(tmp_path / "phone.jpg")
+    assert focal == 24.0
+    photo, _ = load_image(tmp_path / "phone.jpg")
+    through_lens = find_pose(chair, photo, focal_35mm=focal)
+    assumed = find_pose(chair, photo)
+    ious = [silhouette_iou(SilhouetteRenderer(chair).mask(a.pose), true_mask) for a in (through_lens, assumed)]
+    assert through_lens.pose.camera.focal_mm == pytest.approx(truth.camera.focal_mm)
+    assert ious[0] > 0.95 and ious[0] > ious[1]
+    assert rotation_error_deg(through_lens.pose.rotation_deg, 20.0) < 3.0
+    image.save(tmp_path / "plain.jpg")
+    exif.get_ifd(0x8769)[0xA405] = 0
+    image.save(tmp_path / "zero.jpg", exif=exif)
+    assert photo_focal_35mm(tmp_path / "plain.jpg") is None and photo_focal_35mm(tmp_path / "zero.jpg") is None
+    assert photo_focal_35mm(tmp_path / "missing.jpg") is None
 
 
 def test_coloring_near_the_silhouette_never_takes_the_background_even_from_a_pose_a_little_off():

@@ -20,10 +20,10 @@ from PIL import Image
 from renderer.camera import Camera
 from renderer.capture.capture import ASPECT_TOLERANCE, Capture, capture_appearance, mask_at_size, trusted_pixels
 from renderer.capture.light_fit import FittedLight
-from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose
+from renderer.capture.pose import MAX_ELEVATION_DEG, PhotoPose, load_pose, photo_camera
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
-from renderer.io import load_image
+from renderer.io import load_image, photo_focal_35mm
 from renderer.pipeline import object_mesh
 from renderer.scene import Scene
 from renderer.voxel_faces import voxel_surface_mesh
@@ -47,14 +47,15 @@ class PhotoAlignment:
     def __init__(self, path: str | Path, scene: Scene, camera_path: str | Path | None = None):
         self.path = Path(path)
         self.rgb, self.alpha = load_image(path)
+        self.focal_35mm = photo_focal_35mm(path)  # the lens the photo's EXIF states, if it does
         h, w = self.rgb.shape[:2]
         if camera_path is not None:
             filed = load_pose(camera_path, scene.object)
             _check_aspect(filed.camera, w, h, self.path)
             self.pose = filed.at_size(w, h)
-        else:  # start from the scene's own view, which is what a user sets up to match the photo
-            self.pose = PhotoPose(Camera(scene.camera.elevation_deg, w, h), scene.object.rotation_deg,
-                                  scene.object.translation, scene.object.scale)
+        else:  # start from the scene's own view, which is what a user sets up to match the photo, through its lens
+            self.pose = PhotoPose(photo_camera(w, h, self.focal_35mm, scene.camera.elevation_deg),
+                                  scene.object.rotation_deg, scene.object.translation, scene.object.scale)
         self.mesh: trimesh.Trimesh | None = None  # the object's shape, which the search aligns
         self._silhouettes: SilhouetteRenderer | None = None
         self._mesh_key: object = None

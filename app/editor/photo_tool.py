@@ -49,7 +49,9 @@ class PhotoTool:
             self.alignment, self._shape_tried = alignment, alignment.mesh_key
             h, w = alignment.rgb.shape[:2]
             start = "its camera file" if camera else "the scene's view"
-            self.app.say(f"loaded {Path(photo).name} ({w}x{h}), posed from {start}: align by hand on the photo, or Align")
+            lens = "" if alignment.focal_35mm is None else f", lens {alignment.focal_35mm:g} mm (EXIF)"
+            self.app.say(f"loaded {Path(photo).name} ({w}x{h}{lens}), posed from {start}: align by hand on the photo, "
+                         "or Align")
 
         self.app.jobs.start(f"Loading {Path(photo).name}", work, done)
 
@@ -71,7 +73,7 @@ class PhotoTool:
 
         def work(_progress: Progress) -> Alignment:
             return find_pose(mesh, alignment.rgb, alignment.alpha, initial=initial, path=alignment.path,
-                             **alignment.hints())
+                             focal_35mm=alignment.focal_35mm, **alignment.hints())
 
         def done(found: Alignment) -> None:
             alignment.set_pose(found.pose)

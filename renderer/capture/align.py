@@ -27,7 +27,7 @@ import numpy as np
 
 from renderer.camera import Camera
 from renderer.capture.color_fit import color_separation, quantised_colors
-from renderer.capture.pose import PhotoPose
+from renderer.capture.pose import PhotoPose, photo_camera
 from renderer.capture.silhouette import SilhouetteRenderer
 
 COARSE_SIDE = 64  # long side of the masks compared in the coarse search, pixels
@@ -71,17 +71,17 @@ class Alignment:
 
 
 def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial: PhotoPose | None = None,
-               free_focal: bool = False) -> Alignment:
+               free_focal: bool = False, focal_35mm: float | None = None) -> Alignment:
     """The pose whose silhouette best overlaps `photo_mask` ((H, W) bool).
 
     `initial`: a rough pose to start from (searches a window around it); None searches all
-    rotations and elevations with the scene camera. `free_focal`: the last refinement also fits
-    the focal length (for photos not taken with the scene camera's 40 mm lens).
+    rotations and elevations with the scene camera, or with the lens `focal_35mm` (35 mm equivalent, from the photo's
+    EXIF). `free_focal`: the last refinement also fits the focal length (for photos not taken with that lens).
     """
     start = time.perf_counter()
     rays_before = silhouettes.rays_cast
     h, w = photo_mask.shape
-    base = initial if initial is not None else PhotoPose(Camera(elevation_deg=0.0, width=w, height=h))
+    base = initial if initial is not None else PhotoPose(photo_camera(w, h, focal_35mm))
     base = base.at_size(w, h)
     coarse, early, fine = (_Problem(silhouettes, _resize_mask(photo_mask, min(side, max(h, w))), base)
                            for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
@@ -152,18 +152,18 @@ def _refine(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoP
 
 def search_in_box(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tuple[float, float, float, float],
                   region: np.ndarray, photo_mask: np.ndarray, free_focal: bool = False,
-                  initial: PhotoPose | None = None) -> Alignment:
+                  initial: PhotoPose | None = None, focal_35mm: float | None = None) -> Alignment:
     """The pose whose silhouette best separates `photo_rgb`'s colors within `region` ((H, W) bool) while staying
     inside `box` (x0, y0, x1, y1 pixels of the photo), found without a mask: each pose of a coarse grid of
     rotations and elevations is placed so its bounding box fills the box, scored by `in_box_score`, and the best
     distinct ones are refined on it. A mask cut from clutter can miss the object's shape entirely (a thin chair
     over a busy photo); this search only needs the box to hold the object. `photo_mask` only gives the reported
     IoU (and is kept as the alignment's mask), as in `refine_by_colors`. `initial`: a rough pose, whose window of
-    rotations and elevations (as in `align_pose`) is searched instead of all of them."""
+    rotations and elevations (as in `align_pose`) is searched instead of all of them; `focal_35mm` as in `align_pose`."""
     start = time.perf_counter()
     rays_before = silhouettes.rays_cast
     h, w = photo_rgb.shape[:2]
-    base = PhotoPose(Camera(elevation_deg=0.0, width=w, height=h))
+    base = PhotoPose(photo_camera(w, h, focal_35mm))
     coarse, early, fine = (_BoxProblem(silhouettes, photo_rgb, box, region, base, side)
                            for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
     rotations, elevations = BOX_ROTATIONS, BOX_ELEVATIONS

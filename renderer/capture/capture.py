@@ -70,9 +70,10 @@ class Capture:
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
               initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False,
               box: tuple[int, int, int, int] | None = None, object_strokes: np.ndarray | None = None,
-              background_strokes: np.ndarray | None = None) -> Alignment:
+              background_strokes: np.ndarray | None = None, focal_35mm: float | None = None) -> Alignment:
     """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough
-    pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is.
+    pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is; `focal_35mm`, the lens the photo's EXIF
+    states (35 mm equivalent), replaces the scene camera's 40 mm when there is no `initial` pose.
 
     Without an alpha channel, segmentation and pose search alternate: the first pose's silhouette starts
     the next segmentation (GrabCut with it as prior), whose mask refines the pose, SEGMENT_ROUNDS times. With a
@@ -94,7 +95,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     mask = object_mask(small_rgb, small_alpha, path, hints)
     start = None if initial is None else initial.at_size(sw, sh)
     silhouettes = SilhouetteRenderer(mesh)
-    alignment = align_pose(silhouettes, mask, start, free_focal)
+    alignment = align_pose(silhouettes, mask, start, free_focal, focal_35mm)
     rays, seconds = alignment.rays, alignment.seconds
     by_colors = small_alpha is None and hints.box is not None
     if by_colors:
@@ -112,7 +113,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
             alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
             rays, seconds = rays + alignment.rays, seconds + alignment.seconds
     if by_colors:  # the search that needs no mask: it wins where its pose separates the colors in the box better
-        found = search_in_box(silhouettes, small_rgb, hints.box, region, mask, free_focal, start)
+        found = search_in_box(silhouettes, small_rgb, hints.box, region, mask, free_focal, start, focal_35mm)
         rays, seconds = rays + found.rays, seconds + found.seconds
         scores = [in_box_score(silhouettes, small_rgb, hints.box, region, a.pose) for a in (alignment, found)]
         if scores[1] > scores[0]:
@@ -178,7 +179,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
                        path: str | Path | None = None, free_focal: bool = False, mask: np.ndarray | None = None,
                        light: tuple[float, float, float] | None = None, fit_photo_light: bool = True,
-                       **hints) -> Capture:
+                       focal_35mm: float | None = None, **hints) -> Capture:
     """Color `object_rgba` (voxels of `mesh`) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
@@ -187,7 +188,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     inside the object's mask: `mask` when given, else the search's last segmentation, else the photo
     segmented with the user's `hints` (box, strokes: see find_pose) and the pose's silhouette (when `mesh`
     is given). `light` (world), when given, is the photo's light; else the pose's, if it knows one; else, with
-    `fit_photo_light` and a mesh, the light is fitted from the photo and divided out.
+    `fit_photo_light` and a mesh, the light is fitted from the photo and divided out. `focal_35mm`: see find_pose.
     """
     if pose is None and not search:
         raise InputError("a photo needs a camera file or the automatic alignment", path)
@@ -196,7 +197,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
         raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
     if search:
-        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, **hints)
+        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, focal_35mm=focal_35mm, **hints)
         pose = replace(alignment.pose, light=None if pose is None else pose.light)
         mask = alignment.mask if mask is None else mask
     if light is not None:

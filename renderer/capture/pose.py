@@ -16,6 +16,7 @@ Camera file (JSON; the data generator writes one beside each appearance image):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -105,6 +106,20 @@ def pose_from_dict(data: Any, spec: ObjectSpec = DEFAULT_PLACEMENT, path: str | 
     return PhotoPose(camera, rotation_deg=_number(data, "rotation_deg", path, spec.rotation_deg),
                      translation=tuple(_numbers(data, "translation", 2, path, spec.translation)), scale=scale,
                      light=light)
+
+
+FILM_DIAGONAL_MM = math.hypot(36.0, 24.0)  # a "35 mm equivalent" focal length is relative to this frame's diagonal
+
+
+def photo_camera(width: int, height: int, focal_35mm: float | None = None, elevation_deg: float = 0.0) -> Camera:
+    """The camera of a photo of width x height pixels: the scene's, or with a lens of `focal_35mm` (35 mm
+    equivalent, as EXIF states it), moved with the lens (a dolly zoom) so the object keeps about its size."""
+    camera = Camera(elevation_deg, width=width, height=height)
+    if focal_35mm is None:
+        return camera
+    focal_px = focal_35mm * math.hypot(width, height) / FILM_DIAGONAL_MM
+    focal_mm = focal_px * camera.sensor_mm / width
+    return replace(camera, focal_mm=focal_mm, distance=camera.distance * focal_mm / camera.focal_mm)
 
 
 def lit_photo_scene(pose: PhotoPose, floor_color: tuple[float, float, float] = FloorSpec().color) -> Scene:
