@@ -309,6 +309,31 @@ def test_the_lens_a_photos_exif_states_is_the_searchs_lens(chair, tmp_path):
     assert photo_focal_35mm(tmp_path / "missing.jpg") is None
 
 
+def test_a_rod_in_front_of_the_object_gives_it_no_colors(monkeypatch):
+    """A blue box on a grey backdrop with a red rod before it, running on below it (as a spoon before a cup): the
+    rod's pixels inside the box's silhouette are told apart by the color of its part beside the box, and no voxel
+    takes its red. Without that (a rod too short to show beside the box), a good share of the seen voxels does."""
+    import renderer.capture.capture as capture_module
+
+    box = box_mesh()
+    pose = PhotoPose(Camera(20.0, 120, 100), rotation_deg=30.0)
+    silhouette = SilhouetteRenderer(box).mask(pose)
+    rows, cols = np.nonzero(silhouette)
+    middle = int(cols.mean())
+    photo = np.where(silhouette[..., None], np.array([0.2, 0.35, 0.85]), 0.7)
+    photo[rows.min() + 10:rows.max() + 15, middle - 4:middle + 4] = (0.85, 0.15, 0.1)
+    rgba = voxelize(box, resolution=24)
+
+    def red_share() -> float:
+        capture = capture_appearance(rgba, box, photo, None, pose, search=False)
+        seen = capture.rgba[capture.visible][:, :3]
+        return float(np.mean((seen[:, 0] > 0.5) & (seen[:, 2] < 0.5)))
+
+    assert red_share() < 0.01
+    monkeypatch.setattr(capture_module, "MIN_FOREIGN_PIXELS", 10**9)
+    assert red_share() > 0.05
+
+
 def test_coloring_near_the_silhouette_never_takes_the_background_even_from_a_pose_a_little_off():
     """A red box on a blue backdrop; colored from a pose shifted by 2 pixels, the voxels along the edge would
     land on the backdrop: with the mask's trusted inside they take the nearest sure voxel's red instead."""

@@ -8,6 +8,7 @@ on the scene camera's orbit, as the data generator and the editor take them), th
 the colors (renderer.photo.unmixed_albedo with the object's mesh, photo_albedo without), as the training data's are.
 When the light is unknown (every real photo), it is fitted from the photo's shading of the mesh
 (renderer/capture/light_fit.py) and divided out, unless the caller turns that off; the colors then keep the shading.
+What stands in front of the object or under it (a rod, a saucer) gives no colors (`foreign_pixels`).
 """
 
 from __future__ import annotations
@@ -30,10 +31,11 @@ from renderer.capture.align import (
     search_in_box,
     silhouette_iou,
 )
+from renderer.capture.color_fit import LEVELS, quantised_colors
 from renderer.capture.grabcut import Hints, context_window
 from renderer.capture.light_fit import FittedLight, fit_light, light_divided
 from renderer.capture.pose import PhotoPose, lit_photo_scene
-from renderer.capture.segment import object_mask
+from renderer.capture.segment import OPAQUE, object_mask
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
 from renderer.limits import DEFAULT_RESOLUTION
@@ -53,6 +55,8 @@ SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the
 LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask less than this was fitted to a poor
 # mask (0.80-0.88 on four cluttered photos searched without a box; 0.94 on a path-traced floor photo aligned right)
 SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
+FOREIGN_ODDS = 2.0  # a color this many times likelier on what stands beside the object than on it is not the object's
+MIN_FOREIGN_PIXELS = 20  # fewer pixels than this beside the silhouette say nothing
 
 
 @dataclass(frozen=True)
@@ -213,6 +217,8 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
     trusted = trusted_pixels(mask)
+    if trusted is not None and mesh is not None and (alpha is None or not np.any(alpha < OPAQUE)):  # a cut, not alpha
+        trusted &= ~foreign_pixels(photo_rgb, mask, SilhouetteRenderer(mesh).mask(pose))
     fitted = None
     try:
         light_scene = lit_photo_scene(pose)
@@ -241,6 +247,25 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     except InputError as exc:
         raise InputError(exc.problem, path) from None
     return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment, light_note, fitted)
+
+
+def foreign_pixels(photo_rgb: np.ndarray, mask: np.ndarray, silhouette: np.ndarray) -> np.ndarray:
+    """Pixels inside the object's `silhouette` at its pose that show something else: a rod in front of it, the
+    saucer under it. What the segmented `mask` holds beyond the silhouette (by more than a margin) is such a thing,
+    not the object; inside the silhouette, a pixel whose color (quantised as color_fit's) is FOREIGN_ODDS times
+    likelier among those pixels than among the silhouette's is taken for it. (H, W) bool."""
+    h, w = mask.shape
+    margin = max(1, round(TRUST_MARGIN * min(h, w)))
+    beyond = mask & ~ndimage.binary_dilation(silhouette, iterations=margin)
+    if beyond.sum() < MIN_FOREIGN_PIXELS:
+        return np.zeros((h, w), dtype=bool)
+    bins = quantised_colors(photo_rgb, (h, w))
+    counts = [np.bincount(bins[where], minlength=LEVELS**3).astype(np.float64) for where in (beyond, silhouette & mask)]
+    pooled = (counts[0] + counts[1]) / max(1.0, counts[0].sum() + counts[1].sum())
+    # Each side's color frequencies, drawn towards the pooled ones by MIN_FOREIGN_PIXELS pixels' worth: a color
+    # seen a few times on one side only is not yet that side's.
+    foreign, own = ((c + MIN_FOREIGN_PIXELS * pooled) / (c.sum() + MIN_FOREIGN_PIXELS) for c in counts)
+    return silhouette & (foreign[bins] > FOREIGN_ODDS * own[bins])
 
 
 def trusted_pixels(mask: np.ndarray | None) -> np.ndarray | None:
