@@ -55,8 +55,8 @@ from renderer.capture.pose import PhotoPose
 from renderer.capture.segment import MAX_BUSY_SHARE
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.errors import InputError
-from renderer.mesh import normalise_mesh
 from renderer.io import atomic_path
+from renderer.mesh import normalise_mesh
 from renderer.objects import apply_appearance, generate_object, split_seeds
 from renderer.pathtrace.path_tracer import render_pathtraced
 from renderer.scene import (
