@@ -12,6 +12,8 @@ import trimesh
 from renderer.capture.pose import PhotoPose
 from renderer.errors import InputError
 
+MAX_RAY_GRIDS = 16  # lenses and sizes whose camera-space rays are kept (a search uses three sizes, one lens)
+
 
 class SilhouetteRenderer:
     """Masks of one mesh (in object coordinates) for any pose; one ray per pixel centre."""
@@ -25,7 +27,7 @@ class SilhouetteRenderer:
         self._scene = o3d.t.geometry.RaycastingScene()
         self._scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
                                   o3d.core.Tensor(faces.astype(np.uint32)))
-        self._grids: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
+        self._grids: dict[tuple, np.ndarray] = {}  # camera-space ray directions by lens and size
         self.rays_cast = 0
 
     def mask(self, pose: PhotoPose) -> np.ndarray:
@@ -59,18 +61,25 @@ class SilhouetteRenderer:
         return self._scene.test_occlusions(o3d.core.Tensor(_rays(origins, directions)), tfar=float(far)).numpy()
 
     def _camera_rays(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray]:
-        """The camera's origin (3,) and (H*W, 3) pixel-centre ray directions, in object coordinates (not unit)."""
+        """The camera's origin (3,) and (H*W, 3) pixel-centre ray directions, in object coordinates (not unit: a
+        pose costs one 3x3 product of the camera-space directions, which depend on the lens and size only)."""
         camera = pose.camera
-        u, v = self._pixel_centres(camera.width, camera.height)
-        origin, directions = camera.pixel_rays(u, v)
+        to_camera_space = camera.camera_to_world()
         to_object = pose.world_to_object()
-        return to_object[:3, :3] @ origin + to_object[:3, 3], directions @ to_object[:3, :3].T
+        turn = to_object[:3, :3] @ to_camera_space[:3, :3]
+        origin = to_object[:3, :3] @ to_camera_space[:3, 3] + to_object[:3, 3]
+        return origin, self._camera_space_rays(camera) @ turn.T
 
-    def _pixel_centres(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-        key = (width, height)
+    def _camera_space_rays(self, camera) -> np.ndarray:
+        """(H*W, 3) directions (x, y, -1) through the pixel centres in camera space, as Camera.pixel_rays makes them."""
+        cx, cy = camera.principal_point
+        key = (camera.width, camera.height, camera.focal_px, cx, cy)
         if key not in self._grids:
-            v, u = np.mgrid[0:height, 0:width] + 0.5
-            self._grids[key] = (u.ravel(), v.ravel())
+            if len(self._grids) >= MAX_RAY_GRIDS:
+                self._grids.clear()
+            v, u = np.mgrid[0:camera.height, 0:camera.width] + 0.5
+            self._grids[key] = np.stack([(u.ravel() - cx) / camera.focal_px, (cy - v.ravel()) / camera.focal_px,
+                                         np.full(u.size, -1.0)], axis=1)
         return self._grids[key]
 
 
