@@ -150,3 +150,21 @@ def test_the_capture_command_fits_the_light_unless_told_to_keep_it(tmp_path, cap
     fitted, kept = (load_voxels(tmp_path / f"{name}_colors.npz") for name in ("fitted", "kept"))
     occupied = kept[..., 3] > 0.5
     assert np.std(fitted[occupied, :3].mean(axis=1)) < 0.7 * np.std(kept[occupied, :3].mean(axis=1))
+
+
+def test_the_floor_around_the_object_counts_only_where_the_light_shades_it():
+    """With the background given, the floor around a sofa (its shadow) joins the fit and the light is found within
+    15 degrees; photographed without a floor (a plain backdrop, which no light shades) the fit leaves it out."""
+    from scipy import ndimage
+
+    mesh = sofa("single")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=150.0)
+    silhouette = SilhouetteRenderer(mesh).mask(pose)
+    trusted, background = trusted_pixels(silhouette), ~ndimage.binary_dilation(silhouette, iterations=2)
+    on_floor = fit_light(mesh, photo_of(mesh, LIGHTS[0], pose), pose, trusted, background)
+    assert on_floor.used_floor and on_floor.floor_share_left <= 0.6
+    assert angle_deg(on_floor.position, LIGHTS[0], (0.0, 0.4, 0.0)) < 15.0
+    scene = Scene.single(object=pose.placed(ObjectSpec()), light=LightSpec(LIGHTS[0]), camera=CameraSpec(30.0),
+                         image_size=SIZE)
+    studio = render_pathtraced(scene, mesh, spp=32, seed=1, denoise=True, floor=False).image
+    assert not fit_light(mesh, studio, pose, trusted, background).used_floor

@@ -226,8 +226,10 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     except InputError as exc:
         light_scene, light_note = None, f"{exc.problem}: colors keep its shading"
     if pose.light is None and fit_photo_light and mesh is not None:
+        cut = mask is not None and (alpha is None or not np.any(alpha < OPAQUE))
+        background = ~ndimage.binary_dilation(mask, iterations=2) if cut else None  # what a cut says is not the object
         try:
-            fitted = fit_light(mesh, photo_rgb, pose, trusted)
+            fitted = fit_light(mesh, photo_rgb, pose, trusted, background)
         except InputError as exc:
             light_note = f"{exc.problem}: colors keep its shading"
         if fitted is not None and not fitted.explains_photo:

@@ -34,7 +34,10 @@ FLOOR_BOUNCE = 0.45  # the floor's share of the ambient light sent back up (its 
 LIGHT_POINTS = ((0.0, 0.0), (-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25))
 X_RANGE, Y_RANGE, Z_RANGE = (-3.0, 3.0), (2.0, 4.5), (-3.0, 3.0)  # where the light is looked for (world units)
 AMBIENT_RANGE = (0.125, 8.0)  # the ambient light's strength relative to the scene's
-MIN_PIXELS = 64  # fewer trusted object pixels than this at FIT_SIDE: no fit
+MIN_PIXELS = 64  # fewer trusted object pixels than this at FIT_SIDE: no fit (fewer floor pixels: no floor term)
+FLOOR_REACH = 0.5  # floor pixels count within this many times the object's extent in the image around it
+FLOOR_EXPLAINED = 0.6  # ... and only if the fitted light leaves at most this share of their spread: a floor's shading
+# left 0.14-0.77 of it on the capture bench's floor photos, photographs behind the object 0.73-1.03, backdrops 50-180
 DARK = 0.004  # linear brightness below which a pixel says nothing about its shading
 MIN_SHADING_SHARE = 0.02  # the fitted shading is floored at this share of its mean before dividing
 MIN_GAIN = 0.02  # the fit explains the photo's shading when it makes the albedo's spread this share smaller
@@ -45,10 +48,12 @@ MIN_GAIN = 0.02  # the fit explains the photo's shading when it makes the albedo
 class FittedLight:
     position: tuple[float, float, float]  # the square light's centre, world units
     ambient: float  # the ambient light's strength relative to the scene's AMBIENT_RADIANCE
-    spread: float  # the albedo's mean absolute deviation of log brightness at the fit
+    spread: float  # the albedo's mean absolute deviation of log brightness at the fit (object's plus floor's)
     spread_kept: float  # the same for the photo itself (its shading kept), for comparison
     shading: np.ndarray = field(repr=False, compare=False)  # (h, w) irradiance at the fit size, 0 off the object,
     # scaled to the scene's lights' mean there
+    used_floor: bool = False  # the floor's shading around the object counted too
+    floor_share_left: float = float("nan")  # the floor's spread at the fit over its own (nan: no floor seen)
 
     @property
     def explains_photo(self) -> bool:
@@ -57,21 +62,35 @@ class FittedLight:
 
 
 class _Surface:
-    """The object's visible pixels at the fit size: world points and normals, ambient visibility, and how to shade
-    them under a light."""
+    """Points seen in the photo at the fit size (world coordinates, unit normals): the object's, or the floor's
+    around it; their ambient visibility, and how to shade them under a light."""
 
-    def __init__(self, silhouettes: SilhouetteRenderer, pose: PhotoPose):
+    def __init__(self, silhouettes: SilhouetteRenderer, pose: PhotoPose, points: np.ndarray, normals: np.ndarray):
         self.silhouettes = silhouettes
-        self.hit, points_obj, normals_obj = silhouettes.surface(pose)
-        to_world, to_object = pose.object_to_world(), pose.world_to_object()
-        self.points = points_obj @ to_world[:3, :3].T + to_world[:3, 3]
-        normals = normals_obj @ to_object[:3, :3]  # the inverse transpose carries normals
-        self.normals = normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
-        self.to_object = to_object
-        size = max(float(np.ptp(points_obj, axis=0).max()), 1e-6) if len(points_obj) else 1.0
-        self.offset = 1e-3 * size  # rays leave the surface this far along its normal (object units)
-        self.origins_obj = (self.points + self.offset * self.normals) @ to_object[:3, :3].T + to_object[:3, 3]
+        self.points, self.normals = points, normals
+        self.to_object = pose.world_to_object()
+        self.offset = 1e-3  # rays leave the surface this far along its normal (world units)
+        self.origins_obj = (points + self.offset * normals) @ self.to_object[:3, :3].T + self.to_object[:3, 3]
         self.sky, self.floor = self._ambient_visibility()
+
+    @classmethod
+    def of_object(cls, silhouettes: SilhouetteRenderer, pose: PhotoPose) -> tuple[_Surface, np.ndarray]:
+        """The object's pixels, and the (H, W) bool mask of them."""
+        hit, points_obj, normals_obj = silhouettes.surface(pose)
+        to_world, to_object = pose.object_to_world(), pose.world_to_object()
+        normals = normals_obj @ to_object[:3, :3]  # the inverse transpose carries normals
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        return cls(silhouettes, pose, points_obj @ to_world[:3, :3].T + to_world[:3, 3], normals), hit
+
+    @classmethod
+    def of_floor(cls, silhouettes: SilhouetteRenderer, pose: PhotoPose, pixels: np.ndarray) -> _Surface:
+        """The floor (y = 0) seen at `pixels` ((H, W) bool; those whose ray does not meet it are left out, as the
+        caller's mask must be)."""
+        rows, cols = np.nonzero(pixels)
+        origin, directions = pose.camera.pixel_rays(cols + 0.5, rows + 0.5)
+        t = -origin[1] / np.minimum(directions[:, 1], -1e-9)
+        points = origin + t[:, None] * directions
+        return cls(silhouettes, pose, points, np.tile([0.0, 1.0, 0.0], (len(points), 1)))
 
     def _ambient_visibility(self) -> tuple[np.ndarray, np.ndarray]:
         """Per pixel, the cosine-weighted share of directions that reach the sky and the floor unblocked. Every
@@ -113,32 +132,37 @@ class _Surface:
         return math.pi * AMBIENT_RADIANCE * (self.sky + FLOOR_BOUNCE * self.floor)
 
 
-def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray | None = None) -> FittedLight:
+def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray | None = None,
+              background: np.ndarray | None = None) -> FittedLight:
     """The square light (and the ambient light's strength) that best explains the shading of the object in
     `photo_rgb` ((H, W, 3) sRGB in [0, 1]) seen at `pose`; `trusted` ((H, W) bool): the pixels surely on the object.
+    `background` ((H, W) bool): the pixels surely not on it; where they show the floor near the object, its shading
+    (the object's shadow above all) counts too, as a second albedo that should come out uniform, when the fit
+    explains it (FLOOR_EXPLAINED).
     InputError when the photo shows too little of the object to tell."""
     h, w = photo_rgb.shape[:2]
     factor = min(1.0, FIT_SIDE / max(h, w))
     size = (max(1, round(w * factor)), max(1, round(h * factor)))
     small_pose = pose.at_size(*size)
-    surface = _Surface(SilhouetteRenderer(mesh), small_pose)
+    silhouettes = SilhouetteRenderer(mesh)
+    surface, hit = _Surface.of_object(silhouettes, small_pose)
     photo = srgb_to_linear(downscaled(np.asarray(photo_rgb, dtype=np.float64), max(size)))
-    use = surface.hit.copy()
+    brightness = photo.mean(axis=2)
+    use = hit & (brightness > DARK)
     if trusted is not None:
         use &= downscaled_mask(np.asarray(trusted, dtype=bool), max(size), min_cover=0.75)
-    brightness = photo.mean(axis=2)
-    use &= brightness > DARK
     if use.sum() < MIN_PIXELS:
         raise InputError("the photo shows too little of the object to fit its light")
-    log_photo = np.log(brightness[use])
-    ambient = surface.ambient()
-    used = use[surface.hit]  # of the pixels the object covers
-
-    def shading(params: np.ndarray) -> np.ndarray:
-        return surface.direct(params[:3]) + math.exp(params[3]) * ambient
+    parts = [(surface, use[hit], np.log(brightness[use]))]  # (points, those used, their log brightness)
+    floor_pixels = _floor_pixels(small_pose, hit, brightness, background, size)
+    if floor_pixels.sum() >= MIN_PIXELS:
+        parts.append((_Surface.of_floor(silhouettes, small_pose, floor_pixels), slice(None),
+                      np.log(brightness[floor_pixels])))
+    ambients = [part[0].ambient() for part in parts]
 
     def spread(params: np.ndarray) -> float:
-        return _spread(log_photo - np.log(_floored(shading(params))[used]))
+        return sum(_spread(log_photo - np.log(_floored(part.direct(params[:3]) + math.exp(params[3]) * ambient))[used])
+                   for (part, used, log_photo), ambient in zip(parts, ambients))
 
     best = min(((spread(p), tuple(p)) for p in _start_grid()), key=lambda item: item[0])
     params, value = np.array(best[1]), best[0]
@@ -155,12 +179,44 @@ def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray 
             step = step / 2.0
     # The scene's ambient light is fixed: the shading is scaled so that the albedo, drawn under the fitted square
     # light and the scene's ambient light, gives the photo's mean brightness on the object.
-    fitted = _floored(shading(params))
-    in_scene = surface.direct(params[:3]) + ambient
+    used, log_photo = parts[0][1], parts[0][2]
+    direct = surface.direct(params[:3])
+    fitted = _floored(direct + math.exp(params[3]) * ambients[0])
+    in_scene = direct + ambients[0]
     photo_used = np.exp(log_photo)
-    image = np.zeros(surface.hit.shape)
-    image[surface.hit] = fitted * float(np.sum(photo_used * in_scene[used] / fitted[used]) / np.sum(photo_used))
-    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, _spread(log_photo), image)
+    image = np.zeros(hit.shape)
+    image[hit] = fitted * float(np.sum(photo_used * in_scene[used] / fitted[used]) / np.sum(photo_used))
+    kept = sum(_spread(part_log) for _, _, part_log in parts)
+    left = float("nan")
+    if len(parts) > 1:
+        floor, _, floor_log = parts[1]
+        left = _spread(floor_log - np.log(_floored(floor.direct(params[:3]) + math.exp(params[3]) * ambients[1])))
+        left /= max(_spread(floor_log), 1e-9)
+        if left > FLOOR_EXPLAINED:  # not a floor this light shades (a backdrop, a photograph): the object alone
+            return fit_light(mesh, photo_rgb, pose, trusted)
+    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, kept, image,
+                       len(parts) > 1, left)
+
+
+def _floor_pixels(pose: PhotoPose, hit: np.ndarray, brightness: np.ndarray, background: np.ndarray | None,
+                  size: tuple[int, int]) -> np.ndarray:
+    """(H, W) bool at the fit size: background pixels that see the floor within FLOOR_REACH object boxes of the
+    object in the image, lit enough to divide."""
+    if background is None or not hit.any():
+        return np.zeros(hit.shape, dtype=bool)
+    pixels = downscaled_mask(np.asarray(background, dtype=bool), max(size), min_cover=1.0) & (brightness > DARK)
+    rows, cols = np.nonzero(hit)
+    reach_r, reach_c = FLOOR_REACH * (np.ptp(rows) + 1), FLOOR_REACH * (np.ptp(cols) + 1)
+    near = np.zeros(hit.shape, dtype=bool)
+    near[max(0, int(rows.min() - reach_r)):int(rows.max() + reach_r) + 1,
+         max(0, int(cols.min() - reach_c)):int(cols.max() + reach_c) + 1] = True
+    pixels &= near
+    r, c = np.nonzero(pixels)
+    _, directions = pose.camera.pixel_rays(c + 0.5, r + 0.5)
+    below = directions[:, 1] < -1e-3  # the ray meets the floor in front of the camera
+    keep = np.zeros(hit.shape, dtype=bool)
+    keep[r[below], c[below]] = True
+    return keep
 
 
 def light_divided(photo_rgb: np.ndarray, fitted: FittedLight) -> tuple[np.ndarray, np.ndarray]:
