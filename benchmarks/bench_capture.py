@@ -375,10 +375,11 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         "rotation kept.",
         "- `studio` (no floor, plain backdrop, no alpha) and `cutout` (the floor scene with an alpha channel): a "
         "quarter as many, to check that plain photos keep their accuracy.",
-        f"- `high` (the floor scene from {HIGH_ELEVATION[0]:.0f}-{HIGH_ELEVATION[1]:.0f} degrees above), `off-centre` "
-        f"(the object moved {OFF_CENTRE[0]}-{OFF_CENTRE[1]} to a side), `occluder` (a thin upright rod of a random color "
-        "between the camera and the object) and `saucer` (the object on a flat disk wider than its footprint): "
-        "photos users take that the search was not made for.",
+        "- Photos users take that the search was not made for, in the floor scene: "
+        f"`high` (seen from {HIGH_ELEVATION[0]:.0f}-{HIGH_ELEVATION[1]:.0f} degrees above), `off-centre` "
+        f"(the object moved {OFF_CENTRE[0]}-{OFF_CENTRE[1]} to a side). "
+        "`occluder` (a thin upright rod of a random color between the camera and the object), `saucer` (the object "
+        "on a flat disk wider than its footprint).",
         "",
         "Starts: `none` (no pose) and `perturbed` (true pose off by up to 30 degrees in rotation and elevation, 10 % "
         "in scale and position). IoU: the found pose's silhouette against the true one; segmentation IoU: the mask "
