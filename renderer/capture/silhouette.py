@@ -71,15 +71,17 @@ class SilhouetteRenderer:
         return origin, self._camera_space_rays(camera) @ turn.T
 
     def _camera_space_rays(self, camera) -> np.ndarray:
-        """(H*W, 3) directions (x, y, -1) through the pixel centres in camera space, as Camera.pixel_rays makes them."""
+        """(H*W, 3) unit directions through the pixel centres in camera space, as Camera.pixel_rays makes them (the
+        same float rounding keeps a search on the same path)."""
         cx, cy = camera.principal_point
         key = (camera.width, camera.height, camera.focal_px, cx, cy)
         if key not in self._grids:
             if len(self._grids) >= MAX_RAY_GRIDS:
                 self._grids.clear()
             v, u = np.mgrid[0:camera.height, 0:camera.width] + 0.5
-            self._grids[key] = np.stack([(u.ravel() - cx) / camera.focal_px, (cy - v.ravel()) / camera.focal_px,
-                                         np.full(u.size, -1.0)], axis=1)
+            rays = np.stack([(u.ravel() - cx) / camera.focal_px, (cy - v.ravel()) / camera.focal_px,
+                             np.full(u.size, -1.0)], axis=1)
+            self._grids[key] = rays / np.linalg.norm(rays, axis=1, keepdims=True)  # unit, as pixel_rays gives them
         return self._grids[key]
 
 

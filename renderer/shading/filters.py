@@ -8,14 +8,8 @@ float32 and adds in scipy's order, so the results are scipy's to the last bit.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 from numba import njit, prange
-
-# An older TBB loaded first by another package (open3d bundles one) makes numba fall back to OpenMP, which is what it
-# would use anyway; its warning says nothing a user can act on.
-warnings.filterwarnings("ignore", message="The TBB threading layer requires TBB version")
 
 
 def gaussian_weights(sigma: float, truncate: float) -> np.ndarray:
