@@ -47,7 +47,7 @@ def test_the_light_of_a_path_traced_photo_is_found(rotation, light):
     mesh = sofa("single")
     pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=rotation)
     trusted = trusted_pixels(SilhouetteRenderer(mesh).mask(pose))
-    fitted = fit_light(mesh, photo_of(mesh, light, pose), pose, trusted)
+    fitted = fit_light(SilhouetteRenderer(mesh), photo_of(mesh, light, pose), pose, trusted)
     assert angle_deg(fitted.position, light, (0.0, 0.4, 0.0)) < 15.0
     assert fitted.explains_photo and fitted.spread < 0.5 * fitted.spread_kept
 
@@ -99,7 +99,7 @@ def test_hard_cases_give_finite_colors_or_say_why_not(case):
         pose = PhotoPose(Camera(89.0, SIZE, SIZE), rotation_deg=40.0)
         photo = photo_of(mesh, LIGHTS[0], pose)
     try:
-        fitted = fit_light(mesh, photo, pose)
+        fitted = fit_light(SilhouetteRenderer(mesh), photo, pose)
     except InputError as exc:
         assert "too little of the object" in str(exc)
     else:
@@ -161,10 +161,10 @@ def test_the_floor_around_the_object_counts_only_where_the_light_shades_it():
     pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=150.0)
     silhouette = SilhouetteRenderer(mesh).mask(pose)
     trusted, background = trusted_pixels(silhouette), ~ndimage.binary_dilation(silhouette, iterations=2)
-    on_floor = fit_light(mesh, photo_of(mesh, LIGHTS[0], pose), pose, trusted, background)
+    on_floor = fit_light(SilhouetteRenderer(mesh), photo_of(mesh, LIGHTS[0], pose), pose, trusted, background)
     assert on_floor.used_floor and on_floor.floor_share_left <= 0.6
     assert angle_deg(on_floor.position, LIGHTS[0], (0.0, 0.4, 0.0)) < 15.0
     scene = Scene.single(object=pose.placed(ObjectSpec()), light=LightSpec(LIGHTS[0]), camera=CameraSpec(30.0),
                          image_size=SIZE)
     studio = render_pathtraced(scene, mesh, spp=32, seed=1, denoise=True, floor=False).image
-    assert not fit_light(mesh, studio, pose, trusted, background).used_floor
+    assert not fit_light(SilhouetteRenderer(mesh), studio, pose, trusted, background).used_floor

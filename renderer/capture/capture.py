@@ -207,18 +207,19 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     if light is not None:
         pose = replace(pose, light=tuple(float(v) for v in light))
     pose = pose.at_size(w, h)
+    silhouettes = None if mesh is None else SilhouetteRenderer(mesh)  # built once: segmentation, occluders, light
+    silhouette = None if silhouettes is None else silhouettes.mask(pose)
     if mask is None:
         try:
-            mask = segment_photo(photo_rgb, alpha, path,
-                                 silhouette=None if mesh is None else SilhouetteRenderer(mesh).mask(pose), **hints)
+            mask = segment_photo(photo_rgb, alpha, path, silhouette=silhouette, **hints)
         except InputError:
             mask = None  # nothing separates: every pixel the object projects to counts
     occupied = object_rgba[..., 3] > 0.5
     score = mirror_symmetry_score(occupied)
     mirror = is_mirror_symmetric(occupied)
     trusted = trusted_pixels(mask)
-    if trusted is not None and mesh is not None and (alpha is None or not np.any(alpha < OPAQUE)):  # a cut, not alpha
-        trusted &= ~foreign_pixels(photo_rgb, mask, SilhouetteRenderer(mesh).mask(pose))
+    if trusted is not None and silhouette is not None and (alpha is None or not np.any(alpha < OPAQUE)):  # a cut
+        trusted &= ~foreign_pixels(photo_rgb, mask, silhouette)
     fitted = None
     try:
         light_scene = lit_photo_scene(pose)
@@ -229,7 +230,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
         cut = mask is not None and (alpha is None or not np.any(alpha < OPAQUE))
         background = ~ndimage.binary_dilation(mask, iterations=2) if cut else None  # what a cut says is not the object
         try:
-            fitted = fit_light(mesh, photo_rgb, pose, trusted, background)
+            fitted = fit_light(silhouettes, photo_rgb, pose, trusted, background)
         except InputError as exc:
             light_note = f"{exc.problem}: colors keep its shading"
         if fitted is not None and not fitted.explains_photo:

@@ -52,8 +52,12 @@ class FittedLight:
     spread_kept: float  # the same for the photo itself (its shading kept), for comparison
     shading: np.ndarray = field(repr=False, compare=False)  # (h, w) irradiance at the fit size, 0 off the object,
     # scaled to the scene's lights' mean there
-    used_floor: bool = False  # the floor's shading around the object counted too
-    floor_share_left: float = float("nan")  # the floor's spread at the fit over its own (nan: no floor seen)
+    floor_share_left: float = float("nan")  # the floor's spread at the fit over its own (nan: the floor not used)
+
+    @property
+    def used_floor(self) -> bool:
+        """Whether the floor's shading around the object counted too."""
+        return not math.isnan(self.floor_share_left)
 
     @property
     def explains_photo(self) -> bool:
@@ -132,10 +136,10 @@ class _Surface:
         return math.pi * AMBIENT_RADIANCE * (self.sky + FLOOR_BOUNCE * self.floor)
 
 
-def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray | None = None,
-              background: np.ndarray | None = None) -> FittedLight:
-    """The square light (and the ambient light's strength) that best explains the shading of the object in
-    `photo_rgb` ((H, W, 3) sRGB in [0, 1]) seen at `pose`; `trusted` ((H, W) bool): the pixels surely on the object.
+def fit_light(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoPose,
+              trusted: np.ndarray | None = None, background: np.ndarray | None = None) -> FittedLight:
+    """The square light (and the ambient light's strength) that best explains the shading of the object (the mesh
+    of `silhouettes`) in `photo_rgb` ((H, W, 3) sRGB in [0, 1]) seen at `pose`; `trusted` ((H, W) bool): the pixels surely on the object.
     `background` ((H, W) bool): the pixels surely not on it; where they show the floor near the object, its shading
     (the object's shadow above all) counts too, as a second albedo that should come out uniform, when the fit
     explains it (FLOOR_EXPLAINED).
@@ -144,7 +148,6 @@ def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray 
     factor = min(1.0, FIT_SIDE / max(h, w))
     size = (max(1, round(w * factor)), max(1, round(h * factor)))
     small_pose = pose.at_size(*size)
-    silhouettes = SilhouetteRenderer(mesh)
     surface, hit = _Surface.of_object(silhouettes, small_pose)
     photo = srgb_to_linear(downscaled(np.asarray(photo_rgb, dtype=np.float64), max(size)))
     brightness = photo.mean(axis=2)
@@ -160,23 +163,18 @@ def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray 
                       np.log(brightness[floor_pixels])))
     ambients = [part[0].ambient() for part in parts]
 
-    def spread(params: np.ndarray) -> float:
+    def spread(params: np.ndarray, count: int) -> float:
+        """The albedo's spread over the first `count` parts (the object, and the floor)."""
         return sum(_spread(log_photo - np.log(_floored(part.direct(params[:3]) + math.exp(params[3]) * ambient))[used])
-                   for (part, used, log_photo), ambient in zip(parts, ambients))
+                   for (part, used, log_photo), ambient in list(zip(parts, ambients))[:count])
 
-    best = min(((spread(p), tuple(p)) for p in _start_grid()), key=lambda item: item[0])
-    params, value = np.array(best[1]), best[0]
-    step = np.array([0.5, 0.4, 0.5, 0.5])
-    while step[0] > 0.03:  # compass search: a step each way per number, halved when nothing improves
-        improved = False
-        for j in range(4):
-            for sign in (1.0, -1.0):
-                probe = _clipped(params + sign * step * (np.arange(4) == j))
-                score = spread(probe)
-                if score < value - 1e-9:
-                    params, value, improved = probe, score, True
-        if not improved:
-            step = step / 2.0
+    params, value = _searched(lambda p: spread(p, len(parts)))
+    left = float("nan")  # the floor's spread at the fit over its own
+    if len(parts) > 1:
+        left = (spread(params, 2) - spread(params, 1)) / max(_spread(parts[1][2]), 1e-9)
+        if left > FLOOR_EXPLAINED:  # not a floor this light shades (a backdrop, a photograph): the object alone
+            parts, left = parts[:1], float("nan")
+            params, value = _searched(lambda p: spread(p, 1))
     # The scene's ambient light is fixed: the shading is scaled so that the albedo, drawn under the fitted square
     # light and the scene's ambient light, gives the photo's mean brightness on the object.
     used, log_photo = parts[0][1], parts[0][2]
@@ -187,15 +185,26 @@ def fit_light(mesh, photo_rgb: np.ndarray, pose: PhotoPose, trusted: np.ndarray 
     image = np.zeros(hit.shape)
     image[hit] = fitted * float(np.sum(photo_used * in_scene[used] / fitted[used]) / np.sum(photo_used))
     kept = sum(_spread(part_log) for _, _, part_log in parts)
-    left = float("nan")
-    if len(parts) > 1:
-        floor, _, floor_log = parts[1]
-        left = _spread(floor_log - np.log(_floored(floor.direct(params[:3]) + math.exp(params[3]) * ambients[1])))
-        left /= max(_spread(floor_log), 1e-9)
-        if left > FLOOR_EXPLAINED:  # not a floor this light shades (a backdrop, a photograph): the object alone
-            return fit_light(mesh, photo_rgb, pose, trusted)
-    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, kept, image,
-                       len(parts) > 1, left)
+    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, kept, image, left)
+
+
+def _searched(spread) -> tuple[np.ndarray, float]:
+    """The light and ambient strength (x, y, z, log ambient) of least `spread`: the best of a coarse grid, then a
+    compass search (a step each way per number, halved when nothing improves)."""
+    best = min(((spread(p), tuple(p)) for p in _start_grid()), key=lambda item: item[0])
+    params, value = np.array(best[1]), best[0]
+    step = np.array([0.5, 0.4, 0.5, 0.5])
+    while step[0] > 0.03:
+        improved = False
+        for j in range(4):
+            for sign in (1.0, -1.0):
+                probe = _clipped(params + sign * step * (np.arange(4) == j))
+                score = spread(probe)
+                if score < value - 1e-9:
+                    params, value, improved = probe, score, True
+        if not improved:
+            step = step / 2.0
+    return params, value
 
 
 def _floor_pixels(pose: PhotoPose, hit: np.ndarray, brightness: np.ndarray, background: np.ndarray | None,
