@@ -10,7 +10,7 @@ from PIL import Image
 from scipy.spatial import ConvexHull
 
 from renderer.camera import Camera
-from renderer.capture.align import align_pose, rotation_error_deg, silhouette_iou
+from renderer.capture.align import FINAL_STEPS, INITIAL_STEPS, _Problem, align_pose, rotation_error_deg, silhouette_iou
 from renderer.capture.capture import capture_appearance, find_pose
 from renderer.capture.pose import PhotoPose, load_pose, photo_camera, pose_from_dict, save_pose
 from renderer.capture.segment import object_mask
@@ -171,6 +171,19 @@ def test_search_refines_a_perturbed_pose(chair):
     assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
     assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
     assert silhouette_iou(silhouettes.mask(found.pose), silhouettes.mask(truth)) > 0.9
+
+
+def test_refinement_moves_elevation_together_with_the_placement(chair):
+    # Seen from 10 degrees, a pose 4 degrees too high whose silhouette was placed on the mask: a step in elevation
+    # alone moves the silhouette off the mask, and one number at a time the search stalled at 12 degrees.
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(10.0, 160, 160), rotation_deg=-103.3, translation=(-0.35, 0.17), scale=(1.07,) * 3)
+    mask = silhouettes.mask(truth)
+    problem = _Problem(silhouettes, mask, truth)
+    start = np.array([truth.rotation_deg, 14.0, -0.351, 0.115, 0.0])
+    steps = INITIAL_STEPS / 4
+    params, iou = problem.compass(start, steps, FINAL_STEPS, coupled=True)
+    assert abs(params[1] - 10.0) < 0.75 and iou > 0.97
 
 
 def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):

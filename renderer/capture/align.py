@@ -100,7 +100,7 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
         lenses = [math.log(focal / base.camera.focal_mm) for focal in LENSES_MM]
         starts = [fine.place(np.append(refined[0][0], lens)) for lens in lenses]
         steps, final_steps = np.append(steps, FOCAL_STEP), np.append(final_steps, FOCAL_FINAL_STEP)
-    finals = [fine.compass(params, steps, final_steps) for params in starts]
+    finals = [fine.compass(params, steps, final_steps, coupled=True) for params in starts]
     best_params, best_iou = max(finals, key=lambda item: item[1])
     pose = fine.pose(best_params).at_size(w, h)
     return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start, photo_mask)
@@ -267,8 +267,11 @@ class _Problem:
             params[2:5] = _clip_placement(params[2:5] + np.clip(step, -0.5, 0.5))
         return params
 
-    def compass(self, params: np.ndarray, steps: np.ndarray, final_steps: np.ndarray) -> tuple[np.ndarray, float]:
-        """Compass search on the score from `params` until every step is below `final_steps`."""
+    def compass(self, params: np.ndarray, steps: np.ndarray, final_steps: np.ndarray,
+                coupled: bool = False) -> tuple[np.ndarray, float]:
+        """Compass search on the score from `params` until every step is below `final_steps`. `coupled`: an
+        elevation step that does not improve is tried again with the silhouette placed anew (`place`, one step):
+        elevation, depth and scale move a silhouette together, and one at a time they stall a low view's search."""
         params = np.array(params, dtype=np.float64)
         best = self.score(params)
         steps = np.array(steps, dtype=np.float64)
@@ -282,6 +285,9 @@ class _Problem:
                     if np.array_equal(probe, params):
                         continue
                     value = self.score(probe)
+                    if coupled and j == 1 and value <= best:
+                        probe = self.place(probe, iterations=1)
+                        value = self.score(probe)
                     if value > best:
                         params, best, improved = probe, value, True
                         break
