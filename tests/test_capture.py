@@ -204,6 +204,16 @@ def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):
     assert np.median(seen[:, 0]) > np.median(seen[:, 1]) + 0.2  # red object, red colors (with its shading)
 
 
+def test_a_capture_reports_its_progress_in_order(chair):
+    truth = PhotoPose(Camera(25.0, 96, 96), rotation_deg=-35.0)
+    mask = SilhouetteRenderer(chair).mask(truth)
+    photo = np.where(mask[..., None], np.array([0.2, 0.4, 0.9]), 0.75)  # no alpha: segmented, then searched in rounds
+    shares = []
+    capture_appearance(voxelize(chair, 16), chair, photo, None, None, search=True, progress=shares.append)
+    assert shares == sorted(shares) and shares[-1] == 1.0 and 0.0 < shares[0] < 0.2
+    assert len(set(shares)) >= 5  # the segmentation, the search, its two rounds, the light fit: not one jump at the end
+
+
 def test_capture_needs_a_pose_or_the_search(chair):
     with pytest.raises(InputError, match="camera file"):
         capture_appearance(voxelize(chair, 8), chair, np.zeros((8, 8, 3)), None, None, search=False)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import replace
 
@@ -14,6 +15,7 @@ from app.editor.document import Document
 from app.editor.file_dialog import FileDialog, FileKind, dialog_command, dialog_program
 from app.editor.frame_damage import FrameSummary, changed_boxes, merge
 from app.editor.history import History
+from app.editor.jobs import JobRunner
 from app.editor.orbit_view import HOME, frustum_corners, orbit, pan, projection_matrix, viewport_camera, zoom
 from app.editor.photo_capture import PhotoAlignment, object_shape, shape_key
 from app.editor.picking import hits_light, pick_voxel, ray_at_height
@@ -601,3 +603,17 @@ def test_the_suns_hemisphere_maps_elevation_to_radius_and_azimuth_to_the_compass
     assert sun_from_widget(500.0, 0.0, 60.0)[0] == 0.0  # past the rim: the horizon
     for elevation, azimuth in ((10.0, -170.0), (33.0, 20.0), (80.0, 95.0)):
         assert sun_from_widget(*sun_on_widget(elevation, azimuth, 75.0), 75.0) == pytest.approx((elevation, azimuth))
+
+
+def test_a_job_started_while_another_runs_is_refused_and_the_tab_gets_none():
+    said = []
+    runner = JobRunner(lambda text, error=False: said.append((text, error)))
+    gate = threading.Event()
+    first = runner.start("Aligning", lambda progress: (progress(0.4), gate.wait(5)), lambda result: None)
+    second = runner.start("Coloring", lambda progress: None, lambda result: None)
+    assert first is runner.current and second is None and said == [("busy: Aligning", True)]
+    deadline = time.monotonic() + 5.0
+    while first.progress == 0.0 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert first.progress == 0.4  # what the Photo tab's bar shows while the job waits
+    gate.set()

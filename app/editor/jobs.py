@@ -59,14 +59,15 @@ class JobRunner:
         self._on_error: Callable[[], None] | None = None
 
     def start(self, title: str, work: Callable[[Progress], Any], on_result: Callable[[Any], None],
-              on_error: Callable[[], None] | None = None) -> None:
+              on_error: Callable[[], None] | None = None) -> BackgroundJob | None:
         """Run `work(progress)` in the background; `on_result` gets its result on the UI thread (`finish`), and
-        `on_error`, if given, is called there after a failure is shown."""
+        `on_error`, if given, is called there after a failure is shown. The job, or None when another is under way."""
         if self.current is not None and not self.current.done:
             self._say(f"busy: {self.current.title}", error=True)
-            return
+            return None
         self.current = BackgroundJob(title, work)
         self._on_result, self._on_error = on_result, on_error
+        return self.current
 
     def finish(self) -> None:
         """Once per frame: hand a finished job's result to its handler, or show its error."""

@@ -27,6 +27,7 @@ from renderer.io import load_image, photo_focal_35mm
 from renderer.pipeline import object_mesh
 from renderer.scene import Scene
 from renderer.voxel_faces import voxel_surface_mesh
+from renderer.voxels import ProgressCallback
 
 if TYPE_CHECKING:
     from renderer.voxel_cache import VoxelCache
@@ -184,12 +185,13 @@ class PhotoAlignment:
             self._shown_photos[size] = np.asarray(small, dtype=np.float32) / 255.0
         return self._shown_photos[size]
 
-    def colors(self, object_rgba: np.ndarray, pose: PhotoPose | None = None) -> Capture:
+    def colors(self, object_rgba: np.ndarray, pose: PhotoPose | None = None,
+               progress: ProgressCallback | None = None) -> Capture:
         """`object_rgba` recolored from the photo seen at `pose` (default: the current one), occupancy unchanged;
         the photo's light fitted and divided out when `divide_light` is set."""
         pose = self.pose if pose is None else pose
         return capture_appearance(object_rgba, self.mesh, self.rgb, self.alpha, pose, search=False, path=self.path,
-                                  fit_photo_light=self.divide_light, **self.hints())
+                                  fit_photo_light=self.divide_light, progress=progress, **self.hints())
 
     def set_light(self, capture: Capture) -> None:
         """Keep what a coloring did with the photo's light, to show it."""

@@ -207,6 +207,9 @@ class PhotoPanel:
         imgui.same_line()
         if imgui.button("Match the scene to the photo's view"):
             photo.match_view()
+        if photo.job is not None and photo.job is self.app.jobs.current:  # a search or a coloring under way
+            job = photo.job
+            imgui.progress_bar(job.progress, imgui.ImVec2(-1, 0), f"{job.title} {job.progress:.0%}")
         alignment = photo.alignment
         _, alignment.divide_light = imgui.checkbox("Divide out the photo's light", alignment.divide_light)
         if imgui.is_item_hovered():

@@ -16,7 +16,7 @@ import trimesh
 
 from app.editor import edits, state
 from app.editor.editor_parts import Editor
-from app.editor.jobs import Progress
+from app.editor.jobs import BackgroundJob, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from renderer.capture.align import Alignment
 from renderer.capture.capture import Capture, find_pose, fit_advice, segment_photo
@@ -34,6 +34,7 @@ class PhotoTool:
         self.app = app
         self.alignment: PhotoAlignment | None = None
         self._shape_tried: tuple | None = None  # shape_key last loaded (or tried) for the alignment
+        self.job: BackgroundJob | None = None  # the last search or coloring, whose progress the tab shows
 
     def load(self, photo: str | Path, camera: str | Path | None = None) -> None:
         """Load a photo to align: its pose starts from the camera file when given, else from the scene's view."""
@@ -71,9 +72,9 @@ class PhotoTool:
             return
         mesh, initial = alignment.mesh, None if from_scratch else alignment.pose
 
-        def work(_progress: Progress) -> Alignment:
+        def work(progress: Progress) -> Alignment:
             return find_pose(mesh, alignment.rgb, alignment.alpha, initial=initial, path=alignment.path,
-                             focal_35mm=alignment.focal_35mm, **alignment.hints())
+                             focal_35mm=alignment.focal_35mm, progress=progress, **alignment.hints())
 
         def done(found: Alignment) -> None:
             alignment.set_pose(found.pose)
@@ -87,7 +88,7 @@ class PhotoTool:
                          f"in {found.seconds:.1f} s (rotation {p.rotation_deg:.1f} deg, "
                          f"elevation {p.camera.elevation_deg:.1f} deg)")
 
-        self.app.jobs.start(f"Aligning to {alignment.path.name}", work, done)
+        self.job = self.app.jobs.start(f"Aligning to {alignment.path.name}", work, done)
 
     def color_object(self) -> None:
         """Recolor the object's voxels from the photo at the current pose: one undo step."""
@@ -97,9 +98,9 @@ class PhotoTool:
         scene, voxels = self.app.object_view(self.app.doc.history.current), self.app.voxels
         pose = alignment.pose  # as it is now: the user may go on dragging while the job runs
 
-        def work(_progress: Progress) -> tuple[Capture, Path]:
+        def work(progress: Progress) -> tuple[Capture, Path]:
             rgba, _ = voxels.painted(scene)
-            capture = alignment.colors(rgba, pose)
+            capture = alignment.colors(rgba, pose, progress)
             return capture, state.save_capture(capture.rgba)
 
         def done(result: tuple[Capture, Path]) -> None:
@@ -108,7 +109,7 @@ class PhotoTool:
             if self.app.edit_object(lambda s: recolored(s, path)):
                 self.app.say(f"colored the object from {alignment.path.name}; {capture.light_note}")
 
-        self.app.jobs.start(f"Coloring from {alignment.path.name}", work, done)
+        self.job = self.app.jobs.start(f"Coloring from {alignment.path.name}", work, done)
 
     def set_divide_light(self, divide: bool) -> None:
         """Whether coloring fits the photo's light and divides it out (the Photo tab's checkbox)."""

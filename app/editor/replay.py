@@ -27,7 +27,7 @@ High-level actions call the same commands as the interface:
     {"action": "reference_render", "spp": 16}                 path trace the scene beside the live render
     {"action": "renderer", "name": "nvr+"}                    the render panel's renderer ("shaded" or "nvr+")
     {"action": "load_mesh", "path": ..., "up": "y"}
-    {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo; "camera" is optional
+    {"action": "load_photo", "photo": ..., "camera": ...}      the Photo tab's Load photo (opens the tab); "camera" optional
     {"action": "align_photo", "from_scratch": false}           Align (refine from this pose) / Align from scratch
     {"action": "turn_photo", "dx": 40, "dy": 0}                as a drag on the photo ("shift_photo": Shift+drag), pixels
     {"action": "zoom_photo", "steps": 1}                       as the wheel over the photo
@@ -205,6 +205,11 @@ def _wait(app, action) -> Iterator[None]:
         yield
 
 
+def _load_photo(app, action) -> None:
+    app.requested_tab = "Photo"  # where a user's Load photo button is
+    app.photo.load(action["photo"], action.get("camera"))
+
+
 def _set_tool(app, action) -> None:
     if action["name"] not in ("select", "paint"):
         raise ValueError(f"tool must be select or paint, got {action['name']!r}")
@@ -326,7 +331,7 @@ ACTIONS = {
     "export_vox": lambda app, a: app.files.export_vox(a["path"]),
     "renderer": lambda app, a: app.choose_renderer(a["name"]),
     "load_mesh": lambda app, a: app.files.load_mesh(a["path"], up=a.get("up", "y")),
-    "load_photo": lambda app, a: app.photo.load(a["photo"], a.get("camera")),
+    "load_photo": _load_photo,
     "align_photo": lambda app, a: app.photo.align(from_scratch=bool(a.get("from_scratch", False))),
     "turn_photo": _photo_gesture("turn", "dx", "dy"),
     "shift_photo": _photo_gesture("shift", "dx", "dy"),

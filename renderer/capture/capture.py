@@ -48,13 +48,16 @@ from renderer.photo import (
 )
 from renderer.resample import downscaled, downscaled_mask
 from renderer.scene import CameraSpec, ObjectSpec, Scene, validate
+from renderer.voxels import ProgressCallback
 
 ASPECT_TOLERANCE = 0.01  # a photo resized from its camera's size keeps the aspect ratio within this
 TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo's shorter side inside the mask
 SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
 LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask less than this was fitted to a poor
 # mask (0.80-0.88 on four cluttered photos searched without a box; 0.94 on a path-traced floor photo aligned right)
-SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
+SEGMENT_ROUNDS = 2
+SEARCH_SHARE, LIGHT_SHARE = 0.75, 0.85  # the progress a capture reports: the search's share of it, then the light
+# fit's share of what follows (a floor photo of the capture benchmark spent 76 % and 21 % of its time there)  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
 FOREIGN_ODDS = 2.0  # a color this many times likelier on what stands beside the object than on it is not the object's
 MIN_FOREIGN_PIXELS = 20  # fewer pixels than this beside the silhouette say nothing
 
@@ -74,7 +77,8 @@ class Capture:
 def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | None = None,
               initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False,
               box: tuple[int, int, int, int] | None = None, object_strokes: np.ndarray | None = None,
-              background_strokes: np.ndarray | None = None, focal_35mm: float | None = None) -> Alignment:
+              background_strokes: np.ndarray | None = None, focal_35mm: float | None = None,
+              progress: ProgressCallback | None = None) -> Alignment:
     """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough
     pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is; `focal_35mm`, the lens the photo's EXIF
     states (35 mm equivalent), replaces the scene camera's 40 mm when there is no `initial` pose.
@@ -91,21 +95,27 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     Without a box the mask alone decides: on floor photos the colors changed little, and a photo's floor and sky are what GrabCut separates well; a cluttered photo
     without a box or strokes is refused before the search (segment.object_mask: GrabCut from the frame's middle cuts
     out whatever stands there). The result's mask is the last segmentation, at the photo's size.
+    `progress` gets the share done, in [0, 1].
     """
+    report = progress or (lambda _share: None)
     h, w = photo_rgb.shape[:2]
     small_rgb, small_alpha = _downscale(photo_rgb, alpha, SEGMENT_SIDE)
     sh, sw = small_rgb.shape[:2]
     hints = photo_hints((sw, sh), (w, h), box, object_strokes, background_strokes)
     mask = object_mask(small_rgb, small_alpha, path, hints)
+    report(0.1)
     start = None if initial is None else initial.at_size(sw, sh)
     silhouettes = SilhouetteRenderer(mesh)
     alignment = align_pose(silhouettes, mask, start, free_focal, focal_35mm)
     rays, seconds = alignment.rays, alignment.seconds
     by_colors = small_alpha is None and hints.box is not None
+    rounds = SEGMENT_ROUNDS if small_alpha is None else 0
+    searched_share = 0.7 if by_colors else 1.0  # with a box, the search on the colors takes the rest
+    report(0.1 + (searched_share - 0.1) / (1 + rounds))
     if by_colors:
         region = np.zeros((sh, sw), dtype=bool)
         region[context_window(hints.box, sh, sw)] = True  # the colors are compared where GrabCut modelled them
-    for round_ in range(SEGMENT_ROUNDS + 1 if small_alpha is None else 0):
+    for round_ in range(rounds + 1 if small_alpha is None else 0):
         if round_ > 0:
             try:
                 mask = object_mask(small_rgb, None, path, replace(hints, prior=silhouettes.mask(alignment.pose)))
@@ -116,6 +126,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
         if by_colors:
             alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
             rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+        report(0.1 + (searched_share - 0.1) * (round_ + 1) / (1 + rounds))
     if by_colors:  # the search that needs no mask: it wins where its pose separates the colors in the box better
         found = search_in_box(silhouettes, small_rgb, hints.box, region, mask, free_focal, start, focal_35mm)
         rays, seconds = rays + found.rays, seconds + found.seconds
@@ -132,6 +143,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
         # bench's 60 boxed photographs from no pose: rotation 2.2 deg that way, 1.7 this way; elevation 1.5 and 1.8).
         alignment = refine_placement(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
         rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+    report(1.0)
     return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
 
 
@@ -183,7 +195,8 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
                        alpha: np.ndarray | None = None, pose: PhotoPose | None = None, search: bool = True,
                        path: str | Path | None = None, free_focal: bool = False, mask: np.ndarray | None = None,
                        light: tuple[float, float, float] | None = None, fit_photo_light: bool = True,
-                       focal_35mm: float | None = None, **hints) -> Capture:
+                       focal_35mm: float | None = None, progress: ProgressCallback | None = None,
+                       **hints) -> Capture:
     """Color `object_rgba` (voxels of `mesh`) from the photo.
 
     `pose` alone (search False) is used as given; with `search` it is the start of the search;
@@ -193,7 +206,9 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     segmented with the user's `hints` (box, strokes: see find_pose) and the pose's silhouette (when `mesh`
     is given). `light` (world), when given, is the photo's light; else the pose's, if it knows one; else, with
     `fit_photo_light` and a mesh, the light is fitted from the photo and divided out. `focal_35mm`: see find_pose.
+    `progress` gets the share done, in [0, 1].
     """
+    report = progress or (lambda _share: None)
     if pose is None and not search:
         raise InputError("a photo needs a camera file or the automatic alignment", path)
     h, w = photo_rgb.shape[:2]
@@ -201,7 +216,8 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
         raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
     if search:
-        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, focal_35mm=focal_35mm, **hints)
+        alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, focal_35mm=focal_35mm,
+                              progress=lambda share: report(SEARCH_SHARE * share), **hints)
         pose = replace(alignment.pose, light=None if pose is None else pose.light)
         mask = alignment.mask if mask is None else mask
     if light is not None:
@@ -221,6 +237,8 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     if trusted is not None and silhouette is not None and (alpha is None or not np.any(alpha < OPAQUE)):  # a cut
         trusted &= ~foreign_pixels(photo_rgb, mask, silhouette)
     fitted = None
+    done = SEARCH_SHARE if search else 0.0
+    report(done)
     try:
         light_scene = lit_photo_scene(pose)
         light_note = f"the photo's light at {list(pose.light)} divided out"
@@ -240,6 +258,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
             trusted = known if trusted is None else trusted & known
             light_note = (f"the photo's light fitted at [{', '.join(f'{v:.2f}' for v in fitted.position)}], ambient "
                           f"x{fitted.ambient:.2f}, and divided out")
+        report(done + LIGHT_SHARE * (1.0 - done))
     try:
         if light_scene is not None:  # the mesh's path-traced light where there is a mesh (renderer/photo.py)
             photo_rgb, known = (photo_albedo(photo_rgb, light_scene, object_rgba) if mesh is None
@@ -249,6 +268,7 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
                                          trusted=trusted)
     except InputError as exc:
         raise InputError(exc.problem, path) from None
+    report(1.0)
     return Capture(pose, colors.rgba, colors.visible, score, mirror, alignment, light_note, fitted)
 
 
