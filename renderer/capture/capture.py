@@ -154,8 +154,9 @@ def fit_advice(alignment: Alignment, hinted: bool) -> str | None:
     if hinted:
         return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): look at the mask and mark "
                 "what it gets wrong with object or background strokes (editor: Photo tab)")
-    return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): in a cluttered photo, draw "
-            "a box around the object (Photo tab, or nvr capture --box x0,y0,x1,y1)")
+    return (f"the silhouette fits the photo's mask loosely (IoU {alignment.iou:.2f}): the mask may miss part of the "
+            "object (a grey part on a grey floor) or take in background; check the pose, and if it is off, draw a box "
+            "around the object (Photo tab, or nvr capture --box x0,y0,x1,y1) or mark the mask's errors with strokes")
 
 
 def photo_hints(small: tuple[int, int], full: tuple[int, int], box=None, object_strokes=None,
