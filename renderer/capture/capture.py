@@ -55,9 +55,9 @@ TRUST_MARGIN = 0.01  # colors come from pixels at least this share of the photo'
 SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the colors use the full photo)
 LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask less than this was fitted to a poor
 # mask (0.80-0.88 on four cluttered photos searched without a box; 0.94 on a path-traced floor photo aligned right)
-SEGMENT_ROUNDS = 2
+SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
 SEARCH_SHARE, LIGHT_SHARE = 0.75, 0.85  # the progress a capture reports: the search's share of it, then the light
-# fit's share of what follows (a floor photo of the capture benchmark spent 76 % and 21 % of its time there)  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
+# fit's share of what follows (docs/results.md, "Measurements behind the code")
 FOREIGN_ODDS = 2.0  # a color this many times likelier on what stands beside the object than on it is not the object's
 MIN_FOREIGN_PIXELS = 20  # fewer pixels than this beside the silhouette say nothing
 
@@ -78,7 +78,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
               initial: PhotoPose | None = None, path: str | Path | None = None, free_focal: bool = False,
               box: tuple[int, int, int, int] | None = None, object_strokes: np.ndarray | None = None,
               background_strokes: np.ndarray | None = None, focal_35mm: float | None = None,
-              progress: ProgressCallback | None = None) -> Alignment:
+              progress: ProgressCallback | None = None, silhouettes: SilhouetteRenderer | None = None) -> Alignment:
     """Search the pose of `mesh` (object coordinates) in the photo; `initial` narrows the search around a rough
     pose; `box` (x0, y0, x1, y1 photo pixels) says where the object is; `focal_35mm`, the lens the photo's EXIF
     states (35 mm equivalent), replaces the scene camera's 40 mm when there is no `initial` pose.
@@ -95,7 +95,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     Without a box the mask alone decides: on floor photos the colors changed little, and a photo's floor and sky are what GrabCut separates well; a cluttered photo
     without a box or strokes is refused before the search (segment.object_mask: GrabCut from the frame's middle cuts
     out whatever stands there). The result's mask is the last segmentation, at the photo's size.
-    `progress` gets the share done, in [0, 1].
+    `progress` gets the share done, in [0, 1]. `silhouettes`: the mesh's, when the caller has built them already.
     """
     report = progress or (lambda _share: None)
     h, w = photo_rgb.shape[:2]
@@ -105,7 +105,7 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     mask = object_mask(small_rgb, small_alpha, path, hints)
     report(0.1)
     start = None if initial is None else initial.at_size(sw, sh)
-    silhouettes = SilhouetteRenderer(mesh)
+    silhouettes = silhouettes or SilhouetteRenderer(mesh)
     alignment = align_pose(silhouettes, mask, start, free_focal, focal_35mm)
     rays, seconds = alignment.rays, alignment.seconds
     by_colors = small_alpha is None and hints.box is not None
@@ -216,15 +216,15 @@ def capture_appearance(object_rgba: np.ndarray, mesh: trimesh.Trimesh | None, ph
     if pose is not None and abs(pose.camera.width * h - pose.camera.height * w) > ASPECT_TOLERANCE * pose.camera.width * h:
         raise InputError(f"the photo is {w}x{h} pixels but its camera is {pose.camera.width}x{pose.camera.height}", path)
     alignment = None
+    silhouettes = None if mesh is None else SilhouetteRenderer(mesh)  # built once: search, segmentation, occluders, light
     if search:
         alignment = find_pose(mesh, photo_rgb, alpha, pose, path, free_focal, focal_35mm=focal_35mm,
-                              progress=lambda share: report(SEARCH_SHARE * share), **hints)
+                              progress=lambda share: report(SEARCH_SHARE * share), silhouettes=silhouettes, **hints)
         pose = replace(alignment.pose, light=None if pose is None else pose.light)
         mask = alignment.mask if mask is None else mask
     if light is not None:
         pose = replace(pose, light=tuple(float(v) for v in light))
     pose = pose.at_size(w, h)
-    silhouettes = None if mesh is None else SilhouetteRenderer(mesh)  # built once: segmentation, occluders, light
     silhouette = None if silhouettes is None else silhouettes.mask(pose)
     if mask is None:
         try:
