@@ -127,7 +127,7 @@ def add_voxelize_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_capture(args: argparse.Namespace) -> None:
-    from renderer.capture.capture import capture_appearance, captured_scene, fit_advice
+    from renderer.capture.capture import capture_appearance, captured_scene, disk_note, fit_advice
     from renderer.capture.pose import load_pose, save_pose
     from renderer.io import load_image, photo_focal_35mm
     from renderer.mesh import load_mesh, normalise_mesh
@@ -154,7 +154,8 @@ def cmd_capture(args: argparse.Namespace) -> None:
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
     p = captured.pose
     how = "camera file" if captured.alignment is None else (
-        f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s")
+        f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s"
+        f"{disk_note(captured.alignment)}")
     print(f"pose ({how}): rotation {p.rotation_deg:.1f} deg, elevation {p.camera.elevation_deg:.1f} deg, "
           f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}, "
           f"focal length {p.camera.focal_mm:.1f} mm"

@@ -10,7 +10,15 @@ from PIL import Image
 from scipy.spatial import ConvexHull
 
 from renderer.camera import Camera
-from renderer.capture.align import FINAL_STEPS, INITIAL_STEPS, _Problem, align_pose, rotation_error_deg, silhouette_iou
+from renderer.capture.align import (
+    FINAL_STEPS,
+    INITIAL_STEPS,
+    _Problem,
+    align_pose,
+    disk_iou,
+    rotation_error_deg,
+    silhouette_iou,
+)
 from renderer.capture.capture import capture_appearance, find_pose
 from renderer.capture.pose import PhotoPose, load_pose, photo_camera, pose_from_dict, save_pose
 from renderer.capture.segment import object_mask
@@ -184,6 +192,69 @@ def test_refinement_moves_elevation_together_with_the_placement(chair):
     steps = INITIAL_STEPS / 4
     params, iou = problem.compass(start, steps, FINAL_STEPS, coupled=True)
     assert abs(params[1] - 10.0) < 0.75 and iou > 0.97
+
+
+def circle_on_the_floor(pose: PhotoPose, radius: float) -> np.ndarray:
+    """The pixels inside the projection of a circle of `radius` (object units) on the floor under the posed object:
+    the convex hull of 360 projected points of its rim."""
+    angles = np.radians(np.arange(360.0))
+    rim = np.stack([radius * np.cos(angles), np.zeros(360), radius * np.sin(angles)], axis=1)
+    world = rim @ pose.object_to_world()[:3, :3].T + pose.object_to_world()[:3, 3]
+    u, v, _ = pose.camera.project(world)
+    hull = ConvexHull(np.stack([u, v], axis=1))
+    h, w = pose.camera.height, pose.camera.width
+    vv, uu = np.mgrid[0:h, 0:w] + 0.5
+    points = np.stack([uu.ravel(), vv.ravel(), np.ones(uu.size)], axis=1)
+    return (points @ hull.equations.T <= 0).all(axis=1).reshape(h, w)
+
+
+def test_floor_radii_draw_a_circle_on_the_floor_as_the_camera_sees_it(chair):
+    pose = PhotoPose(Camera(30.0, 120, 100), rotation_deg=40.0, translation=(0.2, -0.3), scale=(1.1,) * 3)
+    radii = SilhouetteRenderer(chair).floor_radii(pose)
+    expected = circle_on_the_floor(pose, 0.6)
+    assert expected.sum() > 500
+    assert silhouette_iou(radii <= 0.6, expected) > 0.98
+    low = SilhouetteRenderer(chair).floor_radii(replace(pose, camera=Camera(3.0, 120, 100)))
+    assert np.isinf(low[0]).all() and np.isfinite(low[-1]).all()  # above the horizon the floor is never met
+
+
+def test_disk_iou_is_the_best_disk_of_every_radius():
+    rng = np.random.default_rng(3)
+    mask, target = rng.random((30, 40)) < 0.2, rng.random((30, 40)) < 0.4
+    radii = np.where(rng.random((30, 40)) < 0.9, rng.uniform(0.0, 3.0, (30, 40)), np.inf)
+    best, radius = disk_iou(mask, target, radii, 1.0, 2.0)
+    tried = [(silhouette_iou(mask, target), 0.0)] + [(silhouette_iou(mask | (radii <= r), target), r)
+                                                    for r in np.unique(radii[np.isfinite(radii)]) if 1.0 <= r <= 2.0]
+    assert best == pytest.approx(max(tried)[0])
+    assert 1.0 <= radius <= 2.0 and silhouette_iou(mask | (radii <= radius), target) == pytest.approx(best)
+    assert disk_iou(mask, target, np.full((30, 40), np.inf), 1.0, 2.0) == (silhouette_iou(mask, target), 0.0)
+
+
+def test_search_with_a_disk_finds_an_object_standing_on_a_saucer(chair):
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(25.0, 128, 128), rotation_deg=70.0, translation=(0.1, -0.2), scale=(1.0,) * 3)
+    saucer = 1.4 * silhouettes.footprint_radius
+    mask = silhouettes.mask(truth) | circle_on_the_floor(truth, saucer)
+    plain = align_pose(silhouettes, mask)
+    assert silhouette_iou(silhouettes.mask(plain.pose), silhouettes.mask(truth)) < 0.85 and plain.floor_disk == 0.0
+    found = align_pose(silhouettes, mask, disk=True)
+    assert rotation_error_deg(found.pose.rotation_deg, truth.rotation_deg) < 3.0
+    assert abs(found.pose.camera.elevation_deg - truth.camera.elevation_deg) < 3.0
+    assert silhouette_iou(silhouettes.mask(found.pose), silhouettes.mask(truth)) > 0.9
+    assert found.floor_disk == pytest.approx(saucer, rel=0.1)
+
+
+def test_capture_finds_an_object_on_a_saucer_and_leaves_the_saucer_out(chair):
+    """A dark chair on a light saucer on a blue floor: the mask holds both, the search models the saucer."""
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(30.0, 160, 160), rotation_deg=-30.0, translation=(0.0, 0.0), scale=(1.0,) * 3)
+    chair_mask = silhouettes.mask(truth)
+    saucer = circle_on_the_floor(truth, 1.35 * silhouettes.footprint_radius)
+    photo = np.where(chair_mask[..., None], np.array([0.35, 0.2, 0.1]),
+                     np.where(saucer[..., None], np.array([0.9, 0.85, 0.8]), np.array([0.2, 0.3, 0.6])))
+    found = find_pose(chair, photo)
+    assert found.floor_disk > 0.0
+    assert silhouette_iou(silhouettes.mask(found.pose.at_size(160, 160)), chair_mask) > 0.9
 
 
 def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):

@@ -19,7 +19,7 @@ from app.editor.editor_parts import Editor
 from app.editor.jobs import BackgroundJob, Progress
 from app.editor.photo_capture import PhotoAlignment, object_shape, scene_with_photo_view, shape_key
 from renderer.capture.align import Alignment
-from renderer.capture.capture import Capture, find_pose, fit_advice, segment_photo
+from renderer.capture.capture import Capture, disk_note, find_pose, fit_advice, segment_photo
 from renderer.capture.silhouette import SilhouetteRenderer
 from renderer.scene import Scene
 from renderer.voxel_cache import VoxelCache
@@ -86,7 +86,7 @@ class PhotoTool:
                 return
             self.app.say(f"aligned {'from scratch' if from_scratch else 'from the pose'}: silhouette IoU {found.iou:.3f} "
                          f"in {found.seconds:.1f} s (rotation {p.rotation_deg:.1f} deg, "
-                         f"elevation {p.camera.elevation_deg:.1f} deg)")
+                         f"elevation {p.camera.elevation_deg:.1f} deg){disk_note(found)}")
 
         self.job = self.app.jobs.start(f"Aligning to {alignment.path.name}", work, done)
 

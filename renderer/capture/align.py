@@ -52,6 +52,9 @@ FINAL_STEPS = np.array([0.25, 0.25, 0.002, 0.003, 0.003])
 FOCAL_STEP, FOCAL_FINAL_STEP = 0.05, 0.003  # log of the focal length factor, when it is free
 LENSES_MM = (24.0, 32.0, 40.0, 55.0, 80.0)  # focal lengths tried first when it is free
 EARLY_HALVINGS = 2  # compass halvings every candidate gets before the finalists are chosen
+DISK_RADII = (1.0, 2.0)  # a disk under the object (a saucer, a plate), when modelled, spans this many footprint radii
+DISK_COARSE_RADII = (1.25, 1.6, 2.0)  # ... of which these are tried in the coarse search
+DISK_CANDIDATES = 3  # coarse poses with a disk refined beside the CANDIDATES without one
 BOX_ROTATIONS = np.arange(-180.0, 180.0, 20.0)  # the grid of the search in a box, every pose placed and scored
 BOX_ELEVATIONS = np.arange(0.0, 81.0, 10.0)
 BOX_CANDIDATES = 4  # distinct poses of that grid refined
@@ -68,28 +71,31 @@ class Alignment:
     rays: int  # silhouette rays cast
     seconds: float
     mask: np.ndarray | None = None  # the photo's object mask the pose was fitted to
+    floor_disk: float = 0.0  # radius (object units) of a disk under the object that the mask holds too (a saucer)
 
 
 def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial: PhotoPose | None = None,
-               free_focal: bool = False, focal_35mm: float | None = None) -> Alignment:
+               free_focal: bool = False, focal_35mm: float | None = None, disk: bool = False) -> Alignment:
     """The pose whose silhouette best overlaps `photo_mask` ((H, W) bool).
 
     `initial`: a rough pose to start from (searches a window around it); None searches all
     rotations and elevations with the scene camera, or with the lens `focal_35mm` (35 mm equivalent, from the photo's
     EXIF). `free_focal`: the last refinement also fits the focal length (for photos not taken with that lens).
+    `disk`: the mask may hold a disk the object stands on (a saucer, a plate), so each silhouette is scored joined by
+    the disk that fits best (`disk_iou`), and the result says its radius.
     """
     start = time.perf_counter()
     rays_before = silhouettes.rays_cast
     h, w = photo_mask.shape
     base = initial if initial is not None else PhotoPose(photo_camera(w, h, focal_35mm))
     base = base.at_size(w, h)
-    coarse, early, fine = (_Problem(silhouettes, _resize_mask(photo_mask, min(side, max(h, w))), base)
+    coarse, early, fine = (_Problem(silhouettes, _resize_mask(photo_mask, min(side, max(h, w))), base, disk)
                            for side in (COARSE_SIDE, EARLY_SIDE, REFINE_SIDE))
 
     candidates = _coarse_candidates(coarse, initial)
     refined = []
-    for params in candidates:
-        params = early.place(params)
+    for candidate in candidates:
+        params = early.place(candidate[:5], disk_ratio=candidate[5])
         refined.append(early.compass(params, INITIAL_STEPS, INITIAL_STEPS / 2**EARLY_HALVINGS))
     refined.sort(key=lambda item: -item[1])
     steps, final_steps = INITIAL_STEPS / 2**EARLY_HALVINGS, FINAL_STEPS
@@ -103,7 +109,8 @@ def align_pose(silhouettes: SilhouetteRenderer, photo_mask: np.ndarray, initial:
     finals = [fine.compass(params, steps, final_steps, coupled=True) for params in starts]
     best_params, best_iou = max(finals, key=lambda item: item[1])
     pose = fine.pose(best_params).at_size(w, h)
-    return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start, photo_mask)
+    return Alignment(pose, float(best_iou), silhouettes.rays_cast - rays_before, time.perf_counter() - start, photo_mask,
+                     fine.disk_radius(best_params))
 
 
 def refine_by_colors(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoPose, photo_mask: np.ndarray,
@@ -200,6 +207,27 @@ def in_box_score(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, box: tu
     return problem.score_mask(silhouettes.mask(pose.at_size(width, height)))
 
 
+def disk_iou(mask: np.ndarray, target: np.ndarray, radii: np.ndarray, min_radius: float,
+             max_radius: float) -> tuple[float, float]:
+    """The best IoU of `mask` joined by a disk on the floor with `target`, and the disk's radius (0: no disk).
+    `radii` ((H, W)): where each pixel's ray meets the floor, as SilhouetteRenderer.floor_radii gives it; the disk's
+    radius is 0 or in [min_radius, max_radius]."""
+    inter0, union0 = np.count_nonzero(mask & target), np.count_nonzero(mask | target)
+    best = (1.0 if union0 == 0 else inter0 / union0, 0.0)
+    free = ~mask & (radii <= max_radius)
+    r, inside = radii[free], target[free]
+    if len(r) == 0:
+        return best
+    order = np.argsort(r, kind="stable")
+    r, inside = r[order], inside[order]
+    ious = (inter0 + np.cumsum(inside)) / (union0 + np.cumsum(~inside))
+    ious = np.where(r >= min_radius, ious, -1.0)
+    k = int(np.argmax(ious))
+    if ious[k] > best[0]:
+        best = (float(ious[k]), float(r[k]))
+    return best
+
+
 def silhouette_iou(a: np.ndarray, b: np.ndarray) -> float:
     """Intersection over union of two boolean masks (1 when both are empty)."""
     union = np.count_nonzero(a | b)
@@ -214,9 +242,10 @@ def rotation_error_deg(a: float, b: float) -> float:
 class _Problem:
     """The photo's mask at one size and the silhouettes to compare with it, as a function of 5 numbers."""
 
-    def __init__(self, silhouettes: SilhouetteRenderer, target: np.ndarray, base: PhotoPose):
+    def __init__(self, silhouettes: SilhouetteRenderer, target: np.ndarray, base: PhotoPose, disk: bool = False):
         self.silhouettes = silhouettes
         self.target = target
+        self.disk = disk  # the silhouette is joined by the disk under it that fits best
         h, w = target.shape
         self.base = base.at_size(w, h)
         self.target_moments = self.moments(target)
@@ -241,25 +270,45 @@ class _Problem:
         return _moments(mask)
 
     def iou(self, params: np.ndarray) -> float:
-        return silhouette_iou(self.mask(params), self.target)
+        if not self.disk:
+            return silhouette_iou(self.mask(params), self.target)
+        return self._disk_iou(params)[0]
+
+    def disk_radius(self, params: np.ndarray) -> float:
+        """The radius of the disk that joins the silhouette (object units; 0: none)."""
+        return self._disk_iou(params)[1] if self.disk else 0.0
+
+    def _disk_iou(self, params: np.ndarray) -> tuple[float, float]:
+        pose = self.pose(params)
+        low, high = (ratio * self.silhouettes.footprint_radius for ratio in DISK_RADII)
+        return disk_iou(self.silhouettes.mask(pose), self.target, self.silhouettes.floor_radii(pose), low, high)
 
     def score(self, params: np.ndarray) -> float:
         """What the compass search maximises: here the IoU with the photo's mask."""
         return self.iou(params)
 
-    def place(self, params: np.ndarray, iterations: int = 3) -> np.ndarray:
-        """Translation and scale that put the silhouette's `moments` on the target's (Gauss-Newton)."""
+    def place(self, params: np.ndarray, iterations: int = 3, disk_ratio: float = 0.0) -> np.ndarray:
+        """Translation and scale that put the silhouette's `moments` on the target's (Gauss-Newton); with
+        `disk_ratio`, of the silhouette joined by a disk that many footprint radii wide under it."""
         params = np.array(params, dtype=np.float64)
         deltas = np.array([0.02, 0.02, 0.02])
+
+        def moments(params):
+            if disk_ratio <= 0.0:
+                return self.moments(self.mask(params))
+            pose = self.pose(params)
+            disk = self.silhouettes.floor_radii(pose) <= disk_ratio * self.silhouettes.footprint_radius
+            return self.moments(self.silhouettes.mask(pose) | disk)
+
         for _ in range(iterations):
-            current = self.moments(self.mask(params))
+            current = moments(params)
             if current is None or self.target_moments is None:
                 return params
             jacobian = np.zeros((3, 3))
             for j in range(3):
                 probe = params.copy()
                 probe[2 + j] += deltas[j]
-                moved = self.moments(self.mask(probe))
+                moved = moments(probe)
                 if moved is None:
                     return params
                 jacobian[:, j] = (np.array(moved) - np.array(current)) / deltas[j]
@@ -349,7 +398,8 @@ class _BoxProblem(_ColorProblem):
 
 
 def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.ndarray]:
-    """The best distinct (rotation, elevation) of the coarse grid, as full parameter vectors."""
+    """The best distinct (rotation, elevation) of the coarse grid, as the five parameters and the radius (in footprint
+    radii, 0: none) of the disk under the object they were scored with; with a disk, DISK_CANDIDATES more."""
     if initial is None:
         rotations, elevations = FULL_ROTATIONS, FULL_ELEVATIONS
         start_placement = np.zeros(3)
@@ -357,14 +407,25 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
         rotations, elevations = _window(initial, WINDOW_STEP_DEG)
         start_placement = np.array([*initial.translation, 0.0])
     target = _canonical(problem.target)
-    scored = []
+    scored, disked = [], []
     for rotation in rotations:
         for elevation in elevations:
             params = np.array([rotation, elevation, *start_placement])
-            mask = problem.mask(params)
-            scored.append((silhouette_iou(_canonical(mask), target), params))
+            pose = problem.pose(params)
+            mask = problem.silhouettes.mask(pose)
+            value = silhouette_iou(_canonical(mask), target)
+            if problem.disk:
+                radii = problem.silhouettes.floor_radii(pose) / problem.silhouettes.footprint_radius
+                disked.append(max((silhouette_iou(_canonical(mask | (radii <= ratio)), target), ratio, tuple(params))
+                                  for ratio in DISK_COARSE_RADII))
+            scored.append((value, params))
     scored.sort(key=lambda item: -item[0])
-    return _distinct([params for _, params in scored], CANDIDATES)
+    chosen = [np.append(params, 0.0) for params in _distinct([params for _, params in scored], CANDIDATES)]
+    if problem.disk:
+        disked.sort(key=lambda item: -item[0])
+        chosen = _distinct(chosen + [np.array([*params, ratio]) for _, ratio, params in disked],
+                           CANDIDATES + DISK_CANDIDATES)
+    return chosen
 
 
 def _window(initial: PhotoPose, step: float) -> tuple[np.ndarray, np.ndarray]:

@@ -58,6 +58,7 @@ LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask l
 SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
 SEARCH_SHARE, LIGHT_SHARE = 0.75, 0.85  # the progress a capture reports: the search's share of it, then the light
 # fit's share of what follows (docs/results.md, "Measurements behind the code")
+DISK_GAIN = 0.03  # a search with a disk under the object (a saucer) replaces a loose fit when its IoU is this much higher
 FOREIGN_ODDS = 2.0  # a color this many times likelier on what stands beside the object than on it is not the object's
 MIN_FOREIGN_PIXELS = 20  # fewer pixels than this beside the silhouette say nothing
 
@@ -108,6 +109,13 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     silhouettes = silhouettes or SilhouetteRenderer(mesh)
     alignment = align_pose(silhouettes, mask, start, free_focal, focal_35mm)
     rays, seconds = alignment.rays, alignment.seconds
+    # A loose fit may be a saucer or a plate under the object in the mask: from here on the searches model a disk there
+    disk = small_alpha is None and alignment.iou < LOOSE_FIT_IOU
+    if disk:
+        on_disk = align_pose(silhouettes, mask, start, free_focal, focal_35mm, disk=True)
+        rays, seconds = rays + on_disk.rays, seconds + on_disk.seconds
+        if on_disk.floor_disk > 0.0 and on_disk.iou >= alignment.iou + DISK_GAIN:
+            alignment = on_disk
     by_colors = small_alpha is None and hints.box is not None
     rounds = SEGMENT_ROUNDS if small_alpha is None else 0
     searched_share = 0.7 if by_colors else 1.0  # with a box, the search on the colors takes the rest
@@ -118,10 +126,10 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     for round_ in range(rounds + 1 if small_alpha is None else 0):
         if round_ > 0:
             try:
-                mask = object_mask(small_rgb, None, path, replace(hints, prior=silhouettes.mask(alignment.pose)))
+                mask = object_mask(small_rgb, None, path, replace(hints, prior=_found_shape(silhouettes, alignment)))
             except InputError:
                 break  # the pose's silhouette gave nothing better: keep the pose found
-            alignment = align_pose(silhouettes, mask, alignment.pose, free_focal)
+            alignment = align_pose(silhouettes, mask, alignment.pose, free_focal, disk=disk)
             rays, seconds = rays + alignment.rays, seconds + alignment.seconds
         if by_colors:
             alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
@@ -144,7 +152,23 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
         alignment = refine_placement(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
         rays, seconds = rays + alignment.rays, seconds + alignment.seconds
     report(1.0)
-    return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)))
+    return Alignment(alignment.pose.at_size(w, h), alignment.iou, rays, seconds, mask_at_size(mask, (w, h)),
+                     alignment.floor_disk)
+
+
+def _found_shape(silhouettes: SilhouetteRenderer, alignment: Alignment) -> np.ndarray:
+    """The found pose's silhouette joined by the disk under the object the search found with it (a saucer)."""
+    silhouette = silhouettes.mask(alignment.pose)
+    if alignment.floor_disk > 0.0:
+        silhouette |= silhouettes.floor_radii(alignment.pose) <= alignment.floor_disk
+    return silhouette
+
+
+def disk_note(alignment: Alignment) -> str:
+    """What the user should know of a saucer or plate the search found under the object ('' when none)."""
+    if alignment.floor_disk <= 0.0:
+        return ""
+    return "; the object stands on a disk (a saucer or a plate) that is not part of it: its pixels give no colors"
 
 
 def fit_advice(alignment: Alignment, hinted: bool) -> str | None:

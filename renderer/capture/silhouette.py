@@ -27,6 +27,8 @@ class SilhouetteRenderer:
         self._scene = o3d.t.geometry.RaycastingScene()
         self._scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
                                   o3d.core.Tensor(faces.astype(np.uint32)))
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        self.footprint_radius = 0.5 * float(max(np.ptp(vertices[:, 0]), np.ptp(vertices[:, 2])))
         self._grids: dict[tuple, np.ndarray] = {}  # camera-space ray directions by lens and size
         self.rays_cast = 0
 
@@ -35,6 +37,17 @@ class SilhouetteRenderer:
         origin, directions = self._camera_rays(pose)
         return self.occluded(np.broadcast_to(origin, directions.shape), directions).reshape(
             pose.camera.height, pose.camera.width)
+
+    def floor_radii(self, pose: PhotoPose) -> np.ndarray:
+        """(H, W): how far from the object's vertical axis (object units) each pixel centre's ray meets the floor
+        it stands on (object y = 0); inf where the ray does not go down to it."""
+        origin, directions = self._camera_rays(pose)
+        down = directions[:, 1] < 0.0
+        t = np.where(down, -origin[1] / np.where(down, directions[:, 1], -1.0), np.inf)
+        x = origin[0] + t * directions[:, 0]
+        z = origin[2] + t * directions[:, 2]
+        radii = np.where(down & (t > 0.0), np.hypot(x, z), np.inf)
+        return radii.reshape(pose.camera.height, pose.camera.width)
 
     def surface(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What each pixel centre's ray meets first, in object coordinates: (H, W) bool hit, and for the hits
