@@ -13,6 +13,8 @@ All of it at a reduced photo size; the result is the pose at the photo's own siz
 A photo without an alpha channel has only a segmented mask, wrong where object and background share
 colors; `refine_by_colors` then refines a pose by the same compass search on how well its silhouette
 separates the photo's colors (renderer/capture/color_fit.py), the mesh's shape deciding the boundary.
+With `disk`, each silhouette is joined by the disk on the floor under the object that best fits the mask (a
+saucer or a plate segmented with the object), and the coarse search proposes poses scored with one too.
 With a box, `search_in_box` needs no mask at all: every rotation and elevation of a coarse grid is
 placed by the box and scored by the colors, and the best few are refined on that score.
 """

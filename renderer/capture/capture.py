@@ -110,6 +110,8 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     alignment = align_pose(silhouettes, mask, start, free_focal, focal_35mm)
     rays, seconds = alignment.rays, alignment.seconds
     # A loose fit may be a saucer or a plate under the object in the mask: from here on the searches model a disk there
+    # (only then: searching with one every time doubled a floor photo's search; docs/results.md, "Measurements behind
+    # the code")
     disk = small_alpha is None and alignment.iou < LOOSE_FIT_IOU
     if disk:
         on_disk = align_pose(silhouettes, mask, start, free_focal, focal_35mm, disk=True)
