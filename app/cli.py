@@ -154,12 +154,13 @@ def cmd_capture(args: argparse.Namespace) -> None:
     save_scene(captured_scene(args.mesh, voxels_out, captured.pose, args.up, args.res), scene_out)
     p = captured.pose
     how = "camera file" if captured.alignment is None else (
-        f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s"
-        f"{disk_note(captured.alignment)}")
+        f"{'refined' if pose else 'found'}: silhouette IoU {captured.alignment.iou:.3f} in {captured.alignment.seconds:.1f} s")
     print(f"pose ({how}): rotation {p.rotation_deg:.1f} deg, elevation {p.camera.elevation_deg:.1f} deg, "
           f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}, "
           f"focal length {p.camera.focal_mm:.1f} mm"
           + ("" if focal_35mm is None else f" (the photo's EXIF: {focal_35mm:g} mm, 35 mm equivalent)"))
+    if captured.alignment is not None and disk_note(captured.alignment):
+        print(f"note: {disk_note(captured.alignment)}")
     advice = None if captured.alignment is None else fit_advice(captured.alignment, box is not None)
     if advice:
         print(f"warning: {advice}")

@@ -19,6 +19,23 @@ def demo():
     return scene, object_mesh(scene)
 
 
+def test_the_overlay_outlines_a_saucer_the_search_found_beside_the_object_only(demo):
+    scene, mesh = demo
+    a = PhotoAlignment("assets/demo/photo.png", scene, "assets/demo/photo_camera.json")
+    a.set_mesh(mesh, key=DEMO)
+    rim = np.all(np.isclose(a.overlay(), [0.2, 0.8, 1.0]), axis=2)
+    assert not rim.any()
+    a.floor_disk = 1.5 * a.silhouettes.footprint_radius
+    shown_pose = a.pose.at_size(*rim.shape[::-1])
+    rim = np.all(np.isclose(a.overlay(), [0.2, 0.8, 1.0]), axis=2)
+    disk = a.silhouettes.floor_radii(shown_pose) <= a.floor_disk
+    assert rim.sum() > 50 and not (rim & a.silhouettes.mask(shown_pose)).any() and (rim <= disk).all()
+    rows, _ = np.nonzero(rim)
+    assert rows.max() > np.nonzero(a.silhouettes.mask(shown_pose))[0].max()  # the saucer's front below the chair
+    a.set_mesh(mesh, key="another shape")
+    assert a.floor_disk == 0.0
+
+
 def test_camera_file_gives_the_pose_and_without_it_the_scene_does(demo, tmp_path):
     scene, _ = demo
     with_file = PhotoAlignment("assets/demo/photo.png", scene, "assets/demo/photo_camera.json")

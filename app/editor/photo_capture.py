@@ -36,6 +36,7 @@ OVERLAY_SIDE = 320  # default long side of the overlay (the Photo tab asks for t
 OUTLINE_COLOR = np.array([1.0, 0.2, 0.6])
 STROKE_OBJECT, STROKE_BACKGROUND = np.array([0.2, 0.9, 0.3]), np.array([0.95, 0.3, 0.2])
 UNTRUSTED_COLOR = np.array([1.0, 0.7, 0.1])  # the mask's rim, whose pixels do not color the object
+DISK_COLOR = np.array([0.2, 0.8, 1.0])  # the outline of a saucer or plate the search found under the object
 TURN_DEG_PER_PIXEL = 0.5  # per pixel the mouse moves over the overlay as shown
 SHIFT_PER_PIXEL = 0.004  # object units per pixel the mouse moves over the overlay
 SCALE_PER_WHEEL_STEP = 1.05
@@ -69,6 +70,7 @@ class PhotoAlignment:
         self.divide_light = True  # coloring fits the photo's light and divides it out (else colors keep the shading)
         self.light_note = ""  # what the last coloring did with the photo's light
         self.fitted_light: FittedLight | None = None  # the light the last coloring fitted, if it did
+        self.floor_disk = 0.0  # radius (object units) of the saucer or plate the last search found under the object
 
     def set_mesh(self, mesh: trimesh.Trimesh, key: object, silhouettes: SilhouetteRenderer | None = None) -> None:
         """Use this mesh (object coordinates) for the silhouette; `key` names it so reloading is skipped.
@@ -80,6 +82,7 @@ class PhotoAlignment:
             self._silhouettes = silhouettes or SilhouetteRenderer(mesh)
             self.mesh = mesh
             self._mesh_key = key
+            self.floor_disk = 0.0  # found under another shape
             self.revision += 1
 
     @property
@@ -169,9 +172,13 @@ class PhotoAlignment:
             shown[strokes == 0] = STROKE_BACKGROUND
         if self._silhouettes is None:
             return shown
-        mask = self._silhouettes.mask(self.pose.at_size(*size))
+        pose = self.pose.at_size(*size)
+        mask = self._silhouettes.mask(pose)
         outline = mask & ~_eroded(mask)
         shown = shown.copy()
+        if self.floor_disk > 0.0:  # the saucer's rim where the object does not hide it
+            disk = self._silhouettes.floor_radii(pose) <= self.floor_disk
+            shown[disk & ~_eroded(disk) & ~mask] = DISK_COLOR
         shown[mask] = 0.75 * shown[mask] + 0.25 * OUTLINE_COLOR
         shown[outline] = OUTLINE_COLOR
         return shown

@@ -77,6 +77,7 @@ class PhotoTool:
                              focal_35mm=alignment.focal_35mm, progress=progress, **alignment.hints())
 
         def done(found: Alignment) -> None:
+            alignment.floor_disk = found.floor_disk  # before set_pose, whose new revision redraws the overlay
             alignment.set_pose(found.pose)
             p = found.pose
             hints = alignment.hints()
@@ -84,9 +85,10 @@ class PhotoTool:
             if advice:
                 self.app.say(f"aligned, but {advice}", error=True)
                 return
-            self.app.say(f"aligned {'from scratch' if from_scratch else 'from the pose'}: silhouette IoU {found.iou:.3f} "
-                         f"in {found.seconds:.1f} s (rotation {p.rotation_deg:.1f} deg, "
-                         f"elevation {p.camera.elevation_deg:.1f} deg){disk_note(found)}")
+            on_disk = f" ({disk_note(found)}: outlined in blue)" if found.floor_disk > 0.0 else ""
+            self.app.say(f"aligned {'from scratch' if from_scratch else 'from the pose'}{on_disk}: silhouette IoU "
+                         f"{found.iou:.3f} in {found.seconds:.1f} s (rotation {p.rotation_deg:.1f} deg, "
+                         f"elevation {p.camera.elevation_deg:.1f} deg)")
 
         self.job = self.app.jobs.start(f"Aligning to {alignment.path.name}", work, done)
 

@@ -170,7 +170,7 @@ def disk_note(alignment: Alignment) -> str:
     """What the user should know of a saucer or plate the search found under the object ('' when none)."""
     if alignment.floor_disk <= 0.0:
         return ""
-    return "; the object stands on a disk (a saucer or a plate) that is not part of it: its pixels give no colors"
+    return "the object stands on a saucer or a plate, whose pixels give no colors"
 
 
 def fit_advice(alignment: Alignment, hinted: bool) -> str | None:
