@@ -379,7 +379,8 @@ def write_report(rows: list[dict], args: argparse.Namespace, note: str) -> None:
         f"`high` (seen from {HIGH_ELEVATION[0]:.0f}-{HIGH_ELEVATION[1]:.0f} degrees above), `off-centre` "
         f"(the object moved {OFF_CENTRE[0]}-{OFF_CENTRE[1]} to a side). "
         "`occluder` (a thin upright rod of a random color between the camera and the object), `saucer` (the object "
-        "on a flat disk wider than its footprint).",
+        "on a flat disk wider than its footprint). After a loose first fit the search joins each silhouette with a "
+        "disk on the floor under it; the mask keeps the saucer, so its segmentation IoU stays low.",
         "",
         "Starts: `none` (no pose) and `perturbed` (true pose off by up to 30 degrees in rotation and elevation, 10 % "
         "in scale and position). IoU: the found pose's silhouette against the true one; segmentation IoU: the mask "
