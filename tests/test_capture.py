@@ -257,6 +257,31 @@ def test_capture_finds_an_object_on_a_saucer_and_leaves_the_saucer_out(chair):
     assert silhouette_iou(silhouettes.mask(found.pose.at_size(160, 160)), chair_mask) > 0.9
 
 
+def test_a_segmentation_round_that_breaks_the_mask_is_not_followed(chair, monkeypatch):
+    """The later segmentation rounds return the chair's bounding box filled: no pose fits it as well as the first
+    mask was fitted, so the first pose stays; followed, the box turns the chair."""
+    import renderer.capture.capture as capture_module
+
+    silhouettes = SilhouetteRenderer(chair)
+    truth = PhotoPose(Camera(20.0, 160, 160), rotation_deg=-110.0)
+    true_mask = silhouettes.mask(truth)
+    rows, cols = np.nonzero(true_mask)
+    box = np.zeros_like(true_mask)
+    box[rows.min():rows.max() + 1, cols.min():cols.max() + 1] = True
+    masks = iter([true_mask, box, box])
+    monkeypatch.setattr(capture_module, "object_mask", lambda *args, **kwargs: next(masks))
+    photo = np.full((160, 160, 3), 0.5)
+
+    def found_iou() -> float:
+        found = find_pose(chair, photo, silhouettes=silhouettes)
+        return silhouette_iou(silhouettes.mask(found.pose.at_size(160, 160)), true_mask)
+
+    assert found_iou() > 0.9
+    masks = iter([true_mask, box, box])
+    monkeypatch.setattr(capture_module, "ROUND_FIT_DROP", 1.0)
+    assert found_iou() < 0.85
+
+
 def test_capture_of_a_path_traced_photo_recovers_pose_and_colors(chair):
     colored = chair.copy()
     colored.visual.vertex_colors = np.tile([200, 40, 30, 255], (len(chair.vertices), 1)).astype(np.uint8)

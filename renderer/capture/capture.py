@@ -56,6 +56,8 @@ SEGMENT_SIDE = 320  # long side at which the photo is segmented and aligned (the
 LOOSE_FIT_IOU = 0.9  # a found pose whose silhouette overlaps the photo's mask less than this was fitted to a poor
 # mask (0.80-0.88 on four cluttered photos searched without a box; 0.94 on a path-traced floor photo aligned right)
 SEGMENT_ROUNDS = 2  # segmentations restarted from the found pose's silhouette, each followed by a pose refinement
+ROUND_FIT_DROP = 0.1  # a segmentation round whose best fit is this much looser than the last round's broke the mask
+# (docs/results.md, "Measurements behind the code")
 SEARCH_SHARE, LIGHT_SHARE = 0.75, 0.85  # the progress a capture reports: the search's share of it, then the light
 # fit's share of what follows (docs/results.md, "Measurements behind the code")
 DISK_GAIN = 0.03  # a search with a disk under the object (a saucer) replaces a loose fit when its IoU is this much higher
@@ -128,11 +130,14 @@ def find_pose(mesh: trimesh.Trimesh, photo_rgb: np.ndarray, alpha: np.ndarray | 
     for round_ in range(rounds + 1 if small_alpha is None else 0):
         if round_ > 0:
             try:
-                mask = object_mask(small_rgb, None, path, replace(hints, prior=_found_shape(silhouettes, alignment)))
+                new_mask = object_mask(small_rgb, None, path, replace(hints, prior=_found_shape(silhouettes, alignment)))
             except InputError:
                 break  # the pose's silhouette gave nothing better: keep the pose found
-            alignment = align_pose(silhouettes, mask, alignment.pose, free_focal, disk=disk)
-            rays, seconds = rays + alignment.rays, seconds + alignment.seconds
+            found = align_pose(silhouettes, new_mask, alignment.pose, free_focal, disk=disk)
+            rays, seconds = rays + found.rays, seconds + found.seconds
+            if not by_colors and found.iou < alignment.iou - ROUND_FIT_DROP:
+                break  # no pose fits the new mask as well as the last pose fitted its mask: keep those
+            mask, alignment = new_mask, found
         if by_colors:
             alignment = refine_by_colors(silhouettes, small_rgb, alignment.pose, mask, region, free_focal)
             rays, seconds = rays + alignment.rays, seconds + alignment.seconds
