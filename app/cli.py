@@ -159,8 +159,9 @@ def cmd_capture(args: argparse.Namespace) -> None:
           f"translation [{p.translation[0]:.3f}, {p.translation[1]:.3f}], scale {p.scale[0]:.3f}, "
           f"focal length {p.camera.focal_mm:.1f} mm"
           + ("" if focal_35mm is None else f" (the photo's EXIF: {focal_35mm:g} mm, 35 mm equivalent)"))
-    if captured.alignment is not None and disk_note(captured.alignment):
-        print(f"note: {disk_note(captured.alignment)}")
+    note = "" if captured.alignment is None else disk_note(captured.alignment)
+    if note:
+        print(f"note: {note}")
     advice = None if captured.alignment is None else fit_advice(captured.alignment, box is not None)
     if advice:
         print(f"warning: {advice}")

@@ -43,10 +43,9 @@ class SilhouetteRenderer:
         it stands on (object y = 0); inf where the ray does not go down to it."""
         origin, directions = self._camera_rays(pose)
         down = directions[:, 1] < 0.0
-        t = np.where(down, -origin[1] / np.where(down, directions[:, 1], -1.0), np.inf)
-        x = origin[0] + t * directions[:, 0]
-        z = origin[2] + t * directions[:, 2]
-        radii = np.where(down & (t > 0.0), np.hypot(x, z), np.inf)
+        t = -origin[1] / np.where(down, directions[:, 1], -1.0)  # finite everywhere: no inf times a zero component
+        radii = np.hypot(origin[0] + t * directions[:, 0], origin[2] + t * directions[:, 2])
+        radii[~down | (t <= 0.0)] = np.inf
         return radii.reshape(pose.camera.height, pose.camera.width)
 
     def surface(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
