@@ -3,7 +3,9 @@
 The model is the scene's: the square light (its centre free, facing down) plus the uniform ambient light, whose
 strength relative to the square light is free too (a real photo's sky is not ours). Each object pixel's shading
 is the light's irradiance (cosines over squared distance, shadowed by the mesh, at a few points of the square)
-plus the ambient irradiance (sky and floor bounce, each visible where the mesh does not block the way). The light
+plus the ambient irradiance from the sky (visible where the mesh does not block the way), plus what the floor sends
+back up of both lights, as the voxel shader models it (renderer/shading/lighting.py): the colors drawn by the shader
+under the fitted light then look as bright as the photo (docs/results.md, "Measurements behind the code"). The light
 that explains the photo best leaves the most uniform albedo (photo over shading): the smallest mean absolute
 deviation of its log brightness. An object's colors do not follow the light, so shading left in them only adds
 spread. (Retinex's sum of log-brightness steps between neighbours did worse: docs/results.md, "Tried and not
@@ -25,11 +27,14 @@ from renderer.color import srgb_to_linear
 from renderer.errors import InputError
 from renderer.photo import albedo_image
 from renderer.resample import downscaled, downscaled_mask, resized
-from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE
+from renderer.scene import AMBIENT_RADIANCE, LIGHT_RADIANCE, LIGHT_SIZE, FloorSpec
+from renderer.shading.lighting import light_form_factors
+from renderer.shading.quality import FLOOR_BELOW_LIT
 
 FIT_SIDE = 128  # long side at which the light is fitted
-AMBIENT_RAYS = 48  # cosine-weighted rays per pixel for the sky's and the floor's visibility
-FLOOR_BOUNCE = 0.45  # the floor's share of the ambient light sent back up (its albedo times its irradiance ratio)
+AMBIENT_RAYS = 48  # cosine-weighted rays per pixel for the sky's visibility
+FLOOR_ALBEDO = float(np.mean(srgb_to_linear(np.asarray(FloorSpec().color))))  # the floor that bounces light up: the
+# scene's, which the captured colors are drawn over (a photo's own floor is not known)
 # The square light sampled at its centre and four points halfway to its corners (soft shadows), as offsets in x, z
 LIGHT_POINTS = ((0.0, 0.0), (-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25))
 X_RANGE, Y_RANGE, Z_RANGE = (-3.0, 3.0), (2.0, 4.5), (-3.0, 3.0)  # where the light is looked for (world units)
@@ -75,7 +80,9 @@ class _Surface:
         self.to_object = pose.world_to_object()
         self.offset = 1e-3  # rays leave the surface this far along its normal (world units)
         self.origins_obj = (points + self.offset * normals) @ self.to_object[:3, :3].T + self.to_object[:3, 3]
-        self.sky, self.floor = self._ambient_visibility()
+        self.sky = self._sky_visibility()
+        # the floor's albedo times the share of it a point faces, unblocked, as the shader has it (lighting.py)
+        self.floor_bounce = FLOOR_ALBEDO * 0.5 * (1.0 - normals[:, 1])
 
     @classmethod
     def of_object(cls, silhouettes: SilhouetteRenderer, pose: PhotoPose) -> tuple[_Surface, np.ndarray]:
@@ -96,12 +103,11 @@ class _Surface:
         points = origin + t[:, None] * directions
         return cls(silhouettes, pose, points, np.tile([0.0, 1.0, 0.0], (len(points), 1)))
 
-    def _ambient_visibility(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per pixel, the cosine-weighted share of directions that reach the sky and the floor unblocked. Every
-        pixel uses the same directions about its normal (a spiral over the disk, projected up), so a flat face gets
-        one value instead of noise."""
-        n = len(self.points)
-        sky, floor = np.zeros(n), np.zeros(n)
+    def _sky_visibility(self) -> np.ndarray:
+        """Per pixel, the cosine-weighted share of directions that reach the sky unblocked. Every pixel uses the same
+        directions about its normal (a spiral over the disk, projected up), so a flat face gets one value instead of
+        noise."""
+        sky = np.zeros(len(self.points))
         tangent = np.cross(self.normals, np.where(np.abs(self.normals[:, 1:2]) < 0.9, [[0.0, 1.0, 0.0]], [[1.0, 0.0, 0.0]]))
         tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
         bitangent = np.cross(self.normals, tangent)
@@ -110,13 +116,17 @@ class _Surface:
             r, phi = math.sqrt((k + 0.5) / AMBIENT_RAYS), k * golden
             x, y, z = r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - r * r))
             d = x * tangent + y * bitangent + z * self.normals
-            free = ~self.silhouettes.occluded(self.origins_obj, d @ self.to_object[:3, :3].T)
-            sky += free & (d[:, 1] > 0.0)
-            floor += free & (d[:, 1] <= 0.0)
-        return sky / AMBIENT_RAYS, floor / AMBIENT_RAYS
+            up = d[:, 1] > 0.0
+            sky[up] += ~self.silhouettes.occluded(self.origins_obj[up], d[up] @ self.to_object[:3, :3].T)
+        return sky / AMBIENT_RAYS
 
     def direct(self, light: np.ndarray) -> np.ndarray:
-        """Irradiance from the square light centred at `light` (world), facing down, per pixel, with shadows."""
+        """Irradiance from the square light centred at `light` (world), facing down, per pixel: directly, with
+        shadows, and off the floor below the point (FLOOR_BELOW_LIT of it lit, the object's shadow falling there)."""
+        lights = np.array([light + LIGHT_SIZE * np.array([dx, 0.0, dz]) for dx, dz in LIGHT_POINTS])
+        at_surface, below = np.empty(len(self.points)), np.empty(len(self.points))
+        light_form_factors(self.points, self.normals, lights, LIGHT_SIZE**2 / len(lights), at_surface, below)
+        bounced = LIGHT_RADIANCE * FLOOR_BELOW_LIT * below * self.floor_bounce
         total = np.zeros(len(self.points))
         for dx, dz in LIGHT_POINTS:
             to_light = light + LIGHT_SIZE * np.array([dx, 0.0, dz]) - self.points
@@ -129,11 +139,11 @@ class _Surface:
                 shadowed = self.silhouettes.occluded(self.origins_obj[lit], reach, far=1.0)
                 lit[np.flatnonzero(lit)[shadowed]] = False
             total += np.where(lit, cos_surface * cos_light / np.maximum(distance, 1e-3) ** 2, 0.0)
-        return total / len(LIGHT_POINTS) * LIGHT_RADIANCE * LIGHT_SIZE**2
+        return total / len(LIGHT_POINTS) * LIGHT_RADIANCE * LIGHT_SIZE**2 + bounced
 
     def ambient(self) -> np.ndarray:
         """Irradiance from the uniform ambient light, directly and off the floor, per pixel, at the scene's strength."""
-        return math.pi * AMBIENT_RADIANCE * (self.sky + FLOOR_BOUNCE * self.floor)
+        return math.pi * AMBIENT_RADIANCE * (self.sky + self.floor_bounce)
 
 
 def fit_light(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoPose,
