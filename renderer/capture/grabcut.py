@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from renderer.color import srgb_to_linear
 from renderer.errors import InputError
 
 ITERATIONS = 5
@@ -34,6 +35,9 @@ SHADOW_MIN_COLOR = 0.03  # the background's chromaticity must be at least this f
 SHADOW_DARKEST, SHADOW_LIGHTEST = 0.15, 0.9  # brightness of a shadow relative to the lit background beside it
 SHADOW_PLAIN_ROW = 0.02  # the row's background varies in chromaticity (median deviation) by less than this: a floor,
 # not clutter, whose median color says nothing about a shadow (the test took a box's object pixels for shadow)
+SOFT_CHROMA = 0.12  # largest linear chromaticity difference from the row's floor that can still be light on it: a
+# brighter or darker white light keeps a floor's linear chromaticity; a dark leg on a green floor differs by more
+# (docs/results.md, "Measurements behind the code")
 SOFT_EDGE = 0.03  # sRGB change per pixel (after a 1-pixel blur) below which an edge is soft: light on the floor
 # (a highlight's or a penumbra's edge changes by about 0.01 a pixel), not an object's outline (0.09-0.35)
 
@@ -148,8 +152,10 @@ def _initial_labels(h: int, w: int, hints: Hints, path) -> np.ndarray:
 class RowFloor:
     """Per row of the photo, the background beside the probable object, for telling light on a floor from objects."""
 
-    plain: np.ndarray  # (H,) bool: that background is one color, not grey (a floor, not clutter)
-    chroma: np.ndarray  # (H, 3) its median chromaticity
+    uniform: np.ndarray  # (H,) bool: that background is one color (a floor, not clutter)
+    colored: np.ndarray  # (H,) bool: ... and that color is not grey
+    chroma: np.ndarray  # (H, 3) its median chromaticity (of sRGB values)
+    linear_chroma: np.ndarray  # (H, 3) the same of linear values, which a white light's strength does not change
     brightness: np.ndarray  # (H,) its median brightness (sum of the channels)
 
 
@@ -160,7 +166,8 @@ def row_floor(rgb: np.ndarray, labels: np.ndarray) -> RowFloor:
     h = labels.shape[0]
     background = (labels == cv2.GC_BGD) | (labels == cv2.GC_PR_BGD)
     brightness = rgb.sum(axis=2) + 1e-6
-    floor = RowFloor(np.zeros(h, dtype=bool), np.zeros((h, 3)), np.ones(h))
+    linear_chroma = _chromaticity(srgb_to_linear(np.clip(rgb, 0.0, 1.0)))
+    floor = RowFloor(np.zeros(h, dtype=bool), np.zeros(h, dtype=bool), np.zeros((h, 3)), np.zeros((h, 3)), np.ones(h))
     for row in np.flatnonzero((labels == cv2.GC_PR_FGD).any(axis=1)):
         rows = slice(max(0, row - 2), row + 3)
         band = background[rows]
@@ -168,10 +175,16 @@ def row_floor(rgb: np.ndarray, labels: np.ndarray) -> RowFloor:
             continue
         band_chroma = rgb[rows][band] / brightness[rows][band][:, None]
         floor.chroma[row] = np.median(band_chroma, axis=0)
+        floor.linear_chroma[row] = np.median(linear_chroma[rows][band], axis=0)
         floor.brightness[row] = np.median(brightness[rows][band])
-        floor.plain[row] = (np.median(np.abs(band_chroma - floor.chroma[row]).max(axis=1)) <= SHADOW_PLAIN_ROW
-                            and np.abs(floor.chroma[row] - 1.0 / 3.0).max() >= SHADOW_MIN_COLOR)
+        floor.uniform[row] = np.median(np.abs(band_chroma - floor.chroma[row]).max(axis=1)) <= SHADOW_PLAIN_ROW
+        floor.colored[row] = np.abs(floor.chroma[row] - 1.0 / 3.0).max() >= SHADOW_MIN_COLOR
     return floor
+
+
+def _chromaticity(rgb: np.ndarray) -> np.ndarray:
+    """Each pixel's color over the sum of its channels."""
+    return rgb / (rgb.sum(axis=-1, keepdims=True) + 1e-6)
 
 
 def shadow_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = None) -> np.ndarray:
@@ -188,20 +201,24 @@ def shadow_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = 
     brightness = rgb.sum(axis=2) + 1e-6
     ratio = brightness / floor.brightness[:, None]
     similar = np.abs(rgb / brightness[..., None] - floor.chroma[:, None, :]).max(axis=2) < SHADOW_CHROMA
-    return probable & floor.plain[:, None] & similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)
+    plain = (floor.uniform & floor.colored)[:, None]
+    return probable & plain & similar & (ratio >= SHADOW_DARKEST) & (ratio <= SHADOW_LIGHTEST)
 
 
 def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = None) -> np.ndarray:
-    """Probable-object pixels in rows with a plain floor reached from the cut's soft edges without crossing an
-    edge: the light's bright spot and a shadow's penumbra fade into the floor, an object is outlined (a smoothly
-    shaded object in clutter is not on a plain floor, so it is left alone). Sure labels are never changed."""
+    """Probable-object pixels in rows with a floor of one color (grey too), of that floor's linear chromaticity
+    (SOFT_CHROMA), reached from the cut's soft edges without crossing an edge: the light's bright spot and a
+    shadow's penumbra fade into the floor, an object is outlined (a smoothly shaded object in clutter is not on a
+    plain floor, so it is left alone; a dark leg in the shadow of its object, whose outline is soft there, differs
+    from the floor in color). Sure labels are never changed."""
     import cv2
 
     probable = labels == cv2.GC_PR_FGD
     if not probable.any():
         return np.zeros(labels.shape, dtype=bool)
     floor = row_floor(rgb, labels) if floor is None else floor
-    lit = probable & floor.plain[:, None]
+    like_floor = np.abs(_chromaticity(srgb_to_linear(np.clip(rgb, 0.0, 1.0))) - floor.linear_chroma[:, None, :])
+    lit = probable & floor.uniform[:, None] & (like_floor.max(axis=2) < SOFT_CHROMA)
     blurred = ndimage.gaussian_filter(np.asarray(rgb, dtype=np.float64), sigma=(1.0, 1.0, 0.0))
     gy, gx = np.gradient(blurred, axis=(0, 1))
     smooth = ndimage.maximum_filter(np.sqrt((gx**2 + gy**2).sum(axis=2)), size=3) < SOFT_EDGE
