@@ -35,9 +35,9 @@ SHADOW_MIN_COLOR = 0.03  # the background's chromaticity must be at least this f
 SHADOW_DARKEST, SHADOW_LIGHTEST = 0.15, 0.9  # brightness of a shadow relative to the lit background beside it
 SHADOW_PLAIN_ROW = 0.02  # the row's background varies in chromaticity (median deviation) by less than this: a floor,
 # not clutter, whose median color says nothing about a shadow (the test took a box's object pixels for shadow)
-SOFT_CHROMA = 0.12  # largest linear chromaticity difference from the row's floor that can still be light on it: a
-# brighter or darker white light keeps a floor's linear chromaticity; a dark leg on a green floor differs by more
-# (docs/results.md, "Measurements behind the code")
+SOFT_CHROMA = 0.15  # largest linear chromaticity difference from the row's floor that a pixel darker than the floor
+# can have and still be light on it (a penumbra): a white light's strength keeps a floor's linear chromaticity; a dark
+# leg on a green floor differs by more (docs/results.md, "Measurements behind the code")
 SOFT_EDGE = 0.03  # sRGB change per pixel (after a 1-pixel blur) below which an edge is soft: light on the floor
 # (a highlight's or a penumbra's edge changes by about 0.01 a pixel), not an object's outline (0.09-0.35)
 
@@ -206,11 +206,11 @@ def shadow_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = 
 
 
 def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | None = None) -> np.ndarray:
-    """Probable-object pixels in rows with a floor of one color (grey too), of that floor's linear chromaticity
-    (SOFT_CHROMA), reached from the cut's soft edges without crossing an edge: the light's bright spot and a
-    shadow's penumbra fade into the floor, an object is outlined (a smoothly shaded object in clutter is not on a
-    plain floor, so it is left alone; a dark leg in the shadow of its object, whose outline is soft there, differs
-    from the floor in color). Sure labels are never changed."""
+    """Probable-object pixels in rows with a floor of one color (grey too), brighter than that floor or of its
+    linear chromaticity (SOFT_CHROMA), reached from the cut's soft edges without crossing an edge: the light's bright
+    spot and a shadow's penumbra fade into the floor, an object is outlined (a smoothly shaded object in clutter is
+    not on a plain floor, so it is left alone; a dark leg in the shadow of its object, whose outline is soft there,
+    differs from the floor in color). Sure labels are never changed."""
     import cv2
 
     probable = labels == cv2.GC_PR_FGD
@@ -218,7 +218,8 @@ def soft_lighting_pixels(rgb: np.ndarray, labels: np.ndarray, floor: RowFloor | 
         return np.zeros(labels.shape, dtype=bool)
     floor = row_floor(rgb, labels) if floor is None else floor
     like_floor = np.abs(_chromaticity(srgb_to_linear(np.clip(rgb, 0.0, 1.0))) - floor.linear_chroma[:, None, :])
-    lit = probable & floor.uniform[:, None] & (like_floor.max(axis=2) < SOFT_CHROMA)
+    brighter = rgb.sum(axis=2) > floor.brightness[:, None]  # the light's spot, whose clipped channels move its color
+    lit = probable & floor.uniform[:, None] & ((like_floor.max(axis=2) < SOFT_CHROMA) | brighter)
     blurred = ndimage.gaussian_filter(np.asarray(rgb, dtype=np.float64), sigma=(1.0, 1.0, 0.0))
     gy, gx = np.gradient(blurred, axis=(0, 1))
     smooth = ndimage.maximum_filter(np.sqrt((gx**2 + gy**2).sum(axis=2)), size=3) < SOFT_EDGE
