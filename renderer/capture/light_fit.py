@@ -124,12 +124,12 @@ class _Surface:
         """Irradiance from the square light centred at `light` (world), facing down, per pixel: directly, with
         shadows, and off the floor below the point (FLOOR_BELOW_LIT of it lit, the object's shadow falling there)."""
         lights = np.array([light + LIGHT_SIZE * np.array([dx, 0.0, dz]) for dx, dz in LIGHT_POINTS])
-        at_surface, below = np.empty(len(self.points)), np.empty(len(self.points))
-        light_form_factors(self.points, self.normals, lights, LIGHT_SIZE**2 / len(lights), at_surface, below)
+        unshadowed, below = np.empty(len(self.points)), np.empty(len(self.points))  # the shader's form factors
+        light_form_factors(self.points, self.normals, lights, LIGHT_SIZE**2 / len(lights), unshadowed, below)
         bounced = LIGHT_RADIANCE * FLOOR_BELOW_LIT * below * self.floor_bounce
         total = np.zeros(len(self.points))
-        for dx, dz in LIGHT_POINTS:
-            to_light = light + LIGHT_SIZE * np.array([dx, 0.0, dz]) - self.points
+        for light_point in lights:
+            to_light = light_point - self.points
             distance = np.linalg.norm(to_light, axis=1)
             cos_surface = np.einsum("ij,ij->i", self.normals, to_light) / distance
             cos_light = to_light[:, 1] / distance
