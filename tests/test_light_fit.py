@@ -175,6 +175,26 @@ def test_the_floor_around_the_object_counts_only_where_the_light_shades_it():
     assert not fit_light(SilhouetteRenderer(mesh), studio, pose, trusted, background).used_floor
 
 
+@pytest.mark.parametrize("rotation, light, floor_color", [(40.0, LIGHTS[1], (0.5, 0.5, 0.5)),
+                                                        (40.0, LIGHTS[1], (0.9, 0.5, 0.6)),
+                                                        (150.0, LIGHTS[0], (0.5, 0.5, 0.5))])
+def test_the_photos_floor_albedo_is_estimated_from_its_pixels(rotation, light, floor_color):
+    """The floor around a sofa tells how much light it sends back up: its estimated albedo is the floor color's
+    mean linear value within 12 % (measured 3-6 %); a photo whose floor the fit leaves out keeps the scene's."""
+    from scipy import ndimage
+
+    mesh = sofa("single")
+    pose = PhotoPose(Camera(30.0, SIZE, SIZE), rotation_deg=rotation)
+    silhouette = SilhouetteRenderer(mesh).mask(pose)
+    trusted, background = trusted_pixels(silhouette), ~ndimage.binary_dilation(silhouette, iterations=2)
+    photo = photo_of(mesh, light, pose, FloorSpec(floor_color))
+    fitted = fit_light(SilhouetteRenderer(mesh), photo, pose, trusted, background)
+    true_albedo = float(np.mean(srgb_to_linear(np.asarray(floor_color))))
+    assert fitted.used_floor and fitted.floor_albedo == pytest.approx(true_albedo, rel=0.12)
+    without_floor = fit_light(SilhouetteRenderer(mesh), photo, pose, trusted)
+    assert without_floor.floor_albedo == pytest.approx(float(np.mean(srgb_to_linear(np.asarray(FloorSpec().color)))))
+
+
 @pytest.mark.parametrize("rotation, light", [(40.0, LIGHTS[1]), (150.0, (1.6, 2.1, -1.2))])
 def test_the_shader_draws_the_captured_object_as_bright_as_the_photo(rotation, light):
     """A path-traced photo of a sofa on the scene's floor, captured at its true pose with the light fitted and divided

@@ -33,8 +33,10 @@ from renderer.shading.quality import FLOOR_BELOW_LIT
 
 FIT_SIDE = 128  # long side at which the light is fitted
 AMBIENT_RAYS = 48  # cosine-weighted rays per pixel for the sky's visibility
-FLOOR_ALBEDO = float(np.mean(srgb_to_linear(np.asarray(FloorSpec().color))))  # the floor that bounces light up: the
-# scene's, which the captured colors are drawn over (a photo's own floor is not known)
+FLOOR_ALBEDO = float(np.mean(srgb_to_linear(np.asarray(FloorSpec().color))))  # the scene's floor, which the captured
+# colors are drawn over, and the photo's when its floor's shading does not tell
+FLOOR_ALBEDO_RANGE = (0.02, 0.95)  # a photo's floor's estimated albedo is kept within this
+FLOOR_ALBEDO_ROUNDS = 3  # the albedo and the gain depend on each other: this many alternations settle them
 # The square light sampled at its centre and four points halfway to its corners (soft shadows), as offsets in x, z
 LIGHT_POINTS = ((0.0, 0.0), (-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25))
 X_RANGE, Y_RANGE, Z_RANGE = (-3.0, 3.0), (2.0, 4.5), (-3.0, 3.0)  # where the light is looked for (world units)
@@ -58,6 +60,8 @@ class FittedLight:
     shading: np.ndarray = field(repr=False, compare=False)  # (h, w) irradiance at the fit size, 0 off the object,
     # scaled to the scene's lights' mean there
     floor_share_left: float = float("nan")  # the floor's spread at the fit over its own (nan: the floor not used)
+    floor_albedo: float = FLOOR_ALBEDO  # the photo's floor's (mean linear) albedo: estimated when the floor was used,
+    # else the scene's; it sets how much light the floor sends up to the object
 
     @property
     def used_floor(self) -> bool:
@@ -81,8 +85,8 @@ class _Surface:
         self.offset = 1e-3  # rays leave the surface this far along its normal (world units)
         self.origins_obj = (points + self.offset * normals) @ self.to_object[:3, :3].T + self.to_object[:3, 3]
         self.sky = self._sky_visibility()
-        # the floor's albedo times the share of it a point faces, unblocked, as the shader has it (lighting.py)
-        self.floor_bounce = FLOOR_ALBEDO * 0.5 * (1.0 - normals[:, 1])
+        self.faces_floor = 0.5 * (1.0 - normals[:, 1])  # the share of the floor a point faces, unblocked, as the
+        # shader has it (lighting.py); times the floor's albedo, what the floor sends back up
 
     @classmethod
     def of_object(cls, silhouettes: SilhouetteRenderer, pose: PhotoPose) -> tuple[_Surface, np.ndarray]:
@@ -120,13 +124,14 @@ class _Surface:
             sky[up] += ~self.silhouettes.occluded(self.origins_obj[up], d[up] @ self.to_object[:3, :3].T)
         return sky / AMBIENT_RAYS
 
-    def direct(self, light: np.ndarray) -> np.ndarray:
+    def direct(self, light: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Irradiance from the square light centred at `light` (world), facing down, per pixel: directly, with
-        shadows, and off the floor below the point (FLOOR_BELOW_LIT of it lit, the object's shadow falling there)."""
+        shadows, and off the floor below the point (FLOOR_BELOW_LIT of it lit, the object's shadow falling there)
+        for a floor of albedo 1, to be scaled by the floor's."""
         lights = np.array([light + LIGHT_SIZE * np.array([dx, 0.0, dz]) for dx, dz in LIGHT_POINTS])
         unshadowed, below = np.empty(len(self.points)), np.empty(len(self.points))  # the shader's form factors
         light_form_factors(self.points, self.normals, lights, LIGHT_SIZE**2 / len(lights), unshadowed, below)
-        bounced = LIGHT_RADIANCE * FLOOR_BELOW_LIT * below * self.floor_bounce
+        bounced = LIGHT_RADIANCE * FLOOR_BELOW_LIT * below * self.faces_floor
         total = np.zeros(len(self.points))
         for light_point in lights:
             to_light = light_point - self.points
@@ -139,11 +144,12 @@ class _Surface:
                 shadowed = self.silhouettes.occluded(self.origins_obj[lit], reach, far=1.0)
                 lit[np.flatnonzero(lit)[shadowed]] = False
             total += np.where(lit, cos_surface * cos_light / np.maximum(distance, 1e-3) ** 2, 0.0)
-        return total / len(LIGHT_POINTS) * LIGHT_RADIANCE * LIGHT_SIZE**2 + bounced
+        return total / len(LIGHT_POINTS) * LIGHT_RADIANCE * LIGHT_SIZE**2, bounced
 
-    def ambient(self) -> np.ndarray:
-        """Irradiance from the uniform ambient light, directly and off the floor, per pixel, at the scene's strength."""
-        return math.pi * AMBIENT_RADIANCE * (self.sky + self.floor_bounce)
+    def ambient(self) -> tuple[np.ndarray, np.ndarray]:
+        """Irradiance from the uniform ambient light at the scene's strength, per pixel: directly, and off a floor of
+        albedo 1."""
+        return math.pi * AMBIENT_RADIANCE * self.sky, math.pi * AMBIENT_RADIANCE * self.faces_floor
 
 
 def fit_light(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: PhotoPose,
@@ -172,18 +178,23 @@ def fit_light(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: Phot
         parts.append((_Surface.of_floor(silhouettes, small_pose, floor_pixels), slice(None),
                       np.log(brightness[floor_pixels])))
     ambients = [part[0].ambient() for part in parts]
-    directs: dict[tuple, np.ndarray] = {}  # a part's direct light by light position: the ambient strength, a third
-    # of the start grid and a quarter of the search's probes, changes nothing in it
+    directs: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}  # a part's direct light by light position: the ambient
+    # strength, a third of the start grid and a quarter of the search's probes, changes nothing in it
 
-    def direct(index: int, light: np.ndarray) -> np.ndarray:
-        key = (index, *light.tolist())
+    def shading(index: int, params: np.ndarray, floor_albedo: float = FLOOR_ALBEDO,
+                ambient: float | None = None) -> np.ndarray:
+        """A part's irradiance under the light `params`, over a floor of `floor_albedo` (`ambient`: the ambient
+        light's strength instead of the one in `params`)."""
+        key = (index, *params[:3].tolist())
         if key not in directs:
-            directs[key] = parts[index][0].direct(light)
-        return directs[key]
+            directs[key] = parts[index][0].direct(params[:3])
+        (straight, bounced), (sky, sky_bounced) = directs[key], ambients[index]
+        strength = math.exp(params[3]) if ambient is None else ambient
+        return straight + floor_albedo * bounced + strength * (sky + floor_albedo * sky_bounced)
 
     def spread(params: np.ndarray, count: int) -> float:
         """The albedo's spread over the first `count` parts (the object, and the floor)."""
-        return sum(_spread(log_photo - np.log(_floored(direct(i, params[:3]) + math.exp(params[3]) * ambients[i]))[used])
+        return sum(_spread(log_photo - np.log(_floored(shading(i, params)))[used])
                    for i, (_, used, log_photo) in enumerate(parts[:count]))
 
     params, value = _searched(lambda p: spread(p, len(parts)))
@@ -193,17 +204,27 @@ def fit_light(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: Phot
         if left > FLOOR_EXPLAINED:  # not a floor this light shades (a backdrop, a photograph): the object alone
             parts, left = parts[:1], float("nan")
             params, value = _searched(lambda p: spread(p, 1))
-    # The scene's ambient light is fixed: the shading is scaled so that the albedo, drawn under the fitted square
-    # light and the scene's ambient light, gives the photo's mean brightness on the object.
-    used, log_photo = parts[0][1], parts[0][2]
-    on_object = direct(0, params[:3])
-    fitted = _floored(on_object + math.exp(params[3]) * ambients[0])
-    in_scene = on_object + ambients[0]
-    photo_used = np.exp(log_photo)
+    # The scene's ambient light is fixed: the shading is scaled by the gain that makes the albedo, drawn under the
+    # fitted square light, the scene's ambient light and the scene's floor, as bright as the photo on the object.
+    used, photo_used = parts[0][1], np.exp(parts[0][2])
+    in_scene = shading(0, params, ambient=1.0)
+
+    def gained(floor_albedo: float) -> tuple[np.ndarray, float]:
+        fitted = _floored(shading(0, params, floor_albedo))
+        return fitted, float(np.sum(photo_used * in_scene[used] / fitted[used]) / np.sum(photo_used))
+
+    floor_albedo = FLOOR_ALBEDO
+    if len(parts) > 1:  # the photo's own floor bounces its light: its albedo is what makes it as bright as its
+        # pixels under the light scaled by that gain (the object's albedo and the floor's share the exposure)
+        for _ in range(FLOOR_ALBEDO_ROUNDS):
+            on_floor = _floored(shading(1, params)) * gained(floor_albedo)[1]
+            floor_albedo = float(np.clip(np.median(math.pi * np.exp(parts[1][2]) / on_floor), *FLOOR_ALBEDO_RANGE))
+    fitted, gain = gained(floor_albedo)
     image = np.zeros(hit.shape)
-    image[hit] = fitted * float(np.sum(photo_used * in_scene[used] / fitted[used]) / np.sum(photo_used))
+    image[hit] = fitted * gain
     kept = sum(_spread(part_log) for _, _, part_log in parts)
-    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, kept, image, left)
+    return FittedLight(tuple(float(v) for v in params[:3]), float(math.exp(params[3])), value, kept, image, left,
+                       floor_albedo)
 
 
 def _searched(spread) -> tuple[np.ndarray, float]:

@@ -1,10 +1,13 @@
 """The object's silhouette as a camera sees it: a boolean mask from ray casting the mesh.
 
 open3d's ray casting (Embree) is built once per mesh, in object coordinates; each pose
-turns the camera's pixel rays into object coordinates, so a new pose costs only the rays.
+turns the camera's pixel rays into object coordinates, so a new pose costs only the rays,
+and only those within the projection of the mesh's bounding box are cast.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import trimesh
@@ -29,14 +32,21 @@ class SilhouetteRenderer:
                                   o3d.core.Tensor(faces.astype(np.uint32)))
         vertices = np.asarray(mesh.vertices, dtype=np.float64)
         self.footprint_radius = 0.5 * float(max(np.ptp(vertices[:, 0]), np.ptp(vertices[:, 2])))
+        low, high = vertices.min(axis=0), vertices.max(axis=0)
+        self._corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
+                                  for z in (low[2], high[2])])  # the bounding box's, object coordinates
         self._grids: dict[tuple, np.ndarray] = {}  # camera-space ray directions by lens and size
         self.rays_cast = 0
 
     def mask(self, pose: PhotoPose) -> np.ndarray:
         """(H, W) bool: pixels whose centre ray meets the object, for the pose's camera size."""
-        origin, directions = self._camera_rays(pose)
-        return self.occluded(np.broadcast_to(origin, directions.shape), directions).reshape(
-            pose.camera.height, pose.camera.width)
+        out = np.zeros((pose.camera.height, pose.camera.width), dtype=bool)
+        window = self._window(pose)
+        if window is not None:
+            origin, directions = self._camera_rays(pose, window)
+            out[window] = self.occluded(np.broadcast_to(origin, directions.shape), directions).reshape(
+                out[window].shape)
+        return out
 
     def floor_radii(self, pose: PhotoPose) -> np.ndarray:
         """(H, W): how far from the object's vertical axis (object units) each pixel centre's ray meets the floor
@@ -53,7 +63,11 @@ class SilhouetteRenderer:
         (N, 3) points and (N, 3) unit normals facing the camera."""
         import open3d as o3d
 
-        origin, directions = self._camera_rays(pose)
+        hits = np.zeros((pose.camera.height, pose.camera.width), dtype=bool)
+        window = self._window(pose)
+        if window is None:
+            return hits, np.zeros((0, 3)), np.zeros((0, 3))
+        origin, directions = self._camera_rays(pose, window)
         cast = self._scene.cast_rays(o3d.core.Tensor(_rays(np.broadcast_to(origin, directions.shape), directions)))
         self.rays_cast += len(directions)
         t = cast["t_hit"].numpy()
@@ -62,7 +76,8 @@ class SilhouetteRenderer:
         normals = cast["primitive_normals"].numpy()[hit].astype(np.float64)
         normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
         normals *= np.where(np.einsum("ij,ij->i", normals, directions[hit]) > 0.0, -1.0, 1.0)[:, None]
-        return hit.reshape(pose.camera.height, pose.camera.width), points, normals
+        hits[window] = hit.reshape(hits[window].shape)  # row-major within the window: the hits keep their order
+        return hits, points, normals
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, far: float = np.inf) -> np.ndarray:
         """(N,) bool: whether each ray (object coordinates; directions need not be unit) meets the object at a
@@ -72,15 +87,31 @@ class SilhouetteRenderer:
         self.rays_cast += len(directions)
         return self._scene.test_occlusions(o3d.core.Tensor(_rays(origins, directions)), tfar=float(far)).numpy()
 
-    def _camera_rays(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray]:
-        """The camera's origin (3,) and (H*W, 3) pixel-centre ray directions, in object coordinates (not unit: a
-        pose costs one 3x3 product of the camera-space directions, which depend on the lens and size only)."""
+    def _window(self, pose: PhotoPose) -> tuple[slice, slice] | None:
+        """The rows and columns whose pixel centres the bounding box's projection may cover (a pixel's margin
+        for rounding); all of them when a corner is behind the camera; None when none is."""
+        camera = pose.camera
+        to_world = pose.object_to_world()
+        u, v, depth = camera.project(self._corners @ to_world[:3, :3].T + to_world[:3, 3])
+        if np.any(depth <= 1e-6):
+            return slice(0, camera.height), slice(0, camera.width)
+        c0, c1 = max(0, math.floor(u.min() - 1.5)), min(camera.width, math.ceil(u.max() + 0.5))
+        r0, r1 = max(0, math.floor(v.min() - 1.5)), min(camera.height, math.ceil(v.max() + 0.5))
+        return None if c0 >= c1 or r0 >= r1 else (slice(r0, r1), slice(c0, c1))
+
+    def _camera_rays(self, pose: PhotoPose, window: tuple[slice, slice] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The camera's origin (3,) and (H*W, 3) pixel-centre ray directions (row-major; those of `window` only when
+        given), in object coordinates (not unit: a pose costs one 3x3 product of the camera-space directions, which
+        depend on the lens and size only)."""
         camera = pose.camera
         to_camera_space = camera.camera_to_world()
         to_object = pose.world_to_object()
         turn = to_object[:3, :3] @ to_camera_space[:3, :3]
         origin = to_object[:3, :3] @ to_camera_space[:3, 3] + to_object[:3, 3]
-        return origin, self._camera_space_rays(camera) @ turn.T
+        grid = self._camera_space_rays(camera)
+        if window is not None:
+            grid = grid.reshape(camera.height, camera.width, 3)[window].reshape(-1, 3)
+        return origin, grid @ turn.T
 
     def _camera_space_rays(self, camera) -> np.ndarray:
         """(H*W, 3) unit directions through the pixel centres in camera space, as Camera.pixel_rays makes them (the
