@@ -7,9 +7,9 @@ from pathlib import Path
 from renderer.errors import InputError
 
 ASSET_MODELS = Path(__file__).resolve().parents[2] / "assets" / "models"
-# NVR+ refines the voxel shader at half the image's side (distilled to one block after the light merge); the other
-# files in assets/models stay for comparison (docs/results.md, "The renderers").
-SHIPPED_WEIGHTS = {"nvr_plus": ASSET_MODELS / "nvrplus_half_res_refiner_distilled.safetensors",
+# NVR+ refines the voxel shader at half the image's side (one block after the light merge), trained further on scenes
+# of several objects; the other files in assets/models stay for comparison (docs/results.md, "The renderers").
+SHIPPED_WEIGHTS = {"nvr_plus": ASSET_MODELS / "nvrplus_several_objects.safetensors",
                    "nvr": ASSET_MODELS / "nvr_compact.safetensors"}
 
 
