@@ -201,7 +201,7 @@ def _objects(r: dict[str, Any]) -> list[str]:
     edits = list(TARGETS_MS)
     lines = ["## Against the number of objects", "",
              f"Scenes of procedural objects of 200^3 voxels at scale {OBJECT_SCALE:g}; median ms of each edit from the "
-             "unedited scene. NVR+ renders them with weights not yet trained on several objects.", "", "| renderer | objects | " + " | ".join(edits) + " |", "|---|---:|" + "---:|" * len(edits)]
+             "unedited scene, rendered by the shipped NVR+ and by the voxel shader.", "", "| renderer | objects | " + " | ".join(edits) + " |", "|---|---:|" + "---:|" * len(edits)]
     lines += [f"| {row['renderer']} | {row['objects']} | " + " | ".join(f"{row['ms'][e]:.1f}" for e in edits) + " |"
               for row in rows]
     nvr = {row["objects"]: row["ms"] for row in rows if row["renderer"] == "NVR+"}
