@@ -102,7 +102,6 @@ def test_box_silhouette_is_the_hull_of_its_projected_corners():
     assert silhouette_iou(mask, expected) > 0.99
 
 
-
 @pytest.mark.parametrize("pose", [
     PhotoPose(Camera(35.0, 80, 64), rotation_deg=30.0, translation=(0.2, -0.1), scale=(1.2, 1.0, 0.8)),
     PhotoPose(Camera(10.0, 64, 64), rotation_deg=-70.0, translation=(1.6, 0.0)),  # cut by the frame's edge
@@ -115,17 +114,17 @@ def test_silhouettes_cast_only_where_the_object_can_be_and_miss_nothing(chair, p
     (a box fills its bounding box's projection to the edge)."""
     import open3d as o3d
 
-    chair = chair if shape == "chair" else box_mesh()
+    mesh = chair if shape == "chair" else box_mesh()
     scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(np.asarray(chair.vertices, dtype=np.float32)),
-                        o3d.core.Tensor(np.asarray(chair.faces, dtype=np.uint32)))
+    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, dtype=np.float32)),
+                        o3d.core.Tensor(np.asarray(mesh.faces, dtype=np.uint32)))
     v, u = np.mgrid[0:pose.camera.height, 0:pose.camera.width] + 0.5
     origin, directions = pose.camera.pixel_rays(u.ravel(), v.ravel())
     to_object = pose.world_to_object()
     rays = np.concatenate([np.broadcast_to(origin @ to_object[:3, :3].T + to_object[:3, 3], directions.shape),
                            directions @ to_object[:3, :3].T], axis=1).astype(np.float32)
     expected = np.isfinite(scene.cast_rays(o3d.core.Tensor(rays))["t_hit"].numpy()).reshape(u.shape)
-    silhouettes = SilhouetteRenderer(chair)
+    silhouettes = SilhouetteRenderer(mesh)
     mask = silhouettes.mask(pose)
     hit, points, normals = silhouettes.surface(pose)
     assert np.count_nonzero(mask != expected) <= 2 and np.array_equal(hit, mask)  # float32 rays: ties at edges
@@ -134,6 +133,7 @@ def test_silhouettes_cast_only_where_the_object_can_be_and_miss_nothing(chair, p
     pu, pv, _ = pose.camera.project(points @ to_world[:3, :3].T + to_world[:3, 3])
     rows, cols = np.nonzero(hit)  # each point lies on its own pixel's ray, in the mask's row-major order
     assert np.abs(pu - (cols + 0.5)).max(initial=0.0) < 1e-3 and np.abs(pv - (rows + 0.5)).max(initial=0.0) < 1e-3
+
 
 # --- segmentation --------------------------------------------------------------------------
 

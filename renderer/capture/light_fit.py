@@ -216,9 +216,9 @@ def fit_light(silhouettes: SilhouetteRenderer, photo_rgb: np.ndarray, pose: Phot
     floor_albedo = FLOOR_ALBEDO
     if len(parts) > 1:  # the photo's own floor bounces its light: its albedo is what makes it as bright as its
         # pixels under the light scaled by that gain (the object's albedo and the floor's share the exposure)
+        floor_radiance = math.pi * np.exp(parts[1][2]) / _floored(shading(1, params))  # times the floor's albedo
         for _ in range(FLOOR_ALBEDO_ROUNDS):
-            on_floor = _floored(shading(1, params)) * gained(floor_albedo)[1]
-            floor_albedo = float(np.clip(np.median(math.pi * np.exp(parts[1][2]) / on_floor), *FLOOR_ALBEDO_RANGE))
+            floor_albedo = float(np.clip(np.median(floor_radiance) / gained(floor_albedo)[1], *FLOOR_ALBEDO_RANGE))
     fitted, gain = gained(floor_albedo)
     image = np.zeros(hit.shape)
     image[hit] = fitted * gain
