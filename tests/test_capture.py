@@ -251,6 +251,16 @@ def test_floor_radii_draw_a_circle_on_the_floor_as_the_camera_sees_it(chair):
     assert np.isinf(low[0]).all() and np.isfinite(low[-1]).all()  # above the horizon the floor is never met
 
 
+@pytest.mark.parametrize("elevation, rotation, reach", [(30.0, 0.0, 0.6), (30.0, 40.0, 0.6), (3.0, 0.0, 0.9),
+                                                     (60.0, 40.0, 5.0)])
+def test_floor_radii_within_a_reach_are_the_full_radii_cut_there(chair, elevation, rotation, reach):
+    pose = PhotoPose(Camera(elevation, 120, 100), rotation_deg=rotation, translation=(0.2, -0.3), scale=(1.1,) * 3)
+    silhouettes = SilhouetteRenderer(chair)
+    full, cut = silhouettes.floor_radii(pose), silhouettes.floor_radii(pose, reach)
+    assert (full <= reach).sum() > 50
+    np.testing.assert_array_equal(cut, np.where(full <= reach, full, np.inf))
+
+
 def test_disk_iou_is_the_best_disk_of_every_radius():
     rng = np.random.default_rng(3)
     mask, target = rng.random((30, 40)) < 0.2, rng.random((30, 40)) < 0.4

@@ -177,7 +177,7 @@ class PhotoAlignment:
         outline = mask & ~_eroded(mask)
         shown = shown.copy()
         if self.floor_disk > 0.0:  # the saucer's rim where the object does not hide it
-            disk = self._silhouettes.floor_radii(pose) <= self.floor_disk
+            disk = self._silhouettes.floor_radii(pose, self.floor_disk) <= self.floor_disk
             shown[disk & ~_eroded(disk) & ~mask] = DISK_COLOR
         shown[mask] = 0.75 * shown[mask] + 0.25 * OUTLINE_COLOR
         shown[outline] = OUTLINE_COLOR

@@ -251,6 +251,7 @@ class _Problem:
         h, w = target.shape
         self.base = base.at_size(w, h)
         self.target_moments = self.moments(target)
+        self._scores: dict[bytes, float] = {}  # score by parameters: a compass search comes back to points it scored
 
     def pose(self, params: np.ndarray) -> PhotoPose:
         rotation, elevation, tx, tz, log_scale = params[:5]
@@ -283,11 +284,17 @@ class _Problem:
     def _disk_iou(self, params: np.ndarray) -> tuple[float, float]:
         pose = self.pose(params)
         low, high = (ratio * self.silhouettes.footprint_radius for ratio in DISK_RADII)
-        return disk_iou(self.silhouettes.mask(pose), self.target, self.silhouettes.floor_radii(pose), low, high)
+        return disk_iou(self.silhouettes.mask(pose), self.target, self.silhouettes.floor_radii(pose, high), low, high)
 
     def score(self, params: np.ndarray) -> float:
         """What the compass search maximises: here the IoU with the photo's mask."""
         return self.iou(params)
+
+    def _remembered_score(self, params: np.ndarray) -> float:
+        key = params.tobytes()
+        if key not in self._scores:
+            self._scores[key] = self.score(params)
+        return self._scores[key]
 
     def place(self, params: np.ndarray, iterations: int = 3, disk_ratio: float = 0.0) -> np.ndarray:
         """Translation and scale that put the silhouette's `moments` on the target's (Gauss-Newton); with
@@ -299,7 +306,8 @@ class _Problem:
             if disk_ratio <= 0.0:
                 return self.moments(self.mask(params))
             pose = self.pose(params)
-            disk = self.silhouettes.floor_radii(pose) <= disk_ratio * self.silhouettes.footprint_radius
+            radius = disk_ratio * self.silhouettes.footprint_radius
+            disk = self.silhouettes.floor_radii(pose, radius) <= radius
             return self.moments(self.silhouettes.mask(pose) | disk)
 
         for _ in range(iterations):
@@ -324,7 +332,7 @@ class _Problem:
         elevation step that does not improve is tried again with the silhouette placed anew (`place`, one step):
         elevation, depth and scale move a silhouette together, and one at a time they stall a low view's search."""
         params = np.array(params, dtype=np.float64)
-        best = self.score(params)
+        best = self._remembered_score(params)
         steps = np.array(steps, dtype=np.float64)
         while np.any(steps >= final_steps):
             improved = False
@@ -335,10 +343,10 @@ class _Problem:
                     probe = _clip_params(probe)
                     if np.array_equal(probe, params):
                         continue
-                    value = self.score(probe)
+                    value = self._remembered_score(probe)
                     if coupled and j == 1 and value <= best:
                         probe = self.place(probe, iterations=1)
-                        value = self.score(probe)
+                        value = self._remembered_score(probe)
                     if value > best:
                         params, best, improved = probe, value, True
                         break
@@ -417,7 +425,8 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
             mask = problem.silhouettes.mask(pose)
             value = silhouette_iou(_canonical(mask), target)
             if problem.disk:
-                radii = problem.silhouettes.floor_radii(pose) / problem.silhouettes.footprint_radius
+                reach = max(DISK_COARSE_RADII) * problem.silhouettes.footprint_radius
+                radii = problem.silhouettes.floor_radii(pose, reach) / problem.silhouettes.footprint_radius
                 disked.append(max((silhouette_iou(_canonical(mask | (radii <= ratio)), target), ratio, tuple(params))
                                   for ratio in DISK_COARSE_RADII))
             scored.append((value, params))

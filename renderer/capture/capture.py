@@ -167,7 +167,7 @@ def _found_shape(silhouettes: SilhouetteRenderer, alignment: Alignment) -> np.nd
     """The found pose's silhouette joined by the disk under the object the search found with it (a saucer)."""
     silhouette = silhouettes.mask(alignment.pose)
     if alignment.floor_disk > 0.0:
-        silhouette |= silhouettes.floor_radii(alignment.pose) <= alignment.floor_disk
+        silhouette |= silhouettes.floor_radii(alignment.pose, alignment.floor_disk) <= alignment.floor_disk
     return silhouette
 
 

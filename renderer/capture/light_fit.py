@@ -132,18 +132,23 @@ class _Surface:
         unshadowed, below = np.empty(len(self.points)), np.empty(len(self.points))  # the shader's form factors
         light_form_factors(self.points, self.normals, lights, LIGHT_SIZE**2 / len(lights), unshadowed, below)
         bounced = LIGHT_RADIANCE * FLOOR_BELOW_LIT * below * self.faces_floor
-        total = np.zeros(len(self.points))
+        terms, origins, reaches = [], [], []  # per light point; the shadow rays of all of them cast in one call
         for light_point in lights:
             to_light = light_point - self.points
             distance = np.linalg.norm(to_light, axis=1)
             cos_surface = np.einsum("ij,ij->i", self.normals, to_light) / distance
             cos_light = to_light[:, 1] / distance
             lit = (cos_surface > 0.0) & (cos_light > 0.0)
-            if lit.any():
-                reach = to_light[lit] @ self.to_object[:3, :3].T  # to the light point, in object coordinates
-                shadowed = self.silhouettes.occluded(self.origins_obj[lit], reach, far=1.0)
-                lit[np.flatnonzero(lit)[shadowed]] = False
-            total += np.where(lit, cos_surface * cos_light / np.maximum(distance, 1e-3) ** 2, 0.0)
+            terms.append((lit, cos_surface * cos_light / np.maximum(distance, 1e-3) ** 2))
+            origins.append(self.origins_obj[lit])
+            reaches.append(to_light[lit] @ self.to_object[:3, :3].T)  # to the light point, in object coordinates
+        counts = [len(reach) for reach in reaches]
+        shadowed = (self.silhouettes.occluded(np.concatenate(origins), np.concatenate(reaches), far=1.0) if sum(counts)
+                    else np.zeros(0, dtype=bool))
+        total = np.zeros(len(self.points))
+        for (lit, term), shadow in zip(terms, np.split(shadowed, np.cumsum(counts)[:-1])):
+            lit[np.flatnonzero(lit)[shadow]] = False
+            total += np.where(lit, term, 0.0)
         return total / len(LIGHT_POINTS) * LIGHT_RADIANCE * LIGHT_SIZE**2, bounced
 
     def ambient(self) -> tuple[np.ndarray, np.ndarray]:

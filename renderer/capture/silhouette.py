@@ -48,15 +48,26 @@ class SilhouetteRenderer:
                 out[window].shape)
         return out
 
-    def floor_radii(self, pose: PhotoPose) -> np.ndarray:
+    def floor_radii(self, pose: PhotoPose, reach: float = math.inf) -> np.ndarray:
         """(H, W): how far from the object's vertical axis (object units) each pixel centre's ray meets the floor
-        it stands on (object y = 0); inf where the ray does not go down to it."""
-        origin, directions = self._camera_rays(pose)
+        it stands on (object y = 0); inf where the ray does not go down to it, or meets it farther than `reach`
+        (only the rays within the projection of that square of the floor are cast)."""
+        h, w = pose.camera.height, pose.camera.width
+        radii = np.full((h, w), np.inf)
+        window = None
+        if math.isfinite(reach):
+            window = self._window(pose, np.array([[x, 0.0, z] for x in (-reach, reach) for z in (-reach, reach)]))
+            if window is None:
+                return radii
+        origin, directions = self._camera_rays(pose, window)
         down = directions[:, 1] < 0.0
         t = -origin[1] / np.where(down, directions[:, 1], -1.0)  # finite everywhere: no inf times a zero component
-        radii = np.hypot(origin[0] + t * directions[:, 0], origin[2] + t * directions[:, 2])
-        radii[~down | (t <= 0.0)] = np.inf
-        return radii.reshape(pose.camera.height, pose.camera.width)
+        found = np.hypot(origin[0] + t * directions[:, 0], origin[2] + t * directions[:, 2])
+        found[~down | (t <= 0.0) | (found > reach)] = np.inf
+        if window is None:
+            return found.reshape(h, w)
+        radii[window] = found.reshape(radii[window].shape)
+        return radii
 
     def surface(self, pose: PhotoPose) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """What each pixel centre's ray meets first, in object coordinates: (H, W) bool hit, and for the hits
@@ -87,12 +98,14 @@ class SilhouetteRenderer:
         self.rays_cast += len(directions)
         return self._scene.test_occlusions(o3d.core.Tensor(_rays(origins, directions)), tfar=float(far)).numpy()
 
-    def _window(self, pose: PhotoPose) -> tuple[slice, slice] | None:
-        """The rows and columns whose pixel centres the bounding box's projection may cover (a pixel's margin
-        for rounding); all of them when a corner is behind the camera; None when none is."""
+    def _window(self, pose: PhotoPose, corners: np.ndarray | None = None) -> tuple[slice, slice] | None:
+        """The rows and columns whose pixel centres the projection of the convex hull of `corners` (object
+        coordinates; the bounding box's when None) may cover (a pixel's margin for rounding); all of them when a
+        corner is behind the camera; None when none is."""
         camera = pose.camera
         to_world = pose.object_to_world()
-        u, v, depth = camera.project(self._corners @ to_world[:3, :3].T + to_world[:3, 3])
+        corners = self._corners if corners is None else corners
+        u, v, depth = camera.project(corners @ to_world[:3, :3].T + to_world[:3, 3])
         if np.any(depth <= 1e-6):
             return slice(0, camera.height), slice(0, camera.width)
         c0, c1 = max(0, math.floor(u.min() - 1.5)), min(camera.width, math.ceil(u.max() + 0.5))
