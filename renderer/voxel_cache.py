@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from renderer.limits import MAX_OBJECTS
-from renderer.paint import Color, apply_paint, needed_strokes
+from renderer.paint import Color, apply_paint, needed_strokes, occupied_voxels
 from renderer.pipeline import object_voxels
 from renderer.scene import PaintOp, Scene
 from renderer.voxels import ProgressCallback
@@ -55,6 +55,8 @@ class VoxelCache:
     def __init__(self, run_later: Callable[[Callable[[], None]], None] = in_background) -> None:
         self._lock = threading.Lock()
         self._objects: OrderedDict[SourceKey, np.ndarray] = OrderedDict()
+        self._occupied: dict[SourceKey, np.ndarray] = {}  # each kept object's occupied voxels, found at its first stroke
+        # (paint never changes them; finding them scans the whole grid)
         self._painted: OrderedDict[tuple[SourceKey, tuple[PaintOp, ...]], np.ndarray] = OrderedDict()
         self._spare: np.ndarray | None = None  # an array nothing else holds, its pages mapped, to paint into
         self._run_later = run_later
@@ -76,7 +78,8 @@ class VoxelCache:
         with self._lock:
             self._objects[key] = rgba
             while len(self._objects) > SOURCES_KEPT:
-                self._objects.popitem(last=False)
+                forgotten, _ = self._objects.popitem(last=False)
+                self._occupied.pop(forgotten, None)
         self._prepare_spare(rgba.shape)  # for the first stroke
         return rgba
 
@@ -90,7 +93,13 @@ class VoxelCache:
         if done < len(strokes):
             with self._lock:
                 out = self._take_spare(rgba)
-            rgba, _ = apply_paint(rgba, scene.floor.color, strokes[done:], out=out)
+                occupied = self._occupied.get(key)
+            if occupied is None:
+                occupied = occupied_voxels(base)
+                with self._lock:
+                    if key in self._objects:
+                        self._occupied[key] = occupied
+            rgba, _ = apply_paint(rgba, scene.floor.color, strokes[done:], occupied=occupied, out=out)
             rgba.flags.writeable = False
             with self._lock:
                 self._painted[(key, strokes)] = rgba

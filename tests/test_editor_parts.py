@@ -214,6 +214,29 @@ def test_painted_voxels_from_the_cache_equal_a_fresh_replay(box_scene):
     assert cache.painted(one)[0] is first  # undo back to `one`: no repaint
 
 
+def test_the_cache_finds_an_objects_occupied_voxels_once_for_all_its_strokes(box_scene, monkeypatch):
+    import renderer.paint as paint
+    import renderer.voxel_cache as voxel_cache
+
+    scans = []
+
+    def counted(rgba):
+        scans.append(rgba.shape)
+        return np.flatnonzero(np.asarray(rgba)[..., 3] >= 0.5)
+
+    monkeypatch.setattr(paint, "occupied_voxels", counted)
+    monkeypatch.setattr(voxel_cache, "occupied_voxels", counted)
+    cache = VoxelCache(run_later=lambda task: None)
+    scene = box_scene
+    for k in range(4):  # strokes that do not extend the last (each from the unpainted voxels) and that do
+        stroke = PaintOp("region", (0.2 * k, 0.5, 0.1), seed=(3, 3, 3), tolerance=1.0)
+        scene = edits.paint(scene if k % 2 else box_scene, stroke)
+        expected, _ = apply_paint(cache.object_rgba(box_scene), box_scene.floor.color, scene.paint,
+                                  occupied=np.flatnonzero(cache.object_rgba(box_scene)[..., 3] >= 0.5))
+        np.testing.assert_array_equal(cache.painted(scene)[0], expected)
+    assert len(scans) == 1
+
+
 
 
 def test_the_voxel_shader_panel_keeps_the_shape_through_paint_and_draws_the_new_colors(box_scene):
