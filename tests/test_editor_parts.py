@@ -237,8 +237,6 @@ def test_the_cache_finds_an_objects_occupied_voxels_once_for_all_its_strokes(box
     assert len(scans) == 1
 
 
-
-
 def test_the_voxel_shader_panel_keeps_the_shape_through_paint_and_draws_the_new_colors(box_scene):
     # A stroke changes colors, never occupancy: the shaded renderer reruns only the colors and what they light, and its
     # image is the one the shader draws from scratch.

@@ -417,6 +417,7 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
         rotations, elevations = _window(initial, WINDOW_STEP_DEG)
         start_placement = np.array([*initial.translation, 0.0])
     target = _canonical(problem.target)
+    reach = max(DISK_COARSE_RADII) * problem.silhouettes.footprint_radius  # the widest disk tried
     scored, disked = [], []
     for rotation in rotations:
         for elevation in elevations:
@@ -425,7 +426,6 @@ def _coarse_candidates(problem: _Problem, initial: PhotoPose | None) -> list[np.
             mask = problem.silhouettes.mask(pose)
             value = silhouette_iou(_canonical(mask), target)
             if problem.disk:
-                reach = max(DISK_COARSE_RADII) * problem.silhouettes.footprint_radius
                 radii = problem.silhouettes.floor_radii(pose, reach) / problem.silhouettes.footprint_radius
                 disked.append(max((silhouette_iou(_canonical(mask | (radii <= ratio)), target), ratio, tuple(params))
                                   for ratio in DISK_COARSE_RADII))
