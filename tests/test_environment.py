@@ -591,3 +591,28 @@ def test_the_floors_shadow_of_a_wide_low_light_equals_the_shadow_maps_read_every
     assert cut_off.sum() == 0, f"{cut_off.sum()} floor points of the shadow are outside the box"
     # Inside, the box's grid interpolates the maps (FLOOR_SHADOW_STEP apart): equal but for the shadow's sharp edges.
     assert np.abs(boxed - everywhere).mean() < 0.01
+
+
+def test_an_indoor_maps_empty_floor_is_as_bright_as_the_path_tracers(tmp_path):
+    """A room lit through windows near the horizon: most of its light glances off the floor's coat. The shader's
+    empty floor (the object far off and tiny) within 5 % of the path tracer's (256 spp); it was 15 % brighter when
+    every direction's light reached the base alike."""
+    import trimesh
+
+    from renderer.color import srgb_to_linear
+    from renderer.environment_maps import make_map
+    from renderer.pathtrace.path_tracer import render_pathtraced
+    from renderer.scene import FloorSpec
+    from renderer.voxels import save_voxels
+
+    floor = (0.95, 0.8, 0.65)
+    save_voxels(tmp_path / "ball.npz", ball(40, WHITE))
+    write_map(tmp_path / "room.exr", make_map("indoor", 2))
+    scene = env_scene(EnvironmentSpec(image="room.exr"), base_dir=tmp_path, elevation=25.0)
+    scene = replace(scene, floor=FloorSpec(floor),
+                    objects=(replace(scene.objects[0], scale=(1e-3,) * 3, translation=(0.0, -8.0)),))
+    traced = render_pathtraced(scene, trimesh.creation.box((1.0, 1.0, 1.0)), SIZE, spp=256, seed=1).image
+    shaded = render(scene, floor=floor).image
+    near = slice(SIZE * 5 // 8, SIZE)  # rows of floor in front of the camera
+    ratio = srgb_to_linear(shaded[near]).mean() / srgb_to_linear(traced[near]).mean()
+    assert 0.95 < ratio < 1.05

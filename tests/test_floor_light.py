@@ -118,3 +118,25 @@ def test_the_coarse_shading_is_interpolated_bilinearly(width, height):
 def test_impossible_values_are_clear_errors(light, color, match):
     with pytest.raises(InputError, match=match):
         lit_floor_image(Camera(elevation_deg=30.0, width=16, height=16), light, color)
+
+
+def test_the_coats_entry_table_is_the_path_tracers_floor_material():
+    """COAT_ENTRY against Mitsuba's own floor material: its value for light at each incidence, seen at 45 degrees
+    and from the side (away from the gloss), over its value for light head on."""
+    from renderer.floor_light import COAT_ENTRY
+    from renderer.pathtrace.mitsuba_variant import active_variant
+    from renderer.scene import FLOOR_IOR, FLOOR_ROUGHNESS
+
+    active_variant()
+    import mitsuba as mi
+
+    bsdf = mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
+                         "diffuse_reflectance": {"type": "rgb", "value": [0.3, 0.3, 0.3]}})
+    interaction = mi.SurfaceInteraction3f()
+    interaction.wi = mi.Vector3f(float(np.sin(np.pi / 4)), 0.0, float(np.cos(np.pi / 4)))
+    values = []
+    for cosine in np.linspace(0.0, 1.0, len(COAT_ENTRY)):
+        cosine = max(float(cosine), 0.01)
+        toward = mi.Vector3f(0.0, float(np.sqrt(1.0 - cosine**2)), cosine)
+        values.append(float(np.array(bsdf.eval(mi.BSDFContext(), interaction, toward)).ravel()[0]) / cosine)
+    np.testing.assert_allclose(COAT_ENTRY, np.array(values) / values[-1], atol=0.005)

@@ -48,6 +48,7 @@ from renderer.floor_light import (
     DIFFUSE_SCALE,
     ENVIRONMENT_SCALE,
     FloorSky,
+    coat_entry,
     coat_reflectance,
     environment_floor_terms,
 )
@@ -168,7 +169,8 @@ def prepare_environment(lighting: np.ndarray) -> PreparedEnvironment:
             if spread <= SMALL_LIGHT_SPREAD:
                 coat[part] -= excess[part]
     residual_sky = residual * sky[..., None]
-    sky_up = np.maximum(directions.reshape(-1, 3)[:, 1], 0.0) @ (residual_sky * solid[..., None]).reshape(-1, 3)
+    up = np.maximum(directions.reshape(-1, 3)[:, 1], 0.0)
+    sky_up = (up * coat_entry(up)) @ (residual_sky * solid[..., None]).reshape(-1, 3)
     # The irradiance map from the residual sky reduced as the specular maps are (the cosine lobe is broad).
     reduced = reduce_map(residual_sky.astype(np.float32), 2 * SPECULAR_ROWS).reshape(-1, 3)
     irradiance = (_irradiance_cosines() @ reduced).reshape(IRRADIANCE_ROWS, 2 * IRRADIANCE_ROWS, 3)
@@ -583,8 +585,9 @@ def _object_radiance(points: np.ndarray, normals: np.ndarray, albedo: np.ndarray
         cosine = normals @ direction
         share = maps.object_visibility(points, normals, maps.points[0], block, np.flatnonzero(cosine > 0.0))
         irradiance += np.maximum(cosine, 0.0)[:, None] * share[:, None] * power[None, :]
-        floor_irradiance += (max(direction[1], 0.0) * FLOOR_BELOW_LIT) * power[None, :]
-        floor_lit += max(direction[1], 0.0) * power[None, :]
+        on_floor = max(direction[1], 0.0) * float(coat_entry(direction[1]))  # what the floor's base receives
+        floor_irradiance += (on_floor * FLOOR_BELOW_LIT) * power[None, :]
+        floor_lit += on_floor * power[None, :]
         if glossy and delta:  # the other lights' gloss is in the prefiltered map
             widened = min(1.0, roughness + float(maps.spacing / (2.0 * LIGHT_DISTANCE)))
             specular += _ggx_reflectance(normals, view, np.broadcast_to(direction, normals.shape), widened,
