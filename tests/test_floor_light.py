@@ -140,3 +140,31 @@ def test_the_coats_entry_table_is_the_path_tracers_floor_material():
         toward = mi.Vector3f(0.0, float(np.sqrt(1.0 - cosine**2)), cosine)
         values.append(float(np.array(bsdf.eval(mi.BSDFContext(), interaction, toward)).ravel()[0]) / cosine)
     np.testing.assert_allclose(COAT_ENTRY, np.array(values) / values[-1], atol=0.005)
+
+
+@pytest.mark.parametrize("zenith_deg", [20.0, 50.0, 75.0])
+def test_the_coats_reflection_of_a_uniform_sky_is_the_path_tracers_floor_materials(zenith_deg):
+    """The share of a uniform sky the coat reflects towards a view (the environment's coat samples' weights, averaged)
+    against Mitsuba's own floor material with no base, integrated over the hemisphere by Monte Carlo."""
+    from renderer.floor_light import _coat_samples
+    from renderer.pathtrace.mitsuba_variant import active_variant
+    from renderer.scene import FLOOR_IOR, FLOOR_ROUGHNESS
+
+    active_variant()
+    import mitsuba as mi
+
+    bsdf = mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
+                         "diffuse_reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
+    count = 200_000
+    rng = np.random.default_rng(5)
+    up, turn = rng.random(count), 2.0 * np.pi * rng.random(count)  # uniform over the hemisphere
+    side = np.sqrt(1.0 - up**2)
+    zenith = np.radians(zenith_deg)
+    interaction = mi.SurfaceInteraction3f()
+    interaction.wi = mi.Vector3f(mi.Float(np.full(count, np.sin(zenith))), mi.Float(np.zeros(count)),
+                                 mi.Float(np.full(count, np.cos(zenith))))
+    toward = mi.Vector3f(mi.Float(side * np.cos(turn)), mi.Float(side * np.sin(turn)), mi.Float(up))
+    values = np.array(bsdf.eval(mi.BSDFContext(), interaction, toward))  # the cosine included
+    expected = float(np.mean(values[0] if values.shape[0] == 3 else values.reshape(-1, 3)[:, 0])) * 2.0 * np.pi
+    _, _, weights = _coat_samples(np.array([[[np.sin(zenith), np.cos(zenith), 0.0]]]))
+    assert abs(float(weights.mean()) / expected - 1.0) < 0.04
