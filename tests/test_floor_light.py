@@ -125,13 +125,12 @@ def test_the_coats_entry_table_is_the_path_tracers_floor_material():
     and from the side (away from the gloss), over its value for light head on."""
     from renderer.floor_light import COAT_ENTRY
     from renderer.pathtrace.mitsuba_variant import active_variant
-    from renderer.scene import FLOOR_IOR, FLOOR_ROUGHNESS
+    from renderer.pathtrace.path_tracer import floor_bsdf
 
     active_variant()
     import mitsuba as mi
 
-    bsdf = mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
-                         "diffuse_reflectance": {"type": "rgb", "value": [0.3, 0.3, 0.3]}})
+    bsdf = mi.load_dict(floor_bsdf({"type": "rgb", "value": [0.3, 0.3, 0.3]}))
     interaction = mi.SurfaceInteraction3f()
     interaction.wi = mi.Vector3f(float(np.sin(np.pi / 4)), 0.0, float(np.cos(np.pi / 4)))
     values = []
@@ -148,13 +147,12 @@ def test_the_coats_reflection_of_a_uniform_sky_is_the_path_tracers_floor_materia
     against Mitsuba's own floor material with no base, integrated over the hemisphere by Monte Carlo."""
     from renderer.floor_light import _coat_samples
     from renderer.pathtrace.mitsuba_variant import active_variant
-    from renderer.scene import FLOOR_IOR, FLOOR_ROUGHNESS
+    from renderer.pathtrace.path_tracer import floor_bsdf
 
     active_variant()
     import mitsuba as mi
 
-    bsdf = mi.load_dict({"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
-                         "diffuse_reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}})
+    bsdf = mi.load_dict(floor_bsdf({"type": "rgb", "value": [0.0, 0.0, 0.0]}))
     count = 200_000
     rng = np.random.default_rng(5)
     up, turn = rng.random(count), 2.0 * np.pi * rng.random(count)  # uniform over the hemisphere

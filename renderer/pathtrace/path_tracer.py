@@ -243,6 +243,12 @@ def _light(position: tuple[float, float, float]) -> dict:
     }
 
 
+def floor_bsdf(albedo: dict) -> dict:
+    """The floor's Mitsuba material: a diffuse base of `albedo` (an rgb or bitmap texture dict) under a glossy coat."""
+    return {"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
+            "diffuse_reflectance": albedo}
+
+
 def _floor(floor: FloorSpec, texture: FloorTexture | None = None):
     """The plane y = 0 under the scene: diffuse floor color, or `texture` repeated over it (renderer/floor_texture.py
     says where), under a thin glossy coat; a square of half side FLOOR_HALF_SIZE, or a disk of FLOOR_DISK_RADIUS (a
@@ -255,8 +261,7 @@ def _floor(floor: FloorSpec, texture: FloorTexture | None = None):
         albedo = {"type": "bitmap", "bitmap": mi.Bitmap(np.array(texture.albedo, dtype=np.float32)), "raw": True,
                   "filter_type": "bilinear", "wrap_mode": "repeat",
                   "to_uv": mi.ScalarTransform3f().scale([repeats, repeats])}
-    bsdf = {"type": "roughplastic", "distribution": "ggx", "alpha": FLOOR_ROUGHNESS, "int_ior": FLOOR_IOR,
-            "diffuse_reflectance": albedo}
+    bsdf = floor_bsdf(albedo)
     if floor.shape == "disk":
         angles = np.linspace(0.0, 2.0 * math.pi, DISK_SEGMENTS, endpoint=False)
         rim = np.column_stack([FLOOR_DISK_RADIUS * np.cos(angles), np.zeros(DISK_SEGMENTS),
