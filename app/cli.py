@@ -223,8 +223,11 @@ def _parse_box(text: str | None, shape) -> tuple[int, int, int, int] | None:
 
 
 def cmd_info(args: argparse.Namespace) -> None:
+    from models.networks.checkpoint import check_weights_file
+    from models.networks.nvr import reads_scene
+    from models.networks.shipped import shipped_weights
     from renderer.pipeline import painted_objects, scene_grid_for
-    from renderer.scene import load_scene, needs_environment_shading, range_warnings
+    from renderer.scene import load_scene, range_warnings
 
     scene = load_scene(args.scene)
     painted = painted_objects(scene)
@@ -262,10 +265,11 @@ def cmd_info(args: argparse.Namespace) -> None:
     print("training   all values inside the training ranges" if not warnings else "training   outside the training ranges:")
     for message in warnings:
         print(f"  - {message}")
-    if len(scene.objects) > 1:
-        print("network    the shipped NVR+ is not trained on several objects: for this scene it shows the voxel "
-              "shader's image")
-    elif needs_environment_shading(scene):
+    # What the default renderer draws: the shipped network's own config says which scenes it reads.
+    _, config, _ = check_weights_file(shipped_weights("nvr_plus"))
+    if reads_scene(config, scene):
+        print("network    the shipped NVR+ corrects the voxel shader's image")
+    else:
         print("network    the shipped NVR+ is not trained for environments, gloss or floor textures: "
               "for this scene it shows the voxel shader's image")
 

@@ -46,8 +46,12 @@ from renderer.dataset_config import (  # noqa: F401  (the data set names, re-exp
 )
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_image, load_json, remove_stale_temporaries, save_json, save_png
-from renderer.scene import (
+from renderer.scene import (  # noqa: F401  (GROUP_*: the layouts' ranges, re-exported)
     ELEVATION_RANGE,
+    GROUP_AXIS_SPREAD,
+    GROUP_SCALE_RANGE,
+    GROUP_VIEW_X,
+    GROUP_VIEW_Z,
     LIGHT_XZ_RANGE,
     LIGHT_Y_RANGE,
     SCALE_RANGE,
@@ -144,16 +148,13 @@ def sample_source_view(rng: np.random.Generator) -> View:
     )
 
 
-# Scenes of several objects: each object of a size between these (its box's side, per axis within 10 % of it),
-# beside one placed before with a gap between the circles that hold their footprints (never touching, close
-# enough to shadow and reflect each other), every centre in the part of the floor every camera elevation shows.
-GROUP_SCALE_RANGE = (0.45, 0.85)
+# Scenes of several objects: each object of a size in GROUP_SCALE_RANGE (renderer/scene.py), beside one placed before
+# with a gap between the circles that hold their footprints (never touching, close enough to shadow and reflect each
+# other), every centre in the part of the floor every camera elevation shows (GROUP_VIEW_X, GROUP_VIEW_Z).
 GROUP_GAP_RANGE = (0.02, 0.3)
 SHADOWED_SHARE = 0.5  # of objects past the first, the share placed on the far side of a neighbour from the light
 SHADOWED_GAP_RANGE = (0.01, 0.1)  # and their gap: inside its shadow
 SHADOWED_SPREAD = 0.5  # radians either side of the line away from the light
-GROUP_VIEW_X = 0.9  # |x| of an object's centre at most
-GROUP_VIEW_Z = (-0.9, 0.5)  # its z between these (+z faces the camera)
 LAYOUT_TRIES = 400  # draws per object before the layout starts again at smaller sizes
 
 
@@ -192,7 +193,7 @@ def sample_layout(rng: np.random.Generator, objects: Sequence[ObjectSpec],
         reach: list[float] = []
         for o, points in zip(objects, footprints):
             base = float(rng.uniform(*GROUP_SCALE_RANGE)) * shrink
-            scale = tuple(float(v) for v in base * rng.uniform(0.9, 1.1, size=3))
+            scale = tuple(float(v) for v in base * rng.uniform(1.0 - GROUP_AXIS_SPREAD, 1.0 + GROUP_AXIS_SPREAD, size=3))
             one = replace(o, scale=scale, rotation_deg=float(rng.uniform(-180.0, 180.0)))
             radius = _reach(points, scale)
             for _ in range(LAYOUT_TRIES):

@@ -64,6 +64,12 @@ TRANSLATION_RANGE = (-0.5, 0.5)
 LIGHT_XZ_RANGE = (-1.5, 1.5)
 LIGHT_Y_RANGE = (2.5, 3.0)
 SCALE_RANGE = (0.75, 1.25)
+# Scenes of 1 to 4 objects (renderer/dataset.py sample_layout), which the shipped NVR+ trained on too: each object's
+# size (its box's side, each axis within GROUP_AXIS_SPREAD of it) and where its centre stands.
+GROUP_SCALE_RANGE = (0.45, 0.85)
+GROUP_AXIS_SPREAD = 0.1
+GROUP_VIEW_X = 0.9  # |x| at most
+GROUP_VIEW_Z = (-0.9, 0.5)  # +z faces the camera
 
 # Hard limits; values outside them are impossible and rejected (sizes: renderer/limits.py).
 SIMILARITIES = ("rgb", "perceptual")  # a region fill's color comparisons (renderer/paint.py)
@@ -630,12 +636,17 @@ def range_warnings(scene: Scene) -> list[str]:
             out.append(f"{name} = {value:g} is outside the training range [{lo:g}, {hi:g}]")
 
     check("camera.elevation_deg", scene.camera.elevation_deg, *ELEVATION_RANGE)
+    # The paper's one object and the layouts of several: the shipped network trained on both.
+    x_range = (min(TRANSLATION_RANGE[0], -GROUP_VIEW_X), max(TRANSLATION_RANGE[1], GROUP_VIEW_X))
+    z_range = (min(TRANSLATION_RANGE[0], GROUP_VIEW_Z[0]), max(TRANSLATION_RANGE[1], GROUP_VIEW_Z[1]))
+    scale_range = (min(SCALE_RANGE[0], round(GROUP_SCALE_RANGE[0] * (1.0 - GROUP_AXIS_SPREAD), 6)),
+                   max(SCALE_RANGE[1], round(GROUP_SCALE_RANGE[1] * (1.0 + GROUP_AXIS_SPREAD), 6)))
     for i, o in enumerate(scene.objects):
         key = "object" if len(scene.objects) == 1 else f"objects[{i}]"
-        for name, v in zip(("x", "z"), o.translation):
-            check(f"{key}.translation.{name}", v, *TRANSLATION_RANGE)
+        for name, v, span in zip(("x", "z"), o.translation, (x_range, z_range)):
+            check(f"{key}.translation.{name}", v, *span)
         for name, v in zip("xyz", o.scale):
-            check(f"{key}.scale.{name}", v, *SCALE_RANGE)
+            check(f"{key}.scale.{name}", v, *scale_range)
     lx, ly, lz = scene.light.position
     check("light.position.x", lx, *LIGHT_XZ_RANGE)
     check("light.position.y", ly, *LIGHT_Y_RANGE)

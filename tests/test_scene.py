@@ -2,11 +2,14 @@
 
 import json
 import math
+from dataclasses import replace
 
+import numpy as np
 import pytest
 
+from renderer.dataset import sample_layout
 from renderer.errors import InputError
-from renderer.scene import LightSpec, PaintOp, load_scene, range_warnings, save_scene, scene_from_dict
+from renderer.scene import LightSpec, ObjectSpec, PaintOp, load_scene, range_warnings, save_scene, scene_from_dict
 
 EXAMPLE = {
     "version": 1,
@@ -101,6 +104,21 @@ def test_values_outside_the_training_range_warn_and_name_the_range():
     assert range_warnings(scene) == ["camera.elevation_deg = 70 is outside the training range [5, 50]"]
     scene = scene_from_dict(modified("light.position", [2.0, 4.0, 0.0]))
     assert len(range_warnings(scene)) == 2
+
+
+def test_layouts_of_several_objects_as_trained_warn_of_nothing():
+    # The shipped network trained on the data generator's layouts too: their sizes and places are in range.
+    rng = np.random.default_rng(5)
+    blank = [ObjectSpec(mesh="chair.obj", name=f"o{k}") for k in range(2)]
+    for _ in range(50):
+        scene = scene_from_dict(EXAMPLE).with_changes(objects=sample_layout(rng, blank))
+        assert range_warnings(scene) == []
+    # Smaller than any layout's (0.45 less 10 % per axis) or beyond its floor (|x| <= 0.9, -0.9 <= z <= 0.5) warns.
+    chair = scene_from_dict(EXAMPLE).objects[0]
+    scene = scene_from_dict(EXAMPLE).with_changes(objects=(
+        chair, replace(chair, name="small", scale=(0.4, 0.6, 0.6), translation=(0.9, -0.95))))
+    assert range_warnings(scene) == ["objects[1].translation.z = -0.95 is outside the training range [-0.9, 0.5]",
+                                     "objects[1].scale.x = 0.4 is outside the training range [0.405, 1.25]"]
 
 
 def test_broken_json_names_file_and_line(tmp_path):

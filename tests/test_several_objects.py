@@ -289,6 +289,7 @@ def test_the_cli_renders_several_objects(cube_folder):
         assert done.returncode == 0 and (cube_folder / f"{renderer}.png").is_file(), done.stderr
     info = run_cli("info", str(cube_folder / "two.json"))
     assert info.returncode == 0 and "object 1 (wall)" in info.stdout
+    assert "the shipped NVR+ corrects the voxel shader's image" in info.stdout  # it trained on several objects
 
 
 def test_the_splat_shows_the_nearest_objects_voxel(cube_folder):
