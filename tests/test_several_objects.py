@@ -165,6 +165,32 @@ def test_the_mask_of_the_others_shadows_holds_the_far_cubes_top_as_geometry_says
     assert not shadows_of_others(alone, painted_objects(alone), SIZE).any()
 
 
+def test_kept_shaders_draw_the_next_view_as_fresh_ones_without_building_the_geometry_again(cube_folder):
+    """`nvr eval` keeps its shaders from view to view (SceneShaders): a turned view of the same objects gives the
+    mask and the image a fresh shader gives, to the bit, and builds no object's geometry again."""
+    from renderer.pipeline import painted_objects
+    from renderer.shading import shade_objects, shadows_of_others
+    from renderer.shading.staged import SceneShaders
+
+    first = _scene(cube_folder, FAR, WALL)
+    turned = first.with_changes(objects=tuple(replace(o, rotation_deg=20.0) for o in first.objects))
+    painted = painted_objects(first)
+    kept, keys = SceneShaders(), ["far", "wall"]
+    shadows_of_others(first, painted, SIZE, shaders=kept, keys=keys)
+    kept.shade(first, painted, keys, SIZE)
+    caches = kept.caches
+    assert len(caches) == 4  # together, with and without the reflection, and each object alone
+    for cache in caches:
+        cache.begin()
+    mask = shadows_of_others(turned, painted, SIZE, shaders=kept, keys=keys)
+    image = kept.shade(turned, painted, keys, SIZE).image
+    np.testing.assert_array_equal(mask, shadows_of_others(turned, painted, SIZE))
+    np.testing.assert_array_equal(image, shade_objects(turned, painted, turned.floor.color, SIZE).image)
+    ran = {name for cache in caches for name in cache.stage_ms}
+    assert any(name.startswith("placement") for name in ran)
+    assert not any(name.startswith(("geometry", "pool")) for name in ran)
+
+
 def test_an_object_hides_what_stands_behind_it(cube_folder):
     """From the camera (+z), a wall in front of the far cube hides its top: the pixel shows the wall's face."""
     front = replace(WALL, translation=(-0.3, 0.6), scale=(0.6, 0.9, 0.2))

@@ -153,7 +153,7 @@ def _score(data: list[str], model, config, renderer: str, metrics: ImageMetrics,
             values["objects"] = len(scene.objects)
             if len(scene.objects) > 1:  # the error inside each object's shadow on the others, kept apart
                 shadow = torch.from_numpy(shadows_of_others(scene, dataset.object_voxels(index), sample["target"].shape[-1],
-                                                            dataset.shading_grid_size, quality_named(shader_quality)))
+                                                            shaders=dataset.shaders, keys=dataset.voxel_keys(scene)))
                 squared = ((prediction[0] - sample["target"]) * 255.0) ** 2
                 values["shadow_pixels"] = int(shadow.sum())
                 values["shadow_squared"] = float(squared[:, shadow].mean()) if shadow.any() else 0.0

@@ -114,11 +114,12 @@ class VoxelRenderSet(Dataset):
         self._voxels: OrderedDict[str, _StoredVoxels] = OrderedDict()  # the objects read last, by voxel file
         self._dense: tuple[tuple[str, ...], list[np.ndarray]] | None = None  # the latest scene's voxels, dense
         # (views come in runs)
+        self._shaders = None  # SceneShaders, made on first use (each loader process its own)
 
     def __getstate__(self) -> dict:
         """For a loader worker process: everything but the voxel cache (each process keeps its own)."""
         state = dict(self.__dict__)
-        state["_voxels"], state["_dense"] = OrderedDict(), None
+        state["_voxels"], state["_dense"], state["_shaders"] = OrderedDict(), None, None
         return state
 
     def check_samples(self, image_size: int) -> None:
@@ -217,10 +218,22 @@ class VoxelRenderSet(Dataset):
         `painted` merged as for the shader's grid (the network's own, or a finer one: renderer.grid.shader_pool_factors).
         `reflection`: with the floor's reflection of the objects, as the shader draws its own image (a network's input
         has none)."""
-        from renderer.shading import quality_named, shade_objects
+        return self.shaders.shade(scene, painted, self.voxel_keys(scene), size, reflection=reflection)
 
-        return shade_objects(scene, painted, scene.floor.color, size, self.shading_grid_size, reflection=reflection,
-                             quality=quality_named(self.shader_quality))
+    @property
+    def shaders(self):
+        """The set's staged shaders (renderer.shading.staged.SceneShaders): views of the same objects one after
+        another, as a test sequence's are, reuse each object's geometry."""
+        if self._shaders is None:
+            from renderer.shading import quality_named
+            from renderer.shading.staged import SceneShaders
+
+            self._shaders = SceneShaders(self.shading_grid_size, quality_named(self.shader_quality))
+        return self._shaders
+
+    def voxel_keys(self, scene: Scene) -> tuple[str, ...]:
+        """What names each object's voxels for the shaders: its file (and the resolution they are read at)."""
+        return tuple(f"{scene.file(o.voxels)}@{self.object_resolution}" for o in scene.objects)
 
 
 def floor_light_tensor(scene: Scene, floor_color, size: int) -> torch.Tensor:

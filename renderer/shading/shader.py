@@ -38,7 +38,8 @@ when it is known, with this shader's own light, so its errors stay in the colors
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Hashable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -50,6 +51,9 @@ from renderer.shading.geometry import object_geometry, placed
 from renderer.shading.lighting import ShadedImage, shade
 from renderer.shading.quality import FULL_QUALITY, ShaderQuality
 from renderer.shading.surface import floor_reflection, floor_sky_cones, visible_surface
+
+if TYPE_CHECKING:
+    from renderer.shading.staged import SceneShaders
 
 
 def shade_objects(scene: Scene, painted: Sequence[np.ndarray], floor_color, size: int | None = None,
@@ -71,15 +75,22 @@ EDGE_COVERAGE = 0.05  # another object covering this much of a pixel makes it an
 
 
 def shadows_of_others(scene: Scene, painted: Sequence[np.ndarray], size: int | None = None,
-                      grid_size: int = SHADER_GRID_SIZE, quality: ShaderQuality = FULL_QUALITY) -> np.ndarray:
+                      grid_size: int = SHADER_GRID_SIZE, quality: ShaderQuality = FULL_QUALITY,
+                      shaders: SceneShaders | None = None, keys: Sequence[Hashable] | None = None) -> np.ndarray:
     """(size, size) bool: the pixels where one object of the scene lies in another's shadow: the object's own
     (covered by no other), seeing at most OTHERS_SHADOW_SHARE of the area light it sees when it stands alone (the
-    shader's light visibility, so geometry decides). No pixel in a scene of one object."""
+    shader's light visibility, so geometry decides). No pixel in a scene of one object. `shaders`, `keys`: staged
+    shaders kept by the caller and names of the voxels' contents (SceneShaders.shade), so that the next view of the
+    same objects reuses their geometry (of `grid_size` and `quality`)."""
+    from renderer.shading.staged import SceneShaders
+
     size = scene.image_size if size is None else size
     if len(painted) == 1:
         return np.zeros((size, size), dtype=bool)
-    together = shade_objects(scene, painted, scene.floor.color, size, grid_size, reflection=False, quality=quality)
-    alone = [shade_scene(scene.alone(k), rgba, scene.floor.color, size, grid_size, reflection=False, quality=quality)
+    shaders = shaders or SceneShaders(grid_size, quality)
+    keys = list(range(len(painted))) if keys is None else list(keys)
+    together = shaders.shade(scene, painted, keys, size, reflection=False)
+    alone = [shaders.shade(scene.alone(k), [rgba], [keys[k]], size, reflection=False, role=("alone", k))
              for k, rgba in enumerate(painted)]
     mask = np.zeros((size, size), dtype=bool)
     for k, own in enumerate(alone):

@@ -200,3 +200,28 @@ class StagedShader:
 
     def _stage(self, name: str, key: Hashable, compute: Callable, keep: bool = True):
         return self.cache(self._prefix + name, key, compute, keep)
+
+
+class SceneShaders:
+    """Staged shaders kept between one-off scenes, one per role (the objects together, or object k alone; with or
+    without the floor's reflection): a test sequence's views of the same objects, one after another, reuse each
+    object's merged voxels and geometry instead of building them for every view."""
+
+    def __init__(self, grid_size: int = SHADER_GRID_SIZE, quality: ShaderQuality = FULL_QUALITY) -> None:
+        self.grid_size, self.quality = grid_size, quality
+        self._shaders: dict[Hashable, StagedShader] = {}
+
+    def shade(self, scene: Scene, painted: Sequence[np.ndarray], keys: Sequence[Hashable], size: int,
+              reflection: bool = True, role: Hashable = "together") -> ShadedImage:
+        """The shaded image of `scene` (its floor's color), its objects' voxels `painted` named by `keys` (anything
+        hashable that names their contents, as a voxel file's path does), drawn by the shader of `role`."""
+        shader = self._shaders.get((role, reflection))
+        if shader is None:
+            shader = self._shaders[role, reflection] = StagedShader(self.grid_size, self.quality, reflection=reflection)
+        objects = [ObjectVoxels(o, key, rgba, key) for o, key, rgba in zip(scene.objects, keys, painted)]
+        return shader.run_objects(scene, objects, scene.floor.color, size)
+
+    @property
+    def caches(self) -> list[StageCache]:
+        """Each role's stage cache (what its last scene ran: `stage_ms`)."""
+        return [shader.cache for shader in self._shaders.values()]
