@@ -161,6 +161,15 @@ def test_existing_run_is_not_overwritten_without_resume(data, tmp_path):
 def test_batches_are_fixed_by_seed_and_step():
     assert torch.equal(batch_indices(3, 10, 8, 100), batch_indices(3, 10, 8, 100))
     assert not torch.equal(batch_indices(3, 10, 8, 100), batch_indices(3, 11, 8, 100))
+    assert not torch.equal(batch_indices(3, 10, 8, 100), batch_indices(4, 10, 8, 100))
+
+
+def test_each_epoch_reads_every_sample_once():
+    # 7 samples in batches of 3: steps 0-6 hold 21 positions, three whole epochs (a batch straddles two of them).
+    positions = torch.cat([batch_indices(5, step, 3, 7) for step in range(7)])
+    for epoch in range(3):
+        assert sorted(positions[7 * epoch:7 * epoch + 7].tolist()) == list(range(7))
+    assert positions[:7].tolist() != positions[7:14].tolist()  # each epoch in another order
 
 
 @pytest.mark.skipif(not torch.distributed.is_available(), reason="torch without distributed support")

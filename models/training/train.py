@@ -14,6 +14,7 @@ takes items r, r + world, ... (launch with `torchrun --nproc_per_node N -m app.c
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import os
 import time
@@ -49,9 +50,18 @@ def learning_rate(config: TrainConfig, step: int) -> float:
 
 
 def batch_indices(seed: int, step: int, batch: int, count: int) -> torch.Tensor:
-    """The global batch of a step: `batch` sample indices in [0, count), fixed by (seed, step)."""
-    generator = torch.Generator().manual_seed(seed * 1_000_003 + step)
-    return torch.randint(count, (batch,), generator=generator)
+    """The global batch of a step: `batch` sample indices in [0, count), fixed by (seed, step). The run reads the
+    samples in epochs, each a permutation of all of them fixed by (seed, epoch): every sample once an epoch, where
+    drawing with replacement leaves a third of them unseen after as many draws as there are samples."""
+    positions = step * batch + torch.arange(batch)
+    epochs, offsets = positions // count, positions % count
+    return torch.stack([_epoch_order(seed, int(e), count)[int(o)] for e, o in zip(epochs, offsets)])
+
+
+@functools.lru_cache(maxsize=2)
+def _epoch_order(seed: int, epoch: int, count: int) -> torch.Tensor:
+    """The order of the samples in one epoch (a batch may straddle two)."""
+    return torch.randperm(count, generator=torch.Generator().manual_seed(seed * 1_000_003 + epoch))
 
 
 @dataclass
