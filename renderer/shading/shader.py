@@ -80,8 +80,8 @@ def shadows_of_others(scene: Scene, painted: Sequence[np.ndarray], size: int | N
     """(size, size) bool: the pixels where one object of the scene lies in another's shadow: the object's own
     (covered by no other), seeing at most OTHERS_SHADOW_SHARE of the area light it sees when it stands alone (the
     shader's light visibility, so geometry decides). No pixel in a scene of one object. `shaders`, `keys`: staged
-    shaders kept by the caller and names of the voxels' contents (SceneShaders.shade), so that the next view of the
-    same objects reuses their geometry (of `grid_size` and `quality`)."""
+    shaders kept by the caller (their grid and quality in place of `grid_size` and `quality`) and names of the
+    voxels' contents (SceneShaders.shade), so that the next view of the same objects reuses their geometry."""
     from renderer.shading.staged import SceneShaders
 
     size = scene.image_size if size is None else size
