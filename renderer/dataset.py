@@ -46,7 +46,7 @@ from renderer.dataset_config import (  # noqa: F401  (the data set names, re-exp
 )
 from renderer.errors import InputError
 from renderer.io import atomic_path, load_image, load_json, remove_stale_temporaries, save_json, save_png
-from renderer.scene import (  # noqa: F401  (GROUP_*: the layouts' ranges, re-exported)
+from renderer.scene import (
     ELEVATION_RANGE,
     GROUP_AXIS_SPREAD,
     GROUP_SCALE_RANGE,
