@@ -140,11 +140,12 @@ def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, cam
     todo = occupied & ~known
     # (weight, weight * color) of the well-seen voxels; the mirror copies add no information of their own
     sums = np.concatenate([well_seen[..., None], colors * well_seen[..., None]], axis=3).astype(np.float32)
+    pooled: dict[int, np.ndarray] = {}
     for sigma in HIDDEN_SIGMAS:
         if not todo.any() or not well_seen.any():
             break
         index = np.nonzero(todo)
-        blurred = _pooled_blur(sums, sigma, index)
+        blurred = _pooled_blur(sums, sigma, index, pooled)
         total = blurred[:, 0]
         take = (total >= HIDDEN_MIN_WEIGHT) if sigma < HIDDEN_SIGMAS[-1] else (total > 0)
         where = tuple(i[take] for i in index)
@@ -156,21 +157,47 @@ def _blended_colors(rgba: np.ndarray, matrix: np.ndarray, photo: np.ndarray, cam
     return PhotoColors(rgba, visible)
 
 
-def _pooled_blur(sums: np.ndarray, sigma: float, index: tuple[np.ndarray, ...]) -> np.ndarray:
+def _pooled_blur(sums: np.ndarray, sigma: float, index: tuple[np.ndarray, ...],
+                 pooled: dict[int, np.ndarray]) -> np.ndarray:
     """The Gaussian blur (sigma in voxels) of the (N, N, N, C) `sums`, read at the voxels `index` (as np.nonzero
-    gives them; (M, C)). Wide
-    blurs run on sums pooled in blocks of about sigma / 3 voxels (the same weights, a coarser grid): the blend
-    needs their smooth trend only, and the full-size blur would cost 20 times more at sigma 24."""
+    gives them; (M, C)). Wide blurs run on sums pooled in blocks of about sigma / 3 voxels (the same weights, a
+    coarser grid): the blend needs their smooth trend only, and the full-size blur would cost 20 times more at sigma
+    24. `pooled` keeps the pooled grids by block size between calls. Only the box around the voxels read, grown by
+    the kernel's reach, is blurred: the values read are the whole grid's blur, bit for bit."""
     from scipy import ndimage
 
-    n = sums.shape[0]
     block = max(1, int(sigma // 3))
-    padded = -(-n // block) * block
-    pooled = np.zeros((padded,) * 3 + sums.shape[3:], dtype=np.float32)
-    pooled[:n, :n, :n] = sums
-    pooled = pooled.reshape(padded // block, block, padded // block, block, padded // block, block, -1).mean(axis=(1, 3, 5))
-    blurred = ndimage.gaussian_filter(pooled, (sigma / block,) * 3 + (0,), truncate=HIDDEN_TRUNCATE)
-    return blurred[index[0] // block, index[1] // block, index[2] // block]
+    grid = _block_means(sums, block, pooled)
+    width = sigma / block
+    reach = int(HIDDEN_TRUNCATE * width + 0.5)  # scipy's kernel radius
+    at = [i // block for i in index]
+    low = [max(0, int(a.min()) - reach) for a in at]
+    high = [min(n, int(a.max()) + reach + 1) for a, n in zip(at, grid.shape)]
+    box = grid[low[0]:high[0], low[1]:high[1], low[2]:high[2]]
+    blurred = ndimage.gaussian_filter(box, (width,) * 3 + (0,), truncate=HIDDEN_TRUNCATE)
+    return blurred[at[0] - low[0], at[1] - low[1], at[2] - low[2]]
+
+
+def _block_means(sums: np.ndarray, block: int, pooled: dict[int, np.ndarray]) -> np.ndarray:
+    """`sums` (N, N, N, C) averaged over blocks of `block`^3 voxels (zero past the grid's end), from the coarsest
+    grid in `pooled` whose block divides `block` (a mean of equal blocks' means is the mean)."""
+    if block == 1:
+        return sums
+    if block not in pooled:
+        base = max((b for b in pooled if block % b == 0), default=1)
+        grid = sums if base == 1 else pooled[base]
+        factor = block // base
+        for axis in range(3):
+            n = grid.shape[axis]
+            padded = -(-n // factor) * factor
+            if padded != n:
+                pad = [(0, 0)] * grid.ndim
+                pad[axis] = (0, padded - n)
+                grid = np.pad(grid, pad)
+            shape = grid.shape[:axis] + (padded // factor, factor) + grid.shape[axis + 1:]
+            grid = grid.reshape(shape).mean(axis=axis + 1, dtype=np.float32)
+        pooled[block] = grid
+    return pooled[block]
 
 
 def photo_albedo(photo_rgb: np.ndarray, scene: Scene, object_rgba: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

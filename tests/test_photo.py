@@ -204,3 +204,30 @@ def test_an_unknown_hidden_rule_is_refused():
     with pytest.raises(InputError, match="unknown rule for hidden voxels"):
         color_voxels_from_photo(np.zeros((N, N, N, 4), np.float32), np.eye(4), np.zeros((8, 8, 3)), Camera(30.0, 8, 8),
                                 hidden_rule="nearest")
+
+
+@pytest.mark.parametrize("sigma", [1.5, 6.0, 24.0])
+def test_pooled_blur_reads_the_whole_grids_blur(sigma):
+    """The blend's blur, cropped around the voxels it reads and pooled from coarser grids kept between calls, equals
+    the whole grid pooled in one step (zero past its end) and blurred, at those voxels."""
+    from scipy import ndimage
+
+    from renderer.photo import HIDDEN_TRUNCATE, _pooled_blur
+
+    rng = np.random.default_rng(3)
+    n = 37  # no block size divides it: the padding counts
+    sums = (rng.random((n, n, n, 4)) * (rng.random((n, n, n, 1)) < 0.1)).astype(np.float32)
+    reads = np.zeros((n, n, n), dtype=bool)
+    reads[14:22, 3:9, 20:30] = rng.random((8, 6, 10)) < 0.3  # a cluster: the crop around it is smaller than the grid
+    index = np.nonzero(reads)
+    block = max(1, int(sigma // 3))
+    padded = np.zeros((-(-n // block) * block,) * 3 + (4,), np.float32)
+    padded[:n, :n, :n] = sums
+    m = padded.shape[0] // block
+    pooled = padded.reshape(m, block, m, block, m, block, 4).mean(axis=(1, 3, 5))
+    expected = ndimage.gaussian_filter(pooled, (sigma / block,) * 3 + (0,), truncate=HIDDEN_TRUNCATE)
+    expected = expected[index[0] // block, index[1] // block, index[2] // block]
+    kept: dict = {}
+    if block > 1:
+        _pooled_blur(sums, sigma / 2, index, kept)  # a finer grid kept from a narrower blur, as the blend calls it
+    np.testing.assert_allclose(_pooled_blur(sums, sigma, index, kept), expected, rtol=1e-5, atol=1e-7)
