@@ -4,6 +4,7 @@ import json
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -170,6 +171,27 @@ def test_each_epoch_reads_every_sample_once():
     for epoch in range(3):
         assert sorted(positions[7 * epoch:7 * epoch + 7].tolist()) == list(range(7))
     assert positions[:7].tolist() != positions[7:14].tolist()  # each epoch in another order
+
+
+def test_a_run_resumed_on_other_data_starts_its_first_epoch_there(data, tmp_path):
+    from safetensors import safe_open
+
+    def epochs(run: Path) -> tuple[int, dict]:
+        with safe_open(str(run / CHECKPOINT), framework="pt") as f:
+            metadata = f.metadata()
+        return int(metadata["epoch_origin"]), json.loads(metadata["epoch_data"])
+
+    more = make_fake_dataset(tmp_path / "more", samples=3)
+    train(tmp_path / "run", config(data, steps=3), progress=False)
+    assert epochs(tmp_path / "run") == (0, {"data": [str(data)], "samples": 4})
+    train(tmp_path / "run", config(data, steps=5), resume=True, progress=False)  # the same data: its epochs go on
+    assert epochs(tmp_path / "run")[0] == 0
+    both = replace(config(data, steps=7), data=(str(data), str(more)))
+    train(tmp_path / "run", both, resume=True, progress=False)
+    assert epochs(tmp_path / "run") == (5, {"data": [str(data), str(more)], "samples": 7})
+    # From that step on, the first ceil(7 / 2) steps read each of the 7 samples once.
+    read = torch.cat([batch_indices(0, step, 2, 7, origin=5) for step in range(5, 9)])[:7]
+    assert sorted(read.tolist()) == list(range(7))
 
 
 @pytest.mark.skipif(not torch.distributed.is_available(), reason="torch without distributed support")

@@ -6,9 +6,9 @@ A run folder holds:
     checkpoint.safetensors      weights + Adam state + step, written atomically every few minutes
     model.safetensors           the final weights (models/networks/checkpoint.py format), written at the end
 
-Batches are drawn with replacement from a generator seeded by (seed, step), so a resumed run
-sees exactly the batches it would have seen, and DDP ranks split each global batch: rank r
-takes items r, r + world, ... (launch with `torchrun --nproc_per_node N -m app.cli train ...`).
+Samples are read in epochs, each a permutation fixed by (seed, epoch), so a resumed run sees exactly the
+batches it would have seen; a run resumed on other data starts a new first epoch there. DDP ranks split each
+global batch: rank r takes items r, r + world, ... (launch with `torchrun --nproc_per_node N -m app.cli train ...`).
 """
 
 from __future__ import annotations
@@ -49,11 +49,12 @@ def learning_rate(config: TrainConfig, step: int) -> float:
     return config.lr * (1.0 - progress * (1.0 - config.lr_final_fraction))
 
 
-def batch_indices(seed: int, step: int, batch: int, count: int) -> torch.Tensor:
+def batch_indices(seed: int, step: int, batch: int, count: int, origin: int = 0) -> torch.Tensor:
     """The global batch of a step: `batch` sample indices in [0, count), fixed by (seed, step). The run reads the
     samples in epochs, each a permutation of all of them fixed by (seed, epoch): every sample once an epoch, where
-    drawing with replacement leaves a third of them unseen after as many draws as there are samples."""
-    positions = step * batch + torch.arange(batch)
+    drawing with replacement leaves a third of them unseen after as many draws as there are samples. The first
+    epoch starts at step `origin`, where the run's data last changed."""
+    positions = (step - origin) * batch + torch.arange(batch)
     epochs, offsets = positions // count, positions % count
     return torch.stack([_epoch_order(seed, int(e), count)[int(o)] for e, o in zip(epochs, offsets)])
 
@@ -109,19 +110,38 @@ def network_config(train: TrainConfig):
 # --- checkpoints for resuming ---------------------------------------------------------------
 
 
-def save_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int) -> None:
-    """Weights, Adam moments and the step in one safetensors file (no pickle), written atomically."""
+@dataclass(frozen=True)
+class EpochOrigin:
+    """The step where the run's first epoch over its data began, and what that data was (folders and samples)."""
+
+    step: int
+    data: str
+
+    @staticmethod
+    def describe(folders: tuple[str, ...], samples: int) -> str:
+        return json.dumps({"data": list(folders), "samples": samples})
+
+
+def save_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int,
+                        epochs: EpochOrigin | None = None) -> None:
+    """Weights, Adam moments, the step and where the epochs of the run's data began in one safetensors file (no
+    pickle), written atomically."""
     tensors = {f"model.{k}": v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     for index, state in optimizer.state_dict()["state"].items():
         for key, value in state.items():
             tensors[f"optim.{index}.{key}"] = torch.as_tensor(value).detach().contiguous().cpu()
     metadata = {"format": str(RUN_FORMAT), "step": str(step)}
+    if epochs is not None:
+        metadata.update(epoch_origin=str(epochs.step), epoch_data=epochs.data)
     with atomic_path(path) as tmp:
         save_file(tensors, str(tmp), metadata=metadata)
 
 
-def load_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer) -> int:
-    """Restore weights and Adam state in place; returns the step to continue from."""
+def load_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer,
+                        data: str = "") -> tuple[int, EpochOrigin]:
+    """Restore weights and Adam state in place; returns the step to continue from and where the epochs over `data`
+    (EpochOrigin.describe) began: where the checkpoint says, if it was trained on the same data, else at that step
+    (a checkpoint from before epochs were recorded counts as other data)."""
     from safetensors import safe_open
 
     try:
@@ -145,7 +165,10 @@ def load_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Opt
     optimizer_state = optimizer.state_dict()
     optimizer_state["state"] = state
     optimizer.load_state_dict(optimizer_state)
-    return int(metadata["step"])
+    step = int(metadata["step"])
+    if metadata.get("epoch_data") == data and "epoch_origin" in metadata:
+        return step, EpochOrigin(int(metadata["epoch_origin"]), data)
+    return step, EpochOrigin(step, data)
 
 
 # --- the loop -------------------------------------------------------------------------------
@@ -224,9 +247,9 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
         started_from = _prepare_run(out, config, resume, net_config)
         remove_stale_temporaries(out)  # a checkpoint half-written when a run was killed
     optimizer = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=config.lr)
-    start_step = 0
+    start_step, epochs = 0, EpochOrigin(0, EpochOrigin.describe(tuple(config.data), len(dataset)))
     if resume and (out / CHECKPOINT).exists():
-        start_step = load_training_state(out / CHECKPOINT, model, optimizer)
+        start_step, epochs = load_training_state(out / CHECKPOINT, model, optimizer, epochs.data)
     trained = model
     if dist_info.world > 1:
         trained = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
@@ -247,7 +270,7 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
     model.train()
     if config.freeze_voxel_branch:
         model.voxel_encoder.eval()  # its BatchNorms keep their statistics
-    batches = iter(step_batches(dataset, config, start_step, dist_info))
+    batches = iter(step_batches(dataset, config, start_step, dist_info, epochs.step))
     for step in range(start_step, config.steps):
         batch = {key: value.to(device) for key, value in next(batches).items()}
         if config.color_permutation:
@@ -271,12 +294,12 @@ def train(out: str | Path, config: TrainConfig, resume: bool = False, progress: 
                              **{key: f"{part:.6f}" for key, part in parts.items()}})
             log_file.flush()
         if dist_info.is_main and time.monotonic() - last_save > 60 * config.checkpoint_minutes:
-            save_training_state(out / CHECKPOINT, model, optimizer, step + 1)
+            save_training_state(out / CHECKPOINT, model, optimizer, step + 1, epochs)
             last_save = time.monotonic()
     bar.close()
     final = out / FINAL_MODEL
     if dist_info.is_main:
-        save_training_state(out / CHECKPOINT, model, optimizer, config.steps)
+        save_training_state(out / CHECKPOINT, model, optimizer, config.steps, epochs)
         save_model(final, model, net_config, {"architecture": config.architecture, "steps": str(config.steps),
                                                "data": json.dumps(list(config.data)),
                                                "perceptual_weights": loss_fn.weights_name,
@@ -408,27 +431,27 @@ class _StepIndices(torch.utils.data.Sampler):
     """Each step's share of its global batch (batch_indices), from `start` on: the same samples whichever
     process prepares them."""
 
-    def __init__(self, config: TrainConfig, start: int, count: int, dist_info: Distributed):
-        self.config, self.start, self.count, self.dist_info = config, start, count, dist_info
+    def __init__(self, config: TrainConfig, start: int, count: int, dist_info: Distributed, origin: int):
+        self.config, self.start, self.count, self.dist_info, self.origin = config, start, count, dist_info, origin
 
     def __iter__(self):
         c, d = self.config, self.dist_info
         for step in range(self.start, c.steps):
-            yield batch_indices(c.seed, step, c.batch, self.count)[d.rank :: d.world].tolist()
+            yield batch_indices(c.seed, step, c.batch, self.count, self.origin)[d.rank :: d.world].tolist()
 
     def __len__(self) -> int:
         return max(self.config.steps - self.start, 0)
 
 
-def step_batches(dataset, config: TrainConfig, start: int, dist_info: Distributed):
-    """The batches of steps `start`, start + 1, ...; with config.loader_workers, prepared by worker processes
+def step_batches(dataset, config: TrainConfig, start: int, dist_info: Distributed, origin: int = 0):
+    """The batches of steps `start`, start + 1, ... (epochs counted from step `origin`); with config.loader_workers, prepared by worker processes
     while the steps before them run (a sample's grid, shading and images take about a third of a step on a
     2-core CPU, and most of that is single-threaded numpy). Workers start fresh interpreters (spawn): a fork
     would inherit the compiled kernels' OpenMP threads, which do not survive it."""
     from torch.utils.data import DataLoader
 
     workers = config.loader_workers
-    return DataLoader(dataset, batch_sampler=_StepIndices(config, start, len(dataset), dist_info), collate_fn=collate,
+    return DataLoader(dataset, batch_sampler=_StepIndices(config, start, len(dataset), dist_info, origin), collate_fn=collate,
                       num_workers=workers, multiprocessing_context="spawn" if workers else None,
                       worker_init_fn=_quiet_worker if workers else None, prefetch_factor=2 if workers else None)
 
