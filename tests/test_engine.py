@@ -359,7 +359,7 @@ def test_bfloat16_agrees_with_float32_within_its_bound_on_the_shipped_model():
     far = replace(demo.object, translation=(40.0, 40.0))  # the object outside the grid: the empty floor
     for light, placed in ((demo.light.position, demo.object), ((-1.5, 3.5, 1.5), demo.object),
                           ((30.0, 0.05, -30.0), demo.object), ((0.0, 50.0, 0.0), far)):  # and extreme lights
-        scene = replace(demo, light=replace(demo.light, position=light), object=placed)
+        scene = replace(demo, light=replace(demo.light, position=light), objects=(placed,))
         exact, fast = fp32.render(scene), bf16.render(scene)
         assert fast.dtype == np.float32 and np.isfinite(fast).all()
         difference = (fast.astype(np.float64) - exact) * 255.0
