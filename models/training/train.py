@@ -3,7 +3,7 @@
 A run folder holds:
     run.json                    the TrainConfig and the network config (what made the run)
     log.csv                     one line per logged step: loss, L1, perceptual, time, MSE
-    checkpoint.safetensors      weights + Adam state + step, written atomically every few minutes
+    checkpoint.safetensors      weights + Adam state + step + where the epochs began, written atomically every few minutes
     model.safetensors           the final weights (models/networks/checkpoint.py format), written at the end
 
 Samples are read in epochs, each a permutation fixed by (seed, epoch), so a resumed run sees exactly the
@@ -123,22 +123,20 @@ class EpochOrigin:
 
 
 def save_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int,
-                        epochs: EpochOrigin | None = None) -> None:
+                        epochs: EpochOrigin) -> None:
     """Weights, Adam moments, the step and where the epochs of the run's data began in one safetensors file (no
     pickle), written atomically."""
     tensors = {f"model.{k}": v.detach().contiguous().cpu() for k, v in model.state_dict().items()}
     for index, state in optimizer.state_dict()["state"].items():
         for key, value in state.items():
             tensors[f"optim.{index}.{key}"] = torch.as_tensor(value).detach().contiguous().cpu()
-    metadata = {"format": str(RUN_FORMAT), "step": str(step)}
-    if epochs is not None:
-        metadata.update(epoch_origin=str(epochs.step), epoch_data=epochs.data)
+    metadata = {"format": str(RUN_FORMAT), "step": str(step), "epoch_origin": str(epochs.step), "epoch_data": epochs.data}
     with atomic_path(path) as tmp:
         save_file(tensors, str(tmp), metadata=metadata)
 
 
 def load_training_state(path: Path, model: nn.Module, optimizer: torch.optim.Optimizer,
-                        data: str = "") -> tuple[int, EpochOrigin]:
+                        data: str) -> tuple[int, EpochOrigin]:
     """Restore weights and Adam state in place; returns the step to continue from and where the epochs over `data`
     (EpochOrigin.describe) began: where the checkpoint says, if it was trained on the same data, else at that step
     (a checkpoint from before epochs were recorded counts as other data)."""
@@ -443,15 +441,16 @@ class _StepIndices(torch.utils.data.Sampler):
         return max(self.config.steps - self.start, 0)
 
 
-def step_batches(dataset, config: TrainConfig, start: int, dist_info: Distributed, origin: int = 0):
-    """The batches of steps `start`, start + 1, ... (epochs counted from step `origin`); with config.loader_workers, prepared by worker processes
-    while the steps before them run (a sample's grid, shading and images take about a third of a step on a
-    2-core CPU, and most of that is single-threaded numpy). Workers start fresh interpreters (spawn): a fork
+def step_batches(dataset, config: TrainConfig, start: int, dist_info: Distributed, origin: int):
+    """The batches of steps `start`, start + 1, ... (epochs counted from step `origin`); with config.loader_workers,
+    prepared by worker processes while the steps before them run (a sample's grid, shading and images take about a
+    third of a step on a 2-core CPU, and most of that is single-threaded numpy). Workers start fresh interpreters (spawn): a fork
     would inherit the compiled kernels' OpenMP threads, which do not survive it."""
     from torch.utils.data import DataLoader
 
     workers = config.loader_workers
-    return DataLoader(dataset, batch_sampler=_StepIndices(config, start, len(dataset), dist_info, origin), collate_fn=collate,
+    sampler = _StepIndices(config, start, len(dataset), dist_info, origin)
+    return DataLoader(dataset, batch_sampler=sampler, collate_fn=collate,
                       num_workers=workers, multiprocessing_context="spawn" if workers else None,
                       worker_init_fn=_quiet_worker if workers else None, prefetch_factor=2 if workers else None)
 
